@@ -1,0 +1,88 @@
+//! The error type of `rigview-core`.
+
+/// Everything that can go wrong in `rigview-core`.
+///
+/// Each variant names the offending input and what was expected, so that an
+/// application can show it to the user as it is.
+#[derive(Debug, thiserror::Error, Clone, PartialEq)]
+pub enum Error {
+    /// An image has no pixels.
+    #[error("{what}: the image is empty ({width}×{height})")]
+    EmptyImage {
+        /// Which image.
+        what: &'static str,
+        /// Its width in pixels.
+        width: usize,
+        /// Its height in pixels.
+        height: usize,
+    },
+    /// A buffer does not hold what its declared size needs.
+    #[error("{what}: expected {expected} bytes for {detail}, got {actual}")]
+    BufferSize {
+        /// Which buffer.
+        what: &'static str,
+        /// Bytes needed.
+        expected: usize,
+        /// Bytes given.
+        actual: usize,
+        /// The declared layout, e.g. "Mono8 1288×964, stride 1288".
+        detail: String,
+    },
+    /// Two inputs that must agree in size do not.
+    #[error("{what}: expected {expected_width}×{expected_height}, got {width}×{height}")]
+    SizeMismatch {
+        /// Which input.
+        what: &'static str,
+        /// The size it must have.
+        expected_width: usize,
+        /// The size it must have.
+        expected_height: usize,
+        /// The size it has.
+        width: usize,
+        /// The size it has.
+        height: usize,
+    },
+    /// A parameter is out of its valid range (this includes NaN).
+    #[error("parameter `{name}` = {value}: expected {expected}")]
+    InvalidParameter {
+        /// The parameter's name as it appears in settings.
+        name: &'static str,
+        /// The value given.
+        value: f64,
+        /// What was expected, in words.
+        expected: &'static str,
+    },
+    /// A configuration is inconsistent as a whole.
+    #[error("{0}")]
+    InvalidConfig(String),
+    /// A camera index is not part of the rig.
+    #[error("camera index {index} is out of range: the rig has {count} cameras")]
+    CameraIndex {
+        /// The index given.
+        index: usize,
+        /// How many cameras there are.
+        count: usize,
+    },
+}
+
+/// `Result` with [`Error`].
+pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+/// Checks that `value` is finite and inside `[lo, hi]`.
+pub(crate) fn check_range(
+    name: &'static str,
+    value: f64,
+    lo: f64,
+    hi: f64,
+    expected: &'static str,
+) -> Result<f64> {
+    if value.is_finite() && value >= lo && value <= hi {
+        Ok(value)
+    } else {
+        Err(Error::InvalidParameter {
+            name,
+            value,
+            expected,
+        })
+    }
+}

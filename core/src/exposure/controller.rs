@@ -1,0 +1,567 @@
+//! Per-camera and per-rig controllers: the feedback loop of Algorithm 1.
+//!
+//! A [`CameraController`] turns one metered frame and the setting it was
+//! *taken* with into the camera's own desired exposure (the unary term). It
+//! copes with actuation latency: after it has sent a command it waits until a
+//! frame taken with that command arrives (or until `latency_timeout_frames`
+//! frames have passed) before it reacts again, so it never reacts twice to the
+//! same command. A [`RigController`] runs one per camera, balances neighbours
+//! (Eq. 5/6) when balancing is on, and splits the result into shutter and
+//! gain.
+
+use serde::{Deserialize, Serialize};
+
+use super::balance::{self, BalanceParams, NeighbourGraph, PatchPair};
+use super::baselines::{MeanIntensityParams, PidParams, PidState};
+use super::estimator::{Estimate, Estimator, EstimatorConfig};
+use super::laws::{LawKind, LawParams};
+use super::metering::Metered;
+use super::split::{Clamped, ExposureRange, ExposureSetting, SplitParams, Splitter};
+use crate::error::{check_range, Error, Result};
+
+/// What decides the exposure.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ControlMode {
+    /// A fixed manual exposure ([`ControllerConfig::fixed_exposure`]).
+    Fixed,
+    /// Mean-intensity auto-exposure (baseline).
+    MeanIntensity,
+    /// Gradient-based auto-exposure with the configured update law.
+    #[default]
+    Gradient,
+    /// A PID controller on `γ̂ − 1` (the paper's reference).
+    Pid,
+}
+
+impl ControlMode {
+    /// The name used in settings and telemetry.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Fixed => "fixed",
+            Self::MeanIntensity => "mean",
+            Self::Gradient => "gradient",
+            Self::Pid => "pid",
+        }
+    }
+}
+
+/// Everything the controllers need to know.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ControllerConfig {
+    /// What decides the exposure.
+    pub mode: ControlMode,
+    /// The estimator (simulation, anchors, metric).
+    pub estimator: EstimatorConfig,
+    /// The update law of [`ControlMode::Gradient`].
+    pub law: LawParams,
+    /// The mean-intensity baseline.
+    pub mean: MeanIntensityParams,
+    /// The PID baseline.
+    pub pid: PidParams,
+    /// The shutter/gain split.
+    pub split: SplitParams,
+    /// Balancing between neighbours (`None`: each camera alone).
+    pub balancing: Option<BalanceParams>,
+    /// Exposure level held in [`ControlMode::Fixed`].
+    pub fixed_exposure: f64,
+    /// Frames to wait for a command to show before reacting anyway.
+    pub latency_timeout_frames: u32,
+}
+
+impl Default for ControllerConfig {
+    fn default() -> Self {
+        Self {
+            mode: ControlMode::Gradient,
+            estimator: EstimatorConfig::default(),
+            law: LawParams::default(),
+            mean: MeanIntensityParams::default(),
+            pid: PidParams::default(),
+            split: SplitParams::default(),
+            balancing: Some(BalanceParams::default()),
+            fixed_exposure: 5_000.0,
+            latency_timeout_frames: 4,
+        }
+    }
+}
+
+impl ControllerConfig {
+    /// Checks every part.
+    pub fn validate(&self) -> Result<()> {
+        self.estimator.validate()?;
+        self.law.validate()?;
+        self.mean.validate()?;
+        self.pid.validate()?;
+        self.split.validate()?;
+        if let Some(b) = &self.balancing {
+            b.validate()?;
+        }
+        check_range(
+            "fixed_exposure",
+            self.fixed_exposure,
+            1e-6,
+            1e12,
+            "a positive exposure level (µs at 0 dB)",
+        )?;
+        Ok(())
+    }
+}
+
+/// What a frame was taken with.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct FrameInfo {
+    /// The camera's frame id.
+    pub frame_id: u64,
+    /// The setting the frame was exposed with.
+    pub taken: ExposureSetting,
+}
+
+/// Why a camera sends no new command this frame.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Hold {
+    /// The last command has not shown in a frame yet.
+    AwaitingCommand,
+    /// This frame id was seen already.
+    RepeatedFrame,
+    /// The target equals the current setting.
+    Settled,
+}
+
+/// Above this saturated fraction the metric sees too little of the image
+/// (neither simulation can look into saturated regions reliably), and the
+/// mean-intensity step is taken instead.
+pub const SATURATED_FALLBACK: f32 = 0.8;
+
+/// Tolerance (relative) for "this frame shows the commanded exposure".
+const SETTLED_TOLERANCE: f64 = 2e-3;
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Pending {
+    exposure: f64,
+    waited: u32,
+}
+
+/// The unary step of one camera.
+#[derive(Clone, Debug, PartialEq)]
+pub struct UnaryStep {
+    /// The estimate (gradient and PID modes).
+    pub estimate: Option<Estimate>,
+    /// The exposure the frame was taken with.
+    pub taken: f64,
+    /// The camera's own desired exposure `E_{t+1}`.
+    pub desired: f64,
+    /// Set when the camera must not react to this frame.
+    pub hold: Option<Hold>,
+    /// Set when the metric had no information (or the image was more than
+    /// [`SATURATED_FALLBACK`] saturated) and a mean-intensity step was taken
+    /// instead.
+    pub fallback: bool,
+}
+
+/// One camera's controller.
+#[derive(Clone, Debug)]
+pub struct CameraController {
+    estimator: Estimator,
+    splitter: Splitter,
+    pid: PidState,
+    pending: Option<Pending>,
+    last_frame: Option<u64>,
+    manual: Option<f64>,
+}
+
+impl CameraController {
+    /// A controller for a camera with `range`.
+    pub fn new(config: &ControllerConfig, range: ExposureRange) -> Result<Self> {
+        config.validate()?;
+        Ok(Self {
+            estimator: Estimator::new(config.estimator.clone())?,
+            splitter: Splitter::new(range, config.split)?,
+            pid: PidState::default(),
+            pending: None,
+            last_frame: None,
+            manual: None,
+        })
+    }
+
+    /// The splitter (ranges and hysteresis state).
+    pub fn splitter(&self) -> &Splitter {
+        &self.splitter
+    }
+
+    /// The estimator.
+    pub fn estimator_mut(&mut self) -> &mut Estimator {
+        &mut self.estimator
+    }
+
+    /// Holds this camera at a manual exposure level, or releases it.
+    pub fn set_manual(&mut self, exposure: Option<f64>) {
+        self.manual = exposure.filter(|e| e.is_finite() && *e > 0.0);
+    }
+
+    /// The manual override, if any.
+    pub fn manual(&self) -> Option<f64> {
+        self.manual
+    }
+
+    /// Tells the controller the camera's current setting (e.g. after the
+    /// camera's built-in auto-exposure ran) and forgets the history.
+    pub fn sync(&mut self, current: ExposureSetting) {
+        self.splitter.sync(current);
+        self.pid.reset();
+        self.pending = None;
+    }
+
+    /// The camera's own desired exposure for this frame.
+    pub fn unary(
+        &mut self,
+        config: &ControllerConfig,
+        info: &FrameInfo,
+        metered: &Metered,
+    ) -> Result<UnaryStep> {
+        let taken = info.taken.exposure();
+        if !(taken.is_finite() && taken > 0.0) {
+            return Err(Error::InvalidParameter {
+                name: "frame exposure",
+                value: taken,
+                expected: "a positive exposure level (shutter_us · 10^(gain_dB/20))",
+            });
+        }
+        let mut hold = None;
+        if self.last_frame == Some(info.frame_id) {
+            hold = Some(Hold::RepeatedFrame);
+        } else {
+            self.last_frame = Some(info.frame_id);
+            if let Some(p) = self.pending.as_mut() {
+                let shows = (taken / p.exposure - 1.0).abs() <= SETTLED_TOLERANCE;
+                if shows || p.waited >= config.latency_timeout_frames {
+                    self.pending = None;
+                } else {
+                    p.waited += 1;
+                    hold = Some(Hold::AwaitingCommand);
+                }
+            }
+        }
+        let needs_estimate = matches!(config.mode, ControlMode::Gradient | ControlMode::Pid);
+        let wants_slope = config.mode == ControlMode::Gradient && config.law.kind == LawKind::Fast;
+        let estimate = match (needs_estimate, wants_slope) {
+            (true, true) => Some(self.estimator.estimate_with_slope(metered)?),
+            (true, false) => Some(self.estimator.estimate(metered)?),
+            _ => None,
+        };
+        let stats = metered.stats();
+        let mut fallback = false;
+        let ratio = match (config.mode, &estimate) {
+            (ControlMode::Fixed, _) => config.fixed_exposure / taken,
+            (ControlMode::MeanIntensity, _) => {
+                config.law.bound(config.mean.ratio(f64::from(stats.mean)))
+            }
+            (_, Some(e)) if e.flat || stats.saturated_fraction > SATURATED_FALLBACK => {
+                fallback = true;
+                config.law.bound(config.mean.ratio(f64::from(stats.mean)))
+            }
+            (ControlMode::Gradient, Some(e)) => config.law.ratio(e, stats),
+            (ControlMode::Pid, Some(e)) if hold.is_none() => config
+                .law
+                .bound(self.pid.update(&config.pid, 1.0 - e.gamma_hat)),
+            _ => 1.0,
+        };
+        let desired = match self.manual {
+            Some(m) => m,
+            None => taken * ratio,
+        };
+        Ok(UnaryStep {
+            estimate,
+            taken,
+            desired,
+            hold,
+            fallback,
+        })
+    }
+
+    /// Splits `target` and records the command as pending; returns the
+    /// setting to send, or `None` when the camera already has it.
+    pub fn command(
+        &mut self,
+        target: f64,
+        taken: ExposureSetting,
+    ) -> (Option<ExposureSetting>, Option<Clamped>) {
+        let (setting, clamped) = self.splitter.split(target);
+        let same = (setting.shutter_us / taken.shutter_us - 1.0).abs() <= SETTLED_TOLERANCE / 4.0
+            && (setting.gain_db - taken.gain_db).abs() <= 0.01;
+        if same {
+            return (None, clamped);
+        }
+        self.pending = Some(Pending {
+            exposure: setting.exposure(),
+            waited: 0,
+        });
+        (Some(setting), clamped)
+    }
+}
+
+/// One camera's input to a rig step.
+#[derive(Clone, Copy, Debug)]
+pub struct CameraInput<'a> {
+    /// What the frame was taken with.
+    pub info: FrameInfo,
+    /// The metered frame.
+    pub metered: &'a Metered,
+}
+
+/// The overlap patches of one neighbour pair, as seen in this frame set.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PairObservation {
+    /// Camera `i`.
+    pub i: usize,
+    /// Camera `j`.
+    pub j: usize,
+    /// The patch means in both cameras.
+    pub patches: Vec<PatchPair>,
+}
+
+/// The measured brightness ratios of one pair.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PairRatio {
+    /// Camera `i`.
+    pub i: usize,
+    /// Camera `j`.
+    pub j: usize,
+    /// `r_ij`: how much brighter `j` sees the overlap than `i`.
+    pub r_ij: Option<f64>,
+}
+
+/// One camera's outcome of a rig step (also its telemetry).
+#[derive(Clone, Debug, PartialEq)]
+pub struct CameraStep {
+    /// The camera's index.
+    pub camera: usize,
+    /// The frame's id.
+    pub frame_id: u64,
+    /// What the frame was taken with.
+    pub taken: ExposureSetting,
+    /// The estimate, when the mode uses one.
+    pub estimate: Option<Estimate>,
+    /// Mean intensity of the metered pixels.
+    pub mean: f32,
+    /// The camera's own desired exposure.
+    pub unary: f64,
+    /// α of Eq. 6, when balancing applied.
+    pub alpha: Option<f64>,
+    /// The exposure after balancing.
+    pub target: f64,
+    /// The setting sent, if any.
+    pub command: Option<ExposureSetting>,
+    /// Why no command was sent.
+    pub hold: Option<Hold>,
+    /// Where the target was outside the camera's ranges.
+    pub clamped: Option<Clamped>,
+    /// Whether the mean-intensity fallback replaced an empty metric.
+    pub fallback: bool,
+}
+
+/// The outcome of one rig step.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RigStep {
+    /// Per camera.
+    pub cameras: Vec<CameraStep>,
+    /// Per neighbour pair, both directions.
+    pub ratios: Vec<PairRatio>,
+}
+
+/// The controllers of a whole rig.
+#[derive(Clone, Debug)]
+pub struct RigController {
+    config: ControllerConfig,
+    cameras: Vec<CameraController>,
+    graph: NeighbourGraph,
+}
+
+impl RigController {
+    /// A controller for cameras with `ranges` and overlaps `graph`.
+    pub fn new(
+        config: ControllerConfig,
+        ranges: &[ExposureRange],
+        graph: NeighbourGraph,
+    ) -> Result<Self> {
+        config.validate()?;
+        if graph.cameras() != ranges.len() {
+            return Err(Error::InvalidConfig(format!(
+                "rig controller: the neighbour graph has {} cameras but {} exposure ranges were given",
+                graph.cameras(),
+                ranges.len()
+            )));
+        }
+        let cameras = ranges
+            .iter()
+            .map(|r| CameraController::new(&config, *r))
+            .collect::<Result<_>>()?;
+        Ok(Self {
+            config,
+            cameras,
+            graph,
+        })
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &ControllerConfig {
+        &self.config
+    }
+
+    /// Replaces the configuration live; each camera keeps its state, and its
+    /// estimator is rebuilt if the estimator settings changed.
+    pub fn set_config(&mut self, config: ControllerConfig) -> Result<()> {
+        config.validate()?;
+        if config.estimator != self.config.estimator || config.split != self.config.split {
+            for cam in &mut self.cameras {
+                let mut fresh = CameraController::new(&config, *cam.splitter.range())?;
+                fresh.manual = cam.manual;
+                fresh.last_frame = cam.last_frame;
+                fresh.pending = cam.pending;
+                *cam = fresh;
+            }
+        }
+        if config.pid != self.config.pid || config.mode != self.config.mode {
+            for cam in &mut self.cameras {
+                cam.pid.reset();
+            }
+        }
+        self.config = config;
+        Ok(())
+    }
+
+    /// The neighbour graph.
+    pub fn graph(&self) -> &NeighbourGraph {
+        &self.graph
+    }
+
+    /// Camera `i`'s controller.
+    pub fn camera_mut(&mut self, i: usize) -> Result<&mut CameraController> {
+        let count = self.cameras.len();
+        self.cameras
+            .get_mut(i)
+            .ok_or(Error::CameraIndex { index: i, count })
+    }
+
+    /// Number of cameras.
+    pub fn len(&self) -> usize {
+        self.cameras.len()
+    }
+
+    /// Whether the rig has no cameras.
+    pub fn is_empty(&self) -> bool {
+        self.cameras.is_empty()
+    }
+
+    /// One step on a complete frame set: `inputs[i]` is camera `i`'s frame,
+    /// `pairs` the overlap patches of neighbour pairs (only used when
+    /// balancing is on).
+    pub fn step(
+        &mut self,
+        inputs: &[CameraInput<'_>],
+        pairs: &[PairObservation],
+    ) -> Result<RigStep> {
+        if inputs.len() != self.cameras.len() {
+            return Err(Error::InvalidConfig(format!(
+                "rig step: {} frames for {} cameras: a frame set must be complete",
+                inputs.len(),
+                self.cameras.len()
+            )));
+        }
+        let config = &self.config;
+        let unary = self
+            .cameras
+            .iter_mut()
+            .zip(inputs)
+            .map(|(c, input)| c.unary(config, &input.info, input.metered))
+            .collect::<Result<Vec<_>>>()?;
+        let mut ratios = Vec::with_capacity(pairs.len() * 2);
+        if let Some(params) = &config.balancing {
+            for p in pairs {
+                for k in [p.i, p.j] {
+                    if k >= self.cameras.len() {
+                        return Err(Error::CameraIndex {
+                            index: k,
+                            count: self.cameras.len(),
+                        });
+                    }
+                }
+                let swapped: Vec<PatchPair> = p
+                    .patches
+                    .iter()
+                    .map(|q| PatchPair {
+                        mean_i: q.mean_j,
+                        saturated_i: q.saturated_j,
+                        mean_j: q.mean_i,
+                        saturated_j: q.saturated_i,
+                    })
+                    .collect();
+                ratios.push(PairRatio {
+                    i: p.i,
+                    j: p.j,
+                    r_ij: balance::pair_ratio(&p.patches, params),
+                });
+                ratios.push(PairRatio {
+                    i: p.j,
+                    j: p.i,
+                    r_ij: balance::pair_ratio(&swapped, params),
+                });
+            }
+        }
+        let mut steps = Vec::with_capacity(inputs.len());
+        for (i, (u, input)) in unary.into_iter().zip(inputs).enumerate() {
+            let cam = &mut self.cameras[i];
+            let balancing_applies = config.balancing.is_some()
+                && cam.manual.is_none()
+                && config.mode != ControlMode::Fixed;
+            let (target, alpha) = if balancing_applies {
+                let neighbour: Vec<f64> = self
+                    .graph
+                    .neighbours(i)
+                    .filter_map(|j| {
+                        ratios
+                            .iter()
+                            .find(|r| r.i == i && r.j == j)
+                            .and_then(|r| r.r_ij)
+                    })
+                    .collect();
+                if neighbour.is_empty() {
+                    (u.desired, None)
+                } else {
+                    let b = balance::balance(u.desired, u.taken, &neighbour);
+                    (b.exposure, Some(b.alpha))
+                }
+            } else {
+                (u.desired, None)
+            };
+            let (command, clamped, hold) = if u.hold.is_some() {
+                (None, None, u.hold)
+            } else {
+                let (cmd, clamped) = cam.command(target, input.info.taken);
+                let hold = if cmd.is_none() {
+                    Some(Hold::Settled)
+                } else {
+                    None
+                };
+                (cmd, clamped, hold)
+            };
+            steps.push(CameraStep {
+                camera: i,
+                frame_id: input.info.frame_id,
+                taken: input.info.taken,
+                estimate: u.estimate,
+                mean: input.metered.stats().mean,
+                unary: u.desired,
+                alpha,
+                target,
+                command,
+                hold,
+                clamped,
+                fallback: u.fallback,
+            });
+        }
+        Ok(RigStep {
+            cameras: steps,
+            ratios,
+        })
+    }
+}

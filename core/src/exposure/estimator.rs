@@ -1,0 +1,578 @@
+//! The estimator of Shim et al. (Eq. 2): which simulated exposure change
+//! would give the most gradient information.
+//!
+//! The metered image is mapped through a simulated exposure change at each
+//! anchor, each mapped image is scored with Eq. 1, a least-squares polynomial
+//! (5th order by default) is fitted to the scores, and its maximum over the
+//! anchors' span is the estimate.
+//!
+//! Two simulations are offered; they point in opposite directions:
+//!
+//! | simulation | mapping | estimate > 1 means |
+//! | --- | --- | --- |
+//! | [`Simulation::Gamma`] (the paper's, default) | `I^γ` | darker is better |
+//! | [`Simulation::ScaleClip`] | `min(1, s·I)` | brighter is better |
+//!
+//! Scale-and-clip cannot see what darkening would *recover*: pixels that are
+//! saturated now stay flat at `s` in `min(1, s·I)`. Left alone, its fixed
+//! point would be every over-exposed setting. So for `s < 1` rigview adds
+//! the information that darkening brings back, under the assumption that the
+//! scene's intensities and textures continue smoothly across the saturation
+//! level: darkening by `s` brings pixels from `[1, 1/s)` into `[s, 1)`, and
+//! there are about as many of them as there are pixels now in `[s, 1)` (but
+//! no more than are saturated), carrying about the information those pixels
+//! carry now:
+//!
+//! ```text
+//! M_sim(s) = M(min(1, s·I)) + min(1, N_sat / N_[s,1)) · Σ_{I ∈ [s,1)} m̄
+//! ```
+//!
+//! Every estimate is also expressed as the γ-equivalent `γ̂`
+//! ([`Estimate::gamma_hat`]): `γ̂ = γ` for the γ-mapping and `γ̂ = 1/ŝ` for
+//! scale-and-clip, so the update laws (written for γ̂) move the right way for
+//! both.
+
+use nalgebra::{DMatrix, DVector};
+use serde::{Deserialize, Serialize};
+
+use super::fastmath;
+use super::metering::{Metered, SATURATED_LEVEL};
+use super::metric::{GradientMetric, MetricParams, Scratch};
+use crate::error::{Error, Result};
+
+/// The paper's seven anchors.
+pub const DEFAULT_ANCHORS: [f64; 7] = [1.0 / 1.9, 1.0 / 1.5, 1.0 / 1.2, 1.0, 1.2, 1.5, 1.9];
+
+/// How an exposure change is simulated on the current image.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Simulation {
+    /// The paper's `I_out = I_in^γ`; γ > 1 darkens.
+    #[default]
+    Gamma,
+    /// `I_out = min(1, s·I_in)`, exact for a linear sensor below saturation;
+    /// s > 1 brightens.
+    ScaleClip,
+}
+
+impl Simulation {
+    /// The name used in settings and telemetry.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Gamma => "gamma",
+            Self::ScaleClip => "scale-clip",
+        }
+    }
+
+    /// The γ-equivalent of an estimate `x` of this simulation.
+    pub fn gamma_equivalent(self, x: f64) -> f64 {
+        match self {
+            Self::Gamma => x,
+            Self::ScaleClip => 1.0 / x,
+        }
+    }
+}
+
+/// Configuration of the estimator.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct EstimatorConfig {
+    /// The exposure simulation.
+    pub simulation: Simulation,
+    /// Anchor values (γ for the γ-mapping, s for scale-and-clip).
+    pub anchors: Vec<f64>,
+    /// Order of the fitted polynomial (default 5).
+    pub degree: usize,
+    /// Parameters of the metric.
+    pub metric: MetricParams,
+}
+
+impl Default for EstimatorConfig {
+    fn default() -> Self {
+        Self {
+            simulation: Simulation::Gamma,
+            anchors: DEFAULT_ANCHORS.to_vec(),
+            degree: 5,
+            metric: MetricParams::default(),
+        }
+    }
+}
+
+impl EstimatorConfig {
+    /// Checks the configuration.
+    pub fn validate(&self) -> Result<()> {
+        for &a in &self.anchors {
+            if !(a.is_finite() && a > 0.0 && a <= 100.0) {
+                return Err(Error::InvalidParameter {
+                    name: "anchors",
+                    value: a,
+                    expected: "positive finite anchor values (at most 100)",
+                });
+            }
+        }
+        if self.degree == 0 || self.degree > 9 {
+            return Err(Error::InvalidParameter {
+                name: "degree",
+                value: self.degree as f64,
+                expected: "a polynomial order from 1 to 9",
+            });
+        }
+        let mut sorted = self.anchors.clone();
+        sorted.sort_by(f64::total_cmp);
+        sorted.dedup_by(|a, b| (*a - *b).abs() < 1e-9);
+        if sorted.len() < self.degree + 1 {
+            return Err(Error::InvalidConfig(format!(
+                "estimator: {} distinct anchors cannot determine a polynomial of order {}: expected at least {}",
+                sorted.len(),
+                self.degree,
+                self.degree + 1
+            )));
+        }
+        GradientMetric::new(self.metric)?;
+        Ok(())
+    }
+}
+
+/// `M` at one anchor.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct AnchorScore {
+    /// The anchor (γ or s).
+    pub x: f64,
+    /// `M` of the simulated image.
+    pub m: f64,
+}
+
+/// A polynomial in the normalised variable `t = (x − centre) / half_width`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Polynomial {
+    /// Coefficients of `t^0, t^1, …`.
+    pub coefficients: Vec<f64>,
+    /// Centre of the fitted range.
+    pub centre: f64,
+    /// Half the width of the fitted range.
+    pub half_width: f64,
+}
+
+impl Polynomial {
+    fn eval_t(&self, t: f64) -> f64 {
+        self.coefficients
+            .iter()
+            .rev()
+            .fold(0.0, |acc, &c| acc * t + c)
+    }
+
+    fn derivative_t(&self, t: f64) -> f64 {
+        self.coefficients
+            .iter()
+            .enumerate()
+            .skip(1)
+            .rev()
+            .fold(0.0, |acc, (i, &c)| acc * t + i as f64 * c)
+    }
+
+    /// The polynomial at `x`.
+    pub fn eval(&self, x: f64) -> f64 {
+        self.eval_t((x - self.centre) / self.half_width)
+    }
+
+    /// The lower and upper end of the fitted range.
+    pub fn range(&self) -> (f64, f64) {
+        (self.centre - self.half_width, self.centre + self.half_width)
+    }
+
+    /// Where the polynomial is largest on its range: the ends and every
+    /// interior critical point are compared.
+    pub fn argmax(&self) -> f64 {
+        const SAMPLES: usize = 256;
+        let mut best_t = -1.0;
+        let mut best = self.eval_t(-1.0);
+        let mut consider = |t: f64| {
+            let v = self.eval_t(t);
+            if v > best {
+                best = v;
+                best_t = t;
+            }
+        };
+        consider(1.0);
+        let mut prev_t = -1.0;
+        let mut prev_d = self.derivative_t(prev_t);
+        for i in 1..=SAMPLES {
+            let t = -1.0 + 2.0 * i as f64 / SAMPLES as f64;
+            let d = self.derivative_t(t);
+            // A sign change from + to − brackets a maximum.
+            if prev_d > 0.0 && d <= 0.0 {
+                let (mut lo, mut hi) = (prev_t, t);
+                for _ in 0..60 {
+                    let mid = 0.5 * (lo + hi);
+                    if self.derivative_t(mid) > 0.0 {
+                        lo = mid;
+                    } else {
+                        hi = mid;
+                    }
+                }
+                consider(0.5 * (lo + hi));
+            }
+            prev_t = t;
+            prev_d = d;
+        }
+        self.centre + best_t * self.half_width
+    }
+
+    /// `n ≥ 2` evenly spaced samples `[x, p(x)]` over the range, for plots.
+    pub fn sample(&self, n: usize) -> Vec<[f64; 2]> {
+        let n = n.max(2);
+        let (lo, hi) = self.range();
+        (0..n)
+            .map(|i| {
+                let x = lo + (hi - lo) * i as f64 / (n - 1) as f64;
+                [x, self.eval(x)]
+            })
+            .collect()
+    }
+}
+
+/// Which end of the anchors' span the maximum sits on, if any: then the best
+/// exposure probably lies beyond what the anchors simulate.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Bound {
+    /// The smallest anchor.
+    Lower,
+    /// The largest anchor.
+    Upper,
+}
+
+/// The result of one estimate, with everything a plot needs.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Estimate {
+    /// The simulation that produced it.
+    pub simulation: Simulation,
+    /// `M` at each anchor, in ascending anchor order.
+    pub anchors: Vec<AnchorScore>,
+    /// The fitted polynomial.
+    pub poly: Polynomial,
+    /// The maximiser in the simulation's own variable (γ̂ or ŝ).
+    pub x_hat: f64,
+    /// The γ-equivalent estimate: `γ̂ > 1` means darker is better.
+    pub gamma_hat: f64,
+    /// Set when the maximiser sits at an end of the anchors' span.
+    pub at_bound: Option<Bound>,
+    /// Set when no anchor shows any gradient information (a black or a fully
+    /// saturated image): the estimate then says nothing and is 1.
+    pub flat: bool,
+    /// `M` of the image as it is.
+    pub m_current: f64,
+    /// The information-weighted geometric mean intensity of the image as it
+    /// is, `exp(Σ m̄·ln I / Σ m̄)`: the intensity where its gradient
+    /// information lies (0.5 when there is none).
+    pub info_intensity: f64,
+    /// `dγ̂/d ln E` measured on the image itself, when asked for
+    /// ([`Estimator::estimate_with_slope`]).
+    pub slope: Option<f64>,
+}
+
+impl Estimate {
+    /// The largest anchor score.
+    pub fn m_max_anchor(&self) -> f64 {
+        self.anchors.iter().map(|a| a.m).fold(0.0, f64::max)
+    }
+}
+
+/// Computes [`Estimate`]s; holds buffers reused from frame to frame.
+#[derive(Clone, Debug)]
+pub struct Estimator {
+    config: EstimatorConfig,
+    anchors: Vec<f64>,
+    metric: GradientMetric,
+    scratch: Scratch,
+    mapped: Vec<f32>,
+    logs: Vec<f32>,
+    info: Vec<f32>,
+}
+
+impl Estimator {
+    /// An estimator for `config` (checked).
+    pub fn new(config: EstimatorConfig) -> Result<Self> {
+        config.validate()?;
+        let mut anchors = config.anchors.clone();
+        anchors.sort_by(f64::total_cmp);
+        anchors.dedup_by(|a, b| (*a - *b).abs() < 1e-9);
+        Ok(Self {
+            metric: GradientMetric::new(config.metric)?,
+            config,
+            anchors,
+            scratch: Scratch::default(),
+            mapped: Vec::new(),
+            logs: Vec::new(),
+            info: Vec::new(),
+        })
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &EstimatorConfig {
+        &self.config
+    }
+
+    /// The metric.
+    pub fn metric(&self) -> &GradientMetric {
+        &self.metric
+    }
+
+    /// `M` of the image as it is.
+    pub fn score(&mut self, image: &Metered) -> f64 {
+        self.metric.score(
+            image.luma(),
+            image.width(),
+            image.height(),
+            image.weight(),
+            &mut self.scratch,
+        )
+    }
+
+    /// `M` of the image after the simulated exposure change `x`.
+    pub fn score_at(&mut self, image: &Metered, x: f64) -> f64 {
+        self.prepare(image);
+        self.current_information(image);
+        let recovery = self.recovery(image);
+        self.score_mapped(image, x) + recovery.map_or(0.0, |r| r.at(x))
+    }
+
+    /// Fills the information map of the image as it is; returns `M` and
+    /// the information-weighted geometric mean intensity.
+    fn current_information(&mut self, image: &Metered) -> (f64, f64) {
+        let m = self.metric.information_map(
+            image.luma(),
+            image.width(),
+            image.height(),
+            image.weight(),
+            &mut self.scratch,
+            &mut self.info,
+        );
+        let (mut num, mut den) = (0.0f64, 0.0f64);
+        for (&i, &v) in self.info.iter().zip(image.luma()) {
+            if i > 0.0 {
+                num += f64::from(i) * f64::from(v.max(1e-6)).ln();
+                den += f64::from(i);
+            }
+        }
+        let intensity = if den > 0.0 { (num / den).exp() } else { 0.5 };
+        (m, intensity)
+    }
+
+    /// The saturation-recovery term of scale-and-clip (module docs).
+    fn recovery(&mut self, image: &Metered) -> Option<Recovery> {
+        if self.config.simulation != Simulation::ScaleClip {
+            return None;
+        }
+        let (w, h) = (image.width(), image.height());
+        let mut counted = Vec::with_capacity(image.luma().len() / 2);
+        let mut saturated = 0usize;
+        for y in 1..h - 1 {
+            for x in 1..w - 1 {
+                let i = y * w + x;
+                if image.weight().is_some_and(|wt| wt[i] <= 0.0) {
+                    continue;
+                }
+                let v = image.luma()[i];
+                if v >= SATURATED_LEVEL {
+                    saturated += 1;
+                } else {
+                    counted.push((v, self.info[i]));
+                }
+            }
+        }
+        if saturated == 0 {
+            return None;
+        }
+        // Brightest first, so a band [s, 1) is a prefix.
+        counted.sort_by(|a, b| b.0.total_cmp(&a.0));
+        Some(Recovery {
+            saturated,
+            pixels: counted,
+        })
+    }
+
+    fn prepare(&mut self, image: &Metered) {
+        if self.config.simulation == Simulation::Gamma {
+            self.logs.clear();
+            self.logs
+                .extend(image.luma().iter().map(|&v| fastmath::ln(v.max(1e-30))));
+        }
+    }
+
+    fn score_mapped(&mut self, image: &Metered, x: f64) -> f64 {
+        if (x - 1.0).abs() < 1e-12 {
+            return self.score(image);
+        }
+        let xf = x as f32;
+        self.mapped.resize(image.luma().len(), 0.0);
+        match self.config.simulation {
+            Simulation::Gamma => {
+                for (m, &l) in self.mapped.iter_mut().zip(&self.logs) {
+                    *m = fastmath::exp_neg(xf * l);
+                }
+            }
+            Simulation::ScaleClip => {
+                for (m, &v) in self.mapped.iter_mut().zip(image.luma()) {
+                    *m = (xf * v).min(1.0);
+                }
+            }
+        }
+        self.metric.score(
+            &self.mapped,
+            image.width(),
+            image.height(),
+            image.weight(),
+            &mut self.scratch,
+        )
+    }
+
+    /// Scores every anchor, fits the polynomial and finds its maximum.
+    pub fn estimate(&mut self, image: &Metered) -> Result<Estimate> {
+        self.prepare(image);
+        let (m_current, info_intensity) = self.current_information(image);
+        let recovery = self.recovery(image);
+        let anchors: Vec<AnchorScore> = self
+            .anchors
+            .clone()
+            .into_iter()
+            .map(|x| {
+                let m = if (x - 1.0).abs() < 1e-12 {
+                    m_current
+                } else {
+                    self.score_mapped(image, x)
+                };
+                AnchorScore {
+                    x,
+                    m: m + recovery.as_ref().map_or(0.0, |r| r.at(x)),
+                }
+            })
+            .collect();
+        let poly = fit(&anchors, self.config.degree)?;
+        let m_max = anchors.iter().map(|a| a.m).fold(f64::MIN, f64::max);
+        let m_min = anchors.iter().map(|a| a.m).fold(f64::MAX, f64::min);
+        let flat = m_max <= 0.0 || m_max - m_min <= 1e-9 * m_max.max(1.0);
+        let simulation = self.config.simulation;
+        let (x_hat, at_bound) = if flat {
+            (1.0, None)
+        } else {
+            let x = poly.argmax();
+            let (lo, hi) = poly.range();
+            let tol = 1e-9 * (hi - lo);
+            let bound = if x <= lo + tol {
+                Some(Bound::Lower)
+            } else if x >= hi - tol {
+                Some(Bound::Upper)
+            } else {
+                None
+            };
+            (x, bound)
+        };
+        Ok(Estimate {
+            simulation,
+            anchors,
+            poly,
+            x_hat,
+            gamma_hat: simulation.gamma_equivalent(x_hat),
+            at_bound,
+            flat,
+            m_current,
+            info_intensity,
+            slope: None,
+        })
+    }
+}
+
+/// The exposure step [`Estimator::estimate_with_slope`] simulates.
+pub const SLOPE_STEP: f64 = 1.3;
+
+impl Estimator {
+    /// [`Estimator::estimate`], plus the slope `dγ̂/d ln E` measured by
+    /// estimating again on the image scaled by [`SLOPE_STEP`] towards the
+    /// fixed point (`min(1, s·I)`: what a linear sensor delivers). The
+    /// slope is left out when either estimate sits at a bound or is flat.
+    pub fn estimate_with_slope(&mut self, image: &Metered) -> Result<Estimate> {
+        let mut estimate = self.estimate(image)?;
+        if estimate.flat || estimate.at_bound.is_some() {
+            return Ok(estimate);
+        }
+        let s = if estimate.gamma_hat > 1.0 {
+            1.0 / SLOPE_STEP
+        } else {
+            SLOPE_STEP
+        };
+        let sf = s as f32;
+        let scaled: Vec<f32> = image.luma().iter().map(|&v| (v * sf).min(1.0)).collect();
+        let scaled = Metered::from_luma(
+            image.width(),
+            image.height(),
+            scaled,
+            image.weight().map(<[f32]>::to_vec),
+        )?;
+        let other = self.estimate(&scaled)?;
+        if !other.flat && other.at_bound.is_none() {
+            estimate.slope = Some((other.gamma_hat - estimate.gamma_hat) / s.ln());
+        }
+        Ok(estimate)
+    }
+}
+
+/// Pixels below saturation (brightest first, with their `m̄`) and the count
+/// of saturated ones.
+#[derive(Debug)]
+struct Recovery {
+    saturated: usize,
+    pixels: Vec<(f32, f32)>,
+}
+
+impl Recovery {
+    /// The information darkening by `s < 1` brings back (0 for `s ≥ 1`).
+    fn at(&self, s: f64) -> f64 {
+        if s >= 1.0 {
+            return 0.0;
+        }
+        let band = self.pixels.partition_point(|&(v, _)| f64::from(v) >= s);
+        if band == 0 {
+            return 0.0;
+        }
+        let info: f64 = self.pixels[..band].iter().map(|&(_, m)| f64::from(m)).sum();
+        (self.saturated as f64 / band as f64).min(1.0) * info
+    }
+}
+
+/// Least-squares polynomial of order `degree` through the anchor scores.
+pub fn fit(anchors: &[AnchorScore], degree: usize) -> Result<Polynomial> {
+    let lo = anchors.iter().map(|a| a.x).fold(f64::MAX, f64::min);
+    let hi = anchors.iter().map(|a| a.x).fold(f64::MIN, f64::max);
+    if anchors.len() < degree + 1 || hi - lo <= 0.0 {
+        return Err(Error::InvalidConfig(format!(
+            "polynomial fit: {} anchors spanning [{lo}, {hi}] cannot determine order {degree}",
+            anchors.len()
+        )));
+    }
+    if let Some(bad) = anchors.iter().find(|a| !a.m.is_finite()) {
+        return Err(Error::InvalidParameter {
+            name: "anchor score",
+            value: bad.m,
+            expected: "a finite metric value",
+        });
+    }
+    let centre = 0.5 * (lo + hi);
+    let half_width = 0.5 * (hi - lo);
+    let scale = anchors
+        .iter()
+        .map(|a| a.m.abs())
+        .fold(0.0, f64::max)
+        .max(1e-300);
+    let v = DMatrix::from_fn(anchors.len(), degree + 1, |r, c| {
+        ((anchors[r].x - centre) / half_width).powi(c as i32)
+    });
+    let y = DVector::from_iterator(anchors.len(), anchors.iter().map(|a| a.m / scale));
+    let coefficients = v
+        .svd(true, true)
+        .solve(&y, 1e-12)
+        .map_err(|e| Error::InvalidConfig(format!("polynomial fit failed: {e}")))?;
+    Ok(Polynomial {
+        coefficients: coefficients.iter().map(|c| c * scale).collect(),
+        centre,
+        half_width,
+    })
+}

@@ -1,0 +1,193 @@
+//! Update laws: how far to move the exposure, given an estimate.
+//!
+//! - [`LawKind::Linear`], Eq. 3: `E' = (1 + α·Kp·(1 − γ̂))·E`.
+//! - [`LawKind::Nonlinear`], Eq. 4: `E' = (1 + α·Kp·(R − 1))·E` with
+//!   `R = d·tan((2 − γ̂)·atan(1/d) − atan(1/d)) + 1`.
+//! - [`LawKind::Fast`], rigview's own: it predicts the exposure ratio that
+//!   reaches the estimator's fixed point and jumps (most of) the way there in
+//!   one frame:
+//!   - scale-and-clip: `ŝ` *is* the ratio of a linear sensor;
+//!   - γ-mapping: a Newton step on `γ̂` as a function of log exposure,
+//!     `Δ ln E = −(γ̂ − 1) / k`. The slope `k = dγ̂/d ln E` comes from the
+//!     image itself: the estimator runs once more on the image scaled by
+//!     1.3 towards the fixed point (`min(1, s·I)`, what a linear sensor
+//!     would deliver) and `k` is the difference quotient
+//!     ([`Estimate::slope`]). Without a usable slope (an estimate at a
+//!     bound, or a slope that is not positive) the image statistics predict
+//!     the ratio instead: a pixel of intensity `μ` mapped by `γ̂` becomes
+//!     `μ^γ̂`, which a linear sensor reaches with the ratio `μ^(γ̂−1)`; `μ`
+//!     is the intensity where the image's gradient information lies
+//!     ([`Estimate::info_intensity`], clamped to [0.02, 0.95]);
+//!   - when the maximiser sits at an end of the anchors' span the best
+//!     exposure lies beyond it: scale-and-clip's `ŝ` at its upper end is
+//!     squared (extrapolated one span further); the γ prediction is replaced, if that is larger, by
+//!     the step of one anchor span (`1/γ̂`) or the step that brings the mean
+//!     intensity to 0.45, whichever is larger in the same direction (this
+//!     gets a strongly over-exposed image back quickly);
+//!   - the ratio is damped in the log domain, `E' = E·ratio^β` (β = 0.8 by
+//!     default), which absorbs estimation noise without a visible overshoot.
+//!
+//! In all laws `α = 1/2` when `γ̂ ≥ 1` and `α = 1` when `γ̂ < 1`, and every
+//! law bounds the change per frame to `[1/max_step, max_step]`.
+
+use serde::{Deserialize, Serialize};
+
+use super::estimator::{Bound, Estimate, Simulation};
+use super::metering::ImageStats;
+use crate::error::{check_range, Result};
+
+/// Which update law.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum LawKind {
+    /// Eq. 3.
+    Linear,
+    /// Eq. 4 (the paper's best).
+    #[default]
+    Nonlinear,
+    /// rigview's ratio-predicting law (see the module documentation).
+    Fast,
+}
+
+impl LawKind {
+    /// The name used in settings and telemetry.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Linear => "linear",
+            Self::Nonlinear => "nonlinear",
+            Self::Fast => "fast",
+        }
+    }
+}
+
+/// Parameters of the update laws.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct LawParams {
+    /// The law.
+    pub kind: LawKind,
+    /// Speed `Kp` of Eq. 3 and 4.
+    pub kp: f64,
+    /// Curvature `d` of Eq. 4.
+    pub d: f64,
+    /// Damping β of the fast law, in (0, 1].
+    pub damping: f64,
+    /// Largest change per frame, as a ratio (> 1).
+    pub max_step: f64,
+}
+
+impl Default for LawParams {
+    fn default() -> Self {
+        Self {
+            kind: LawKind::Nonlinear,
+            kp: 1.0,
+            d: 0.8,
+            damping: 0.8,
+            max_step: 4.0,
+        }
+    }
+}
+
+impl LawParams {
+    /// Checks the parameters.
+    pub fn validate(&self) -> Result<()> {
+        check_range("kp", self.kp, 1e-6, 20.0, "a positive number up to 20")?;
+        check_range("d", self.d, 1e-3, 1e3, "a number in [0.001, 1000]")?;
+        check_range("damping", self.damping, 1e-3, 1.0, "a number in (0, 1]")?;
+        check_range(
+            "max_step",
+            self.max_step,
+            1.01,
+            1e3,
+            "a ratio in [1.01, 1000]",
+        )?;
+        Ok(())
+    }
+
+    /// Clamps a ratio to `[1/max_step, max_step]`.
+    pub fn bound(&self, ratio: f64) -> f64 {
+        if ratio.is_nan() {
+            return 1.0;
+        }
+        ratio.clamp(1.0 / self.max_step, self.max_step)
+    }
+
+    /// The exposure ratio `E_{t+1} / E_t` this law asks for.
+    pub fn ratio(&self, estimate: &Estimate, stats: &ImageStats) -> f64 {
+        let g = estimate.gamma_hat;
+        let raw = match self.kind {
+            LawKind::Linear => linear_ratio(self.kp, g),
+            LawKind::Nonlinear => nonlinear_ratio(self.kp, self.d, g),
+            LawKind::Fast => fast_ratio(self.damping, estimate, stats),
+        };
+        self.bound(raw)
+    }
+}
+
+/// α of Eq. 3 and 4.
+pub fn alpha(gamma_hat: f64) -> f64 {
+    if gamma_hat >= 1.0 {
+        0.5
+    } else {
+        1.0
+    }
+}
+
+/// Eq. 3 as a ratio: `1 + α·Kp·(1 − γ̂)`.
+pub fn linear_ratio(kp: f64, gamma_hat: f64) -> f64 {
+    1.0 + alpha(gamma_hat) * kp * (1.0 - gamma_hat)
+}
+
+/// `R` of Eq. 4: `d·tan((2 − γ̂)·atan(1/d) − atan(1/d)) + 1`.
+pub fn nonlinear_r(d: f64, gamma_hat: f64) -> f64 {
+    let a = (1.0 / d).atan();
+    d * ((2.0 - gamma_hat) * a - a).tan() + 1.0
+}
+
+/// Eq. 4 as a ratio: `1 + α·Kp·(R − 1)`.
+pub fn nonlinear_ratio(kp: f64, d: f64, gamma_hat: f64) -> f64 {
+    1.0 + alpha(gamma_hat) * kp * (nonlinear_r(d, gamma_hat) - 1.0)
+}
+
+/// Mean intensity the fast law aims for when the estimate is at a bound.
+pub const FAST_MEAN_TARGET: f64 = 0.45;
+
+/// The fast law's ratio before the per-frame bound.
+pub fn fast_ratio(damping: f64, estimate: &Estimate, stats: &ImageStats) -> f64 {
+    let predicted = match estimate.simulation {
+        Simulation::ScaleClip => estimate.x_hat,
+        Simulation::Gamma => {
+            let g = estimate.gamma_hat;
+            let newton = estimate
+                .slope
+                .filter(|&k| k > 0.05 && estimate.at_bound.is_none())
+                .map(|k| (-(g - 1.0) / k).exp());
+            newton.unwrap_or_else(|| {
+                let mu = estimate.info_intensity.clamp(0.02, 0.95);
+                mu.powf(g - 1.0)
+            })
+        }
+    };
+    let predicted = match (estimate.at_bound.is_some(), estimate.simulation) {
+        // ŝ at its upper bound: brightening is simulated exactly, so the
+        // optimum lies at least one span further. (Darkening relies on the
+        // approximate recovery term, so ŝ at its lower bound stands.)
+        (true, Simulation::ScaleClip) if estimate.at_bound == Some(Bound::Upper) => {
+            predicted * predicted
+        }
+        (true, Simulation::ScaleClip) => predicted,
+        (true, Simulation::Gamma) => {
+            // At least one span of the anchors, or the step to a mid mean.
+            let span = 1.0 / estimate.x_hat;
+            let to_mid = FAST_MEAN_TARGET / f64::from(stats.mean).max(1e-4);
+            [span, to_mid]
+                .into_iter()
+                .filter(|r| r.ln() * predicted.ln() > 0.0)
+                .fold(
+                    predicted,
+                    |a, r| if r.ln().abs() > a.ln().abs() { r } else { a },
+                )
+        }
+        (false, _) => predicted,
+    };
+    predicted.powf(damping)
+}

@@ -1,0 +1,426 @@
+//! Metering: luminance from a camera frame, an optional region of interest,
+//! and area downsampling to the metering size.
+//!
+//! The metered image is what the estimator sees. Luminance uses the BT.601
+//! weights (0.299 R + 0.587 G + 0.114 B, as OpenCV's `RGB2GRAY`) on the
+//! camera's values, normalised to [0, 1] by the format's full scale. Bayer
+//! frames are read as 2×2 quads (one R, two G, one B), so no demosaicing is
+//! needed. Downsampling averages `k×k` blocks with one integer factor `k`,
+//! the largest that keeps the result at least as large as the target: a
+//! 1288×964 frame with the default 320×240 target gives 322×241.
+
+use serde::{Deserialize, Serialize};
+
+use super::frame::{FrameView, PixelFormat, RoiMask};
+use crate::error::{Error, Result};
+
+const W_R: f32 = 0.299;
+const W_G: f32 = 0.587;
+const W_B: f32 = 0.114;
+
+/// Luminance at or above this counts as saturated in [`ImageStats`].
+pub const SATURATED_LEVEL: f32 = 0.98;
+/// Luminance at or below this counts as dark in [`ImageStats`].
+pub const DARK_LEVEL: f32 = 0.02;
+/// Bins of [`ImageStats::histogram`] over [0, 1].
+pub const HISTOGRAM_BINS: usize = 256;
+
+/// How large the metered image is.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct MeteringConfig {
+    /// Target width of the metered image in pixels (default 320).
+    pub target_width: usize,
+    /// Target height of the metered image in pixels (default 240).
+    pub target_height: usize,
+}
+
+impl Default for MeteringConfig {
+    fn default() -> Self {
+        Self {
+            target_width: 320,
+            target_height: 240,
+        }
+    }
+}
+
+impl MeteringConfig {
+    /// Checks the configuration.
+    pub fn validate(&self) -> Result<()> {
+        if self.target_width < 3 || self.target_height < 3 {
+            return Err(Error::InvalidConfig(format!(
+                "metering size {}×{}: expected at least 3×3 pixels (the Sobel operator needs a neighbourhood)",
+                self.target_width, self.target_height
+            )));
+        }
+        Ok(())
+    }
+
+    /// The block factor for a source grid of `w×h` (pixels, or Bayer quads).
+    fn factor(&self, w: usize, h: usize) -> usize {
+        (w / self.target_width).min(h / self.target_height).max(1)
+    }
+}
+
+/// Summary statistics of the metered pixels that count.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ImageStats {
+    /// Mean luminance in [0, 1].
+    pub mean: f32,
+    /// Median luminance in [0, 1] (from the histogram, interpolated in its bin).
+    pub median: f32,
+    /// Fraction of pixels at or above [`SATURATED_LEVEL`].
+    pub saturated_fraction: f32,
+    /// Fraction of pixels at or below [`DARK_LEVEL`].
+    pub dark_fraction: f32,
+    /// Histogram over [0, 1] with [`HISTOGRAM_BINS`] bins.
+    pub histogram: Vec<u32>,
+    /// How many pixels the statistics cover.
+    pub count: usize,
+}
+
+impl ImageStats {
+    fn from_pixels<'a>(pixels: impl Iterator<Item = &'a f32>) -> Self {
+        let mut histogram = vec![0u32; HISTOGRAM_BINS];
+        let (mut sum, mut count, mut sat, mut dark) = (0.0f64, 0usize, 0usize, 0usize);
+        for &v in pixels {
+            sum += f64::from(v);
+            count += 1;
+            sat += usize::from(v >= SATURATED_LEVEL);
+            dark += usize::from(v <= DARK_LEVEL);
+            let bin = ((v * HISTOGRAM_BINS as f32) as usize).min(HISTOGRAM_BINS - 1);
+            histogram[bin] += 1;
+        }
+        let n = count.max(1) as f32;
+        Self {
+            mean: (sum / count.max(1) as f64) as f32,
+            median: histogram_quantile(&histogram, 0.5),
+            saturated_fraction: sat as f32 / n,
+            dark_fraction: dark as f32 / n,
+            histogram,
+            count,
+        }
+    }
+}
+
+/// The `q`-quantile of a histogram over [0, 1], interpolated inside its bin.
+pub fn histogram_quantile(histogram: &[u32], q: f32) -> f32 {
+    let total: u64 = histogram.iter().map(|&c| u64::from(c)).sum();
+    if total == 0 {
+        return 0.0;
+    }
+    let target = f64::from(q.clamp(0.0, 1.0)) * total as f64;
+    let bins = histogram.len() as f32;
+    let mut seen = 0.0f64;
+    for (i, &c) in histogram.iter().enumerate() {
+        let next = seen + f64::from(c);
+        if next >= target && c > 0 {
+            let frac = ((target - seen) / f64::from(c)) as f32;
+            return (i as f32 + frac) / bins;
+        }
+        seen = next;
+    }
+    1.0
+}
+
+/// The metered image: downsampled luminance, the weights of the pixels that
+/// count, and their statistics.
+#[derive(Clone, Debug)]
+pub struct Metered {
+    width: usize,
+    height: usize,
+    luma: Vec<f32>,
+    weight: Option<Vec<f32>>,
+    scale: usize,
+    stats: ImageStats,
+}
+
+impl Metered {
+    /// A metered image from luminance in [0, 1] that is already at metering
+    /// size (used by tests and by sources that meter themselves). `weight`,
+    /// when given, has one 0/1 entry per pixel.
+    pub fn from_luma(
+        width: usize,
+        height: usize,
+        luma: Vec<f32>,
+        weight: Option<Vec<f32>>,
+    ) -> Result<Self> {
+        if width < 3 || height < 3 {
+            return Err(Error::EmptyImage {
+                what: "metered image (needs at least 3×3 pixels)",
+                width,
+                height,
+            });
+        }
+        if luma.len() != width * height {
+            return Err(Error::BufferSize {
+                what: "metered luminance",
+                expected: width * height,
+                actual: luma.len(),
+                detail: format!("one f32 per pixel, {width}×{height}"),
+            });
+        }
+        if let Some(w) = &weight {
+            if w.len() != luma.len() {
+                return Err(Error::BufferSize {
+                    what: "metering weights",
+                    expected: luma.len(),
+                    actual: w.len(),
+                    detail: format!("one f32 per pixel, {width}×{height}"),
+                });
+            }
+        }
+        if let Some(bad) = luma.iter().find(|v| !(0.0..=1.0).contains(*v)) {
+            return Err(Error::InvalidParameter {
+                name: "metered luminance",
+                value: f64::from(*bad),
+                expected: "values in [0, 1]",
+            });
+        }
+        let stats = match &weight {
+            Some(w) => ImageStats::from_pixels(
+                luma.iter().zip(w).filter(|(_, &w)| w > 0.0).map(|(v, _)| v),
+            ),
+            None => ImageStats::from_pixels(luma.iter()),
+        };
+        Ok(Self {
+            width,
+            height,
+            luma,
+            weight,
+            scale: 1,
+            stats,
+        })
+    }
+
+    /// Width in pixels.
+    pub fn width(&self) -> usize {
+        self.width
+    }
+    /// Height in pixels.
+    pub fn height(&self) -> usize {
+        self.height
+    }
+    /// Luminance in [0, 1], row-major.
+    pub fn luma(&self) -> &[f32] {
+        &self.luma
+    }
+    /// Per-pixel weights of the metric (1 = counts), or `None` when every
+    /// interior pixel counts.
+    pub fn weight(&self) -> Option<&[f32]> {
+        self.weight.as_deref()
+    }
+    /// Full-frame pixels per metered pixel along each axis.
+    pub fn scale(&self) -> usize {
+        self.scale
+    }
+    /// Statistics of the pixels that count.
+    pub fn stats(&self) -> &ImageStats {
+        &self.stats
+    }
+
+    /// Mean luminance inside a rectangle given in full-frame pixels
+    /// (`x, y, width, height`), clipped to the image, with the fraction of
+    /// its pixels that are saturated. `None` if the rectangle is outside.
+    pub fn region_mean(&self, x: usize, y: usize, w: usize, h: usize) -> Option<(f32, f32)> {
+        let s = self.scale;
+        let (x0, y0) = (x / s, y / s);
+        let x1 = ((x + w).div_ceil(s)).min(self.width);
+        let y1 = ((y + h).div_ceil(s)).min(self.height);
+        if x0 >= x1 || y0 >= y1 {
+            return None;
+        }
+        let (mut sum, mut sat, mut n) = (0.0f64, 0usize, 0usize);
+        for row in self.luma.chunks_exact(self.width).take(y1).skip(y0) {
+            for &v in &row[x0..x1] {
+                sum += f64::from(v);
+                sat += usize::from(v >= SATURATED_LEVEL);
+                n += 1;
+            }
+        }
+        Some(((sum / n as f64) as f32, sat as f32 / n as f32))
+    }
+}
+
+/// Meters camera frames (see the module documentation).
+#[derive(Clone, Debug, Default)]
+pub struct Meter {
+    config: MeteringConfig,
+}
+
+impl Meter {
+    /// A meter for `config`.
+    pub fn new(config: MeteringConfig) -> Result<Self> {
+        config.validate()?;
+        Ok(Self { config })
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &MeteringConfig {
+        &self.config
+    }
+
+    /// Meters `frame`. With a `mask` (same size as the frame), a metered
+    /// pixel counts if at least half of its block is inside the mask, and the
+    /// gradient metric uses only pixels whose 3×3 neighbourhood counts.
+    pub fn meter(&self, frame: &FrameView<'_>, mask: Option<&RoiMask>) -> Result<Metered> {
+        if let Some(m) = mask {
+            if m.width() != frame.width() || m.height() != frame.height() {
+                return Err(Error::SizeMismatch {
+                    what: "ROI mask against its frame",
+                    expected_width: frame.width(),
+                    expected_height: frame.height(),
+                    width: m.width(),
+                    height: m.height(),
+                });
+            }
+        }
+        let bayer = frame.format().is_bayer();
+        // The source grid: pixels, or Bayer quads.
+        let (gw, gh) = if bayer {
+            (frame.width() / 2, frame.height() / 2)
+        } else {
+            (frame.width(), frame.height())
+        };
+        let k = self.config.factor(gw, gh);
+        let (ow, oh) = (gw / k, gh / k);
+        if ow < 3 || oh < 3 {
+            return Err(Error::EmptyImage {
+                what: "metered image (the frame is too small to meter: needs at least 3×3 metered pixels)",
+                width: ow,
+                height: oh,
+            });
+        }
+        let mut luma = vec![0.0f32; ow * oh];
+        let mut coverage = mask.map(|_| vec![0u32; ow * oh]);
+        let mut row = vec![0.0f32; gw];
+        let inv_block = 1.0 / (k * k) as f32;
+        for oy in 0..oh {
+            let out = &mut luma[oy * ow..(oy + 1) * ow];
+            for gy in oy * k..(oy + 1) * k {
+                if bayer {
+                    bayer_luma_row(
+                        frame.format(),
+                        frame.row(2 * gy),
+                        frame.row(2 * gy + 1),
+                        &mut row,
+                    );
+                } else {
+                    luma_row(frame.format(), frame.row(gy), &mut row);
+                }
+                for (o, block) in out.iter_mut().zip(row.chunks_exact(k)) {
+                    *o += block.iter().sum::<f32>();
+                }
+                if let (Some(m), Some(cov)) = (mask, coverage.as_mut()) {
+                    // For Bayer quads the top-left pixel of the quad decides.
+                    let (mrow, step) = if bayer {
+                        (m.row(2 * gy), 2)
+                    } else {
+                        (m.row(gy), 1)
+                    };
+                    let cov = &mut cov[oy * ow..(oy + 1) * ow];
+                    for (ox, c) in cov.iter_mut().enumerate() {
+                        let start = ox * k * step;
+                        *c += (0..k).filter(|i| mrow[start + i * step] != 0).count() as u32;
+                    }
+                }
+            }
+            for o in out.iter_mut() {
+                *o = (*o * inv_block).clamp(0.0, 1.0);
+            }
+        }
+        let weight = coverage.map(|cov| {
+            let half = (k * k).div_ceil(2) as u32;
+            let valid: Vec<bool> = cov.iter().map(|&c| c >= half).collect();
+            let mut w = vec![0.0f32; ow * oh];
+            for y in 1..oh - 1 {
+                for x in 1..ow - 1 {
+                    let all =
+                        (y - 1..=y + 1).all(|yy| (x - 1..=x + 1).all(|xx| valid[yy * ow + xx]));
+                    if all {
+                        w[y * ow + x] = 1.0;
+                    }
+                }
+            }
+            // Statistics use the valid pixels, the metric the eroded ones.
+            (w, valid)
+        });
+        let (weight, stats) = match weight {
+            Some((w, valid)) => {
+                let stats = ImageStats::from_pixels(
+                    luma.iter().zip(&valid).filter(|(_, &v)| v).map(|(l, _)| l),
+                );
+                (Some(w), stats)
+            }
+            None => (None, ImageStats::from_pixels(luma.iter())),
+        };
+        Ok(Metered {
+            width: ow,
+            height: oh,
+            luma,
+            weight,
+            scale: if bayer { 2 * k } else { k },
+            stats,
+        })
+    }
+}
+
+/// Luminance of one row of a non-Bayer frame.
+fn luma_row(format: PixelFormat, src: &[u8], dst: &mut [f32]) {
+    match format {
+        PixelFormat::Mono8 => {
+            for (d, &s) in dst.iter_mut().zip(src) {
+                *d = f32::from(s) * (1.0 / 255.0);
+            }
+        }
+        PixelFormat::Mono12 => {
+            for (d, s) in dst.iter_mut().zip(src.chunks_exact(2)) {
+                let v = u16::from_le_bytes([s[0], s[1]]) & 0x0fff;
+                *d = f32::from(v) * (1.0 / 4095.0);
+            }
+        }
+        PixelFormat::Mono16 => {
+            for (d, s) in dst.iter_mut().zip(src.chunks_exact(2)) {
+                *d = f32::from(u16::from_le_bytes([s[0], s[1]])) * (1.0 / 65535.0);
+            }
+        }
+        PixelFormat::Rgb8 => {
+            for (d, s) in dst.iter_mut().zip(src.chunks_exact(3)) {
+                *d = (W_R * f32::from(s[0]) + W_G * f32::from(s[1]) + W_B * f32::from(s[2]))
+                    * (1.0 / 255.0);
+            }
+        }
+        // Bayer rows go through `bayer_luma_row`.
+        PixelFormat::BayerRg8
+        | PixelFormat::BayerGr8
+        | PixelFormat::BayerGb8
+        | PixelFormat::BayerBg8 => {
+            for (d, &s) in dst.iter_mut().zip(src) {
+                *d = f32::from(s) * (1.0 / 255.0);
+            }
+        }
+    }
+}
+
+/// Luminance of a row of 2×2 Bayer quads, from the quad's two source rows.
+fn bayer_luma_row(format: PixelFormat, top: &[u8], bottom: &[u8], dst: &mut [f32]) {
+    // Weights of the quad positions (top-left, top-right, bottom-left,
+    // bottom-right); the two greens share W_G.
+    let g = W_G * 0.5;
+    let w = match format {
+        PixelFormat::BayerRg8 => [W_R, g, g, W_B],
+        PixelFormat::BayerGr8 => [g, W_R, W_B, g],
+        PixelFormat::BayerGb8 => [g, W_B, W_R, g],
+        _ => [W_B, g, g, W_R],
+    };
+    let w = w.map(|v| v * (1.0 / 255.0));
+    for ((d, t), b) in dst
+        .iter_mut()
+        .zip(top.chunks_exact(2))
+        .zip(bottom.chunks_exact(2))
+    {
+        *d = w[0] * f32::from(t[0])
+            + w[1] * f32::from(t[1])
+            + w[2] * f32::from(b[0])
+            + w[3] * f32::from(b[1]);
+    }
+}

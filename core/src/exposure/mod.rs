@@ -1,0 +1,36 @@
+//! Gradient-based exposure control after Shim et al., "Gradient-based Camera
+//! Exposure Control for Outdoor Mobile Platforms", IEEE TCSVT 2018.
+//!
+//! The data flow of one frame set:
+//!
+//! ```text
+//! frame ─► metering ─► estimator (γ̂, M(γ)) ─► update law ─► balancing ─► split ─► command
+//! ```
+//!
+//! Conventions: intensities are in [0, 1]; the γ-mapping is `I^γ` (γ > 1
+//! darkens, so γ̂ > 1 lowers exposure); the exposure level is one linear
+//! number per camera, `E = t_us · 10^(gain_dB/20)`.
+
+pub mod balance;
+pub mod baselines;
+pub mod controller;
+pub mod estimator;
+mod fastmath;
+pub mod frame;
+pub mod laws;
+pub mod metering;
+pub mod metric;
+pub mod split;
+
+pub use balance::{BalanceParams, NeighbourGraph, PatchPair};
+pub use baselines::{MeanIntensityParams, PidParams};
+pub use controller::{
+    CameraController, CameraInput, CameraStep, ControlMode, ControllerConfig, FrameInfo, Hold,
+    PairObservation, PairRatio, RigController, RigStep,
+};
+pub use estimator::{Estimate, Estimator, EstimatorConfig, Simulation, DEFAULT_ANCHORS};
+pub use frame::{FrameView, PixelFormat, RoiMask};
+pub use laws::{LawKind, LawParams};
+pub use metering::{ImageStats, Meter, Metered, MeteringConfig};
+pub use metric::{GradientMetric, MetricParams};
+pub use split::{ExposureRange, ExposureSetting, SplitParams, Splitter};

@@ -1,0 +1,15 @@
+//! `rigview-core`: the algorithms of rigview that need neither a camera nor a
+//! display.
+//!
+//! - [`exposure`]: gradient-based auto-exposure after Shim et al. (IEEE TCSVT
+//!   2018): metering, the gradient-information metric, the γ̂ estimator, the
+//!   update laws, multi-camera balancing, the shutter/gain split, baselines and
+//!   the per-camera and per-rig controllers.
+//! - [`synth`]: small synthetic high-dynamic-range scenes seen by linear
+//!   cameras, for tests, benchmarks and the headless demo.
+
+pub mod error;
+pub mod exposure;
+pub mod synth;
+
+pub use error::{Error, Result};
