@@ -1,1 +1,33 @@
-fn main() {}
+//! The `rigview` command line.
+//!
+//! Until the simulated rig and the desktop app land, `rigview` with no
+//! arguments runs the headless closed-loop demo (`rigview demo`).
+
+mod demo;
+
+use anyhow::Result;
+use clap::{Parser, Subcommand};
+
+/// rigview: capture, exposure control and surround view for rigs of
+/// synchronised cameras.
+#[derive(Debug, Parser)]
+#[command(name = "rigview", version, about, long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    command: Option<Command>,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Closed-loop exposure control on a synthetic four-camera rig, printed
+    /// frame by frame (the default).
+    Demo(demo::DemoArgs),
+}
+
+fn main() -> Result<()> {
+    let cli = Cli::parse();
+    match cli.command {
+        Some(Command::Demo(args)) => demo::run(&args),
+        None => demo::run(&demo::DemoArgs::default()),
+    }
+}

@@ -131,3 +131,66 @@ fn every_law_moves_toward_the_fixed_point_and_settles() {
         );
     }
 }
+
+/// Two illumination levels 100× apart (sunlit ground beside a shadow): γ̂
+/// crosses 1 upwards once per level, so there are two stable fixed points.
+/// The controller settles on the one whose basin holds its start; the
+/// figures say which.
+#[test]
+fn two_illumination_levels_have_two_fixed_points() {
+    let scene = HdrScene::generate(
+        640,
+        480,
+        7,
+        &Illumination::Split {
+            left: 1.0,
+            right: 100.0,
+            boundary: 0.5,
+        },
+    )
+    .unwrap();
+    let cam = LinearCamera::default();
+    let mut est = rigview_core::exposure::Estimator::new(EstimatorConfig::default()).unwrap();
+    let grid: Vec<f64> = (0..=130).map(|k| 4.0 + 0.1 * f64::from(k)).collect();
+    let g: Vec<f64> = grid
+        .iter()
+        .map(|&l| {
+            est.estimate(&rigview_tests::meter_at(&scene, &cam, l.exp2()).unwrap())
+                .unwrap()
+                .gamma_hat
+        })
+        .collect();
+    let crossings: Vec<f64> = (1..grid.len())
+        .filter(|&k| g[k - 1] < 1.0 && g[k] >= 1.0)
+        .map(|k| grid[k - 1] + 0.1 * (1.0 - g[k - 1]) / (g[k] - g[k - 1]))
+        .collect();
+    for c in &crossings {
+        println!(
+            "two levels: stable fixed point at log2 E = {c:.2}, M = {:.0}",
+            m_at(&scene, &cam, *c).unwrap()
+        );
+    }
+    assert_eq!(crossings.len(), 2, "{crossings:?}");
+    for start in [5.0, 9.5, 16.0] {
+        let traj = run_single(
+            &scene,
+            &cam,
+            config(LawKind::Nonlinear, Simulation::Gamma),
+            start,
+            1,
+            80,
+        )
+        .unwrap();
+        let last = *traj.last().unwrap();
+        let nearest = crossings
+            .iter()
+            .cloned()
+            .min_by(|a, b| (a - last).abs().total_cmp(&(b - last).abs()))
+            .unwrap();
+        println!("two levels: from log2 E = {start:.1} the controller settles at {last:.2}");
+        assert!(
+            (last - nearest).abs() < 0.25,
+            "settled at {last}, fixed points {crossings:?}"
+        );
+    }
+}

@@ -453,8 +453,8 @@ impl RigController {
     }
 
     /// One step on a complete frame set: `inputs[i]` is camera `i`'s frame,
-    /// `pairs` the overlap patches of neighbour pairs (only used when
-    /// balancing is on).
+    /// `pairs` the overlap patches of neighbour pairs (their ratios are
+    /// reported in every mode and acted on when balancing is on).
     pub fn step(
         &mut self,
         inputs: &[CameraInput<'_>],
@@ -474,8 +474,12 @@ impl RigController {
             .zip(inputs)
             .map(|(c, input)| c.unary(config, &input.info, input.metered))
             .collect::<Result<Vec<_>>>()?;
+        // The ratios are measured in every mode (telemetry); only balancing
+        // acts on them.
         let mut ratios = Vec::with_capacity(pairs.len() * 2);
-        if let Some(params) = &config.balancing {
+        let measure = config.balancing.unwrap_or_default();
+        {
+            let params = &measure;
             for p in pairs {
                 for k in [p.i, p.j] {
                     if k >= self.cameras.len() {

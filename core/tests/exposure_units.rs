@@ -1,0 +1,586 @@
+//! Each part of the exposure core against values derived by hand, plus bad
+//! input. The closed-loop behaviour is in the workspace's `tests/` crate.
+
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    clippy::float_cmp
+)]
+
+use rigview_core::exposure::balance::{self, NeighbourGraph, PatchPair};
+use rigview_core::exposure::baselines::{MeanIntensityParams, PidParams, PidState};
+use rigview_core::exposure::estimator::{fit, AnchorScore};
+use rigview_core::exposure::laws::{linear_ratio, nonlinear_r, nonlinear_ratio};
+use rigview_core::exposure::split::{Clamped, ExposureRange, SplitParams, Splitter};
+use rigview_core::exposure::*;
+use rigview_core::synth::{HdrScene, Illumination, LinearCamera};
+use rigview_core::Error;
+
+fn close(a: f64, b: f64, tol: f64) -> bool {
+    (a - b).abs() <= tol * (1.0 + b.abs())
+}
+
+// ---------- Eq. 1 ----------
+
+#[test]
+fn metric_of_a_step_edge_matches_eq1_by_hand() {
+    // 3×3: columns 0 and 1 black, column 2 at c. The centre pixel has
+    // gx = 4c, gy = 0, so m = 4c / (4√2) = c/√2.
+    let metric = GradientMetric::new(MetricParams::default()).unwrap();
+    let mut scratch = Default::default();
+    for c in [1.0f32, 0.5, 0.2] {
+        let img = [0.0, 0.0, c, 0.0, 0.0, c, 0.0, 0.0, c];
+        let m = f64::from(c) / 2f64.sqrt();
+        let expected = (1000.0 * (m - 0.06) + 1.0).ln() / (1000.0 * 0.94 + 1.0f64).ln();
+        let got = metric.score(&img, 3, 3, None, &mut scratch);
+        assert!(close(got, expected, 1e-5), "c={c}: {got} vs {expected}");
+        assert!(close(metric.information(m), expected, 1e-12));
+    }
+    // Below δ: m = 0.05/√2 ≈ 0.035 < 0.06 gives nothing.
+    let img = [0.0, 0.0, 0.05, 0.0, 0.0, 0.05, 0.0, 0.0, 0.05];
+    assert_eq!(metric.score(&img, 3, 3, None, &mut scratch), 0.0);
+    assert!(close(metric.information(1.0), 1.0, 1e-12));
+    assert_eq!(metric.information(0.059), 0.0);
+}
+
+#[test]
+fn metric_weights_and_lambda_behave() {
+    let mut scratch = Default::default();
+    // A 5×5 ramp: every interior pixel has the same gradient.
+    let img: Vec<f32> = (0..25).map(|i| (i % 5) as f32 * 0.1).collect();
+    let metric = GradientMetric::new(MetricParams::default()).unwrap();
+    let full = metric.score(&img, 5, 5, None, &mut scratch);
+    let mut w = vec![0.0f32; 25];
+    w[12] = 1.0; // only the centre pixel
+    let one = metric.score(&img, 5, 5, Some(&w), &mut scratch);
+    assert!(close(full, 9.0 * one, 1e-5), "{full} vs 9×{one}");
+    // Small λ favours strong edges: weak gradients count relatively less.
+    let small = GradientMetric::new(MetricParams {
+        delta: 0.06,
+        lambda: 10.0,
+    })
+    .unwrap();
+    let weak = 0.1 / (4.0 * 2f64.sqrt()) * 4.0;
+    assert!(small.information(weak) < metric.information(weak));
+}
+
+// ---------- Eq. 2 ----------
+
+#[test]
+fn polynomial_fit_recovers_a_known_maximum_and_checks_the_ends() {
+    let anchors = |f: &dyn Fn(f64) -> f64| -> Vec<AnchorScore> {
+        DEFAULT_ANCHORS
+            .iter()
+            .map(|&x| AnchorScore { x, m: f(x) })
+            .collect()
+    };
+    // An interior maximum at 1.3.
+    let p = fit(&anchors(&|x| 5.0 - (x - 1.3).powi(2)), 5).unwrap();
+    assert!((p.argmax() - 1.3).abs() < 1e-9, "{}", p.argmax());
+    // Increasing everywhere: the upper end.
+    let p = fit(&anchors(&|x| x), 5).unwrap();
+    assert!((p.argmax() - 1.9).abs() < 1e-12);
+    // Decreasing: the lower end.
+    let p = fit(&anchors(&|x| -x), 5).unwrap();
+    assert!((p.argmax() - 1.0 / 1.9).abs() < 1e-12);
+    // Two interior maxima; the higher one (near 1.6) wins.
+    let f = |x: f64| -(x - 0.7).powi(2) * (x - 1.6).powi(2) + 0.05 * x;
+    let p = fit(&anchors(&f), 5).unwrap();
+    let x = p.argmax();
+    assert!((x - 1.6).abs() < 0.05, "{x}");
+    assert!(p.eval(x) >= p.eval(0.7));
+    // The curve for plots spans the anchors.
+    let c = p.sample(64);
+    assert_eq!(c.len(), 64);
+    assert!((c[0][0] - 1.0 / 1.9).abs() < 1e-12 && (c[63][0] - 1.9).abs() < 1e-12);
+}
+
+fn metered_scene(exposure: f64) -> Metered {
+    let scene = HdrScene::generate(640, 480, 3, &Illumination::Uniform(1.0)).unwrap();
+    let frame = LinearCamera::default().render_mono8(scene.radiance(), exposure, 0);
+    let view = FrameView::new(PixelFormat::Mono8, 640, 480, &frame).unwrap();
+    Meter::new(MeteringConfig::default())
+        .unwrap()
+        .meter(&view, None)
+        .unwrap()
+}
+
+#[test]
+fn both_simulations_point_the_right_way() {
+    let dark = metered_scene(2000.0);
+    let bright = metered_scene(40000.0);
+    let mut g = Estimator::new(EstimatorConfig::default()).unwrap();
+    let mut s = Estimator::new(EstimatorConfig {
+        simulation: Simulation::ScaleClip,
+        ..Default::default()
+    })
+    .unwrap();
+    // Dark: γ̂ < 1 (brighter is better), ŝ > 1 (brighter is better).
+    let (gd, sd) = (g.estimate(&dark).unwrap(), s.estimate(&dark).unwrap());
+    assert!(gd.x_hat < 1.0 && gd.gamma_hat < 1.0);
+    assert!(sd.x_hat > 1.0 && sd.gamma_hat < 1.0, "{}", sd.x_hat);
+    // Bright: γ̂ > 1, ŝ < 1; the γ-equivalents agree in sign.
+    let (gb, sb) = (g.estimate(&bright).unwrap(), s.estimate(&bright).unwrap());
+    assert!(gb.gamma_hat > 1.0);
+    assert!(sb.x_hat < 1.0 && sb.gamma_hat > 1.0, "{}", sb.x_hat);
+    // Telemetry: seven anchors, current M equals the anchor at 1.
+    assert_eq!(gd.anchors.len(), 7);
+    assert_eq!(gd.anchors[3].m, gd.m_current);
+    assert!(!gd.flat);
+}
+
+#[test]
+fn a_black_image_is_flat_and_the_controller_falls_back_to_mean_steps() {
+    let black = Metered::from_luma(16, 16, vec![0.0; 256], None).unwrap();
+    let mut g = Estimator::new(EstimatorConfig::default()).unwrap();
+    let e = g.estimate(&black).unwrap();
+    assert!(e.flat);
+    assert_eq!(e.gamma_hat, 1.0);
+    let config = ControllerConfig {
+        balancing: None,
+        ..Default::default()
+    };
+    let mut cam = CameraController::new(&config, ExposureRange::default()).unwrap();
+    let info = FrameInfo {
+        frame_id: 0,
+        taken: ExposureSetting {
+            shutter_us: 1000.0,
+            gain_db: 0.0,
+        },
+    };
+    let u = cam.unary(&config, &info, &black).unwrap();
+    assert!(u.fallback);
+    assert_eq!(
+        u.desired, 4000.0,
+        "a black image opens up by the largest step"
+    );
+}
+
+// ---------- Eq. 3 and 4 ----------
+
+#[test]
+fn update_laws_match_hand_values() {
+    assert!(close(linear_ratio(1.0, 0.8), 1.2, 1e-12));
+    assert!(close(linear_ratio(1.0, 1.5), 0.75, 1e-12)); // α = 1/2
+    assert!(close(linear_ratio(2.0, 1.0), 1.0, 1e-12));
+    // d = 1: atan(1) = π/4; γ̂ = 0.5 gives tan(π/8) = √2 − 1.
+    assert!(close(nonlinear_r(1.0, 0.5), 2f64.sqrt(), 1e-12));
+    assert!(close(nonlinear_r(1.0, 1.5), 2.0 - 2f64.sqrt(), 1e-12));
+    assert!(close(nonlinear_r(0.3, 1.0), 1.0, 1e-12));
+    assert!(close(nonlinear_ratio(1.0, 1.0, 0.5), 2f64.sqrt(), 1e-12));
+    assert!(close(
+        nonlinear_ratio(1.0, 1.0, 1.5),
+        1.0 - 0.5 * (2f64.sqrt() - 1.0),
+        1e-12
+    ));
+    // Smaller d is flatter around γ̂ = 1.
+    assert!(nonlinear_r(0.2, 0.9) - 1.0 < nonlinear_r(5.0, 0.9) - 1.0);
+    // Every law is bounded per frame.
+    let law = LawParams {
+        kind: LawKind::Linear,
+        kp: 20.0,
+        ..Default::default()
+    };
+    assert_eq!(law.bound(linear_ratio(20.0, 1.9)), 0.25);
+    assert_eq!(law.bound(f64::NAN), 1.0);
+    assert_eq!(law.bound(100.0), 4.0);
+}
+
+#[test]
+fn baselines_match_hand_values() {
+    let mean = MeanIntensityParams {
+        target: 0.45,
+        gain: 1.0,
+    };
+    assert!(close(mean.ratio(0.225), 2.0, 1e-12));
+    let pid = PidParams {
+        kp: 1.0,
+        ki: 0.5,
+        kd: 0.2,
+        integral_limit: 10.0,
+    };
+    let mut s = PidState::default();
+    assert!(close(s.update(&pid, 0.1), 1.15, 1e-12));
+    assert!(close(s.update(&pid, 0.2), 1.37, 1e-12));
+}
+
+// ---------- Eq. 5 and 6 ----------
+
+#[test]
+fn pair_ratio_is_the_median_of_usable_patches() {
+    let p = |mi: f32, si: f32, mj: f32, sj: f32| PatchPair {
+        mean_i: mi,
+        saturated_i: si,
+        mean_j: mj,
+        saturated_j: sj,
+    };
+    let params = BalanceParams::default();
+    let patches = [
+        p(0.2, 0.0, 0.4, 0.0),
+        p(0.2, 0.0, 0.41, 0.0),
+        p(0.3, 0.5, 0.3, 0.0), // saturated in i: left out
+        p(0.1, 0.0, 0.9, 0.0),
+        p(0.001, 0.0, 0.2, 0.0), // too dark in i: left out
+    ];
+    let r = balance::pair_ratio(&patches, &params).unwrap();
+    assert!(close(r, 0.41 / 0.201, 1e-6), "{r}");
+    assert_eq!(balance::pair_ratio(&patches[2..3], &params), None);
+}
+
+#[test]
+fn alpha_follows_eq6() {
+    for (r, a) in [
+        (0.5, 1.0),
+        (0.75, 0.75),
+        (1.0, 0.5),
+        (1.5, 0.75),
+        (2.0, 1.0),
+        (0.1, 1.0),
+        (3.0, 1.0),
+    ] {
+        assert!(close(balance::alpha(r), a, 1e-12), "α({r})");
+    }
+}
+
+#[test]
+fn balance_is_the_minimiser_of_eq5() {
+    let (u, e, ratios) = (1200.0, 1000.0, [2.0, 1.0]);
+    let b = balance::balance(u, e, &ratios);
+    assert!(close(b.alpha, 0.6, 1e-12));
+    assert!(close(b.exposure, 0.6 * 1200.0 + 0.4 * 1.5 * 1000.0, 1e-12));
+    let cost = |x: f64| {
+        b.alpha * (x - u).powi(2)
+            + (1.0 - b.alpha) / 2.0 * ratios.iter().map(|r| (x - r * e).powi(2)).sum::<f64>()
+    };
+    assert!(cost(b.exposure) < cost(b.exposure + 1.0));
+    assert!(cost(b.exposure) < cost(b.exposure - 1.0));
+    // No neighbours: the unary stands.
+    assert_eq!(balance::balance(u, e, &[]).exposure, u);
+}
+
+/// Cameras seeing the same surfaces, each content with its exposure
+/// (R = 1, so α = 1/2): balancing alone drives every ratio to 1, on any graph.
+#[test]
+fn balancing_alone_equalises_brightness_on_any_graph() {
+    let graphs = [
+        NeighbourGraph::ring(2).unwrap(),
+        NeighbourGraph::ring(4).unwrap(),
+        NeighbourGraph::new(5, &[(0, 1), (1, 2), (2, 3), (3, 4)]).unwrap(),
+        NeighbourGraph::new(4, &[(0, 1), (0, 2), (0, 3)]).unwrap(),
+    ];
+    for g in graphs {
+        let n = g.cameras();
+        let mut e: Vec<f64> = (0..n).map(|i| 500.0 * 3f64.powi(i as i32)).collect();
+        for _ in 0..60 {
+            e = (0..n)
+                .map(|i| {
+                    let r: Vec<f64> = g.neighbours(i).map(|j| e[j] / e[i]).collect();
+                    balance::balance(e[i], e[i], &r).exposure
+                })
+                .collect();
+        }
+        let spread =
+            e.iter().cloned().fold(f64::MIN, f64::max) / e.iter().cloned().fold(f64::MAX, f64::min);
+        assert!(spread.log2() < 0.01, "{n} cameras: {e:?}");
+    }
+}
+
+// ---------- split ----------
+
+#[test]
+fn split_is_shutter_first_then_gain_and_does_not_chatter() {
+    let mut s = Splitter::new(ExposureRange::default(), SplitParams::default()).unwrap();
+    let (a, c) = s.split(10_000.0);
+    assert_eq!((a.shutter_us, a.gain_db, c), (10_000.0, 0.0, None));
+    let (b, _) = s.split(98_000.0);
+    assert!(close(b.shutter_us, 49_000.0, 1e-12));
+    assert!(close(b.gain_db, 20.0 * 2f64.log10(), 1e-9));
+    assert!(close(b.exposure(), 98_000.0, 1e-12));
+    // Back well below the knee: gain released, shutter only.
+    let (d, _) = s.split(20_000.0);
+    assert_eq!(d.gain_db, 0.0);
+    // Oscillating around the knee changes the gain at most once.
+    let mut gains = Vec::new();
+    for k in 0..40 {
+        let e = if k % 2 == 0 { 48_000.0 } else { 50_500.0 };
+        let (set, _) = s.split(e);
+        assert!(close(set.exposure(), e, 1e-9));
+        gains.push(set.gain_db);
+    }
+    let switches = gains
+        .windows(2)
+        .filter(|w| (w[0] - w[1]).abs() > 1e-9)
+        .count();
+    assert!(switches <= 1, "gain changed {switches} times: {gains:?}");
+    // Outside the camera's ranges: clamped and said so.
+    let (hi, c) = s.split(1e12);
+    assert_eq!(c, Some(Clamped::High));
+    assert_eq!(hi.gain_db, 24.0);
+    let (lo, c) = s.split(1.0);
+    assert_eq!(c, Some(Clamped::Low));
+    assert_eq!(lo.shutter_us, 10.0);
+}
+
+// ---------- metering ----------
+
+#[test]
+fn every_pixel_format_meters_to_the_same_luminance() {
+    let (w, h) = (64usize, 48usize);
+    let grey: Vec<u8> = (0..w * h).map(|i| ((i * 37) % 251) as u8).collect();
+    let meter = Meter::new(MeteringConfig {
+        target_width: 16,
+        target_height: 12,
+    })
+    .unwrap();
+    let reference = meter
+        .meter(
+            &FrameView::new(PixelFormat::Mono8, w, h, &grey).unwrap(),
+            None,
+        )
+        .unwrap();
+    assert_eq!((reference.width(), reference.height()), (16, 12));
+    let mono16: Vec<u8> = grey
+        .iter()
+        .flat_map(|&v| (u16::from(v) * 257).to_le_bytes())
+        .collect();
+    let mono12: Vec<u8> = grey
+        .iter()
+        .flat_map(|&v| ((u32::from(v) * 4095 / 255) as u16).to_le_bytes())
+        .collect();
+    let rgb: Vec<u8> = grey.iter().flat_map(|&v| [v, v, v]).collect();
+    let cases = [
+        (PixelFormat::Mono16, mono16),
+        (PixelFormat::Mono12, mono12),
+        (PixelFormat::Rgb8, rgb),
+    ];
+    for (fmt, data) in cases {
+        let m = meter
+            .meter(&FrameView::new(fmt, w, h, &data).unwrap(), None)
+            .unwrap();
+        for (a, b) in m.luma().iter().zip(reference.luma()) {
+            assert!((a - b).abs() < 1.0 / 255.0, "{fmt:?}: {a} vs {b}");
+        }
+    }
+    // Bayer of a grey scene: 2×2 quads of equal values meter as grey.
+    let quad: Vec<u8> = (0..w * h)
+        .map(|i| grey[(i / w / 2 * 2) * w + (i % w) / 2 * 2])
+        .collect();
+    let quad_ref = meter
+        .meter(
+            &FrameView::new(PixelFormat::Mono8, w, h, &quad).unwrap(),
+            None,
+        )
+        .unwrap();
+    let bayer = meter
+        .meter(
+            &FrameView::new(PixelFormat::BayerRg8, w, h, &quad).unwrap(),
+            None,
+        )
+        .unwrap();
+    // Quads are binned first, then 2×2 blocks of quads: the same 16×12.
+    assert_eq!((bayer.width(), bayer.height()), (16, 12));
+    assert_eq!(bayer.scale(), 4);
+    for (a, b) in bayer.luma().iter().zip(quad_ref.luma()) {
+        assert!((a - b).abs() < 1.0 / 255.0, "Bayer: {a} vs {b}");
+    }
+}
+
+#[test]
+fn colour_weights_are_bt601_for_rgb_and_every_bayer_order() {
+    let meter = Meter::new(MeteringConfig {
+        target_width: 3,
+        target_height: 3,
+    })
+    .unwrap();
+    let red_rgb: Vec<u8> = (0..36).flat_map(|_| [255u8, 0, 0]).collect();
+    let m = meter
+        .meter(
+            &FrameView::new(PixelFormat::Rgb8, 6, 6, &red_rgb).unwrap(),
+            None,
+        )
+        .unwrap();
+    assert!((m.stats().mean - 0.299).abs() < 1e-4);
+    // Red sits at (0,0) for RG, (1,0) for GR, (0,1) for GB, (1,1) for BG.
+    for (fmt, rx, ry) in [
+        (PixelFormat::BayerRg8, 0, 0),
+        (PixelFormat::BayerGr8, 1, 0),
+        (PixelFormat::BayerGb8, 0, 1),
+        (PixelFormat::BayerBg8, 1, 1),
+    ] {
+        let data: Vec<u8> = (0..36)
+            .map(|i| {
+                if (i % 6) % 2 == rx && (i / 6) % 2 == ry {
+                    255
+                } else {
+                    0
+                }
+            })
+            .collect();
+        let m = meter
+            .meter(&FrameView::new(fmt, 6, 6, &data).unwrap(), None)
+            .unwrap();
+        assert!(
+            (m.stats().mean - 0.299).abs() < 1e-4,
+            "{fmt:?}: {}",
+            m.stats().mean
+        );
+    }
+}
+
+#[test]
+fn reference_frame_size_and_roi_mask() {
+    let (w, h) = (1288usize, 964usize);
+    // Bright sky on top, dark ground below.
+    let frame: Vec<u8> = (0..w * h)
+        .map(|i| {
+            if i / w < h / 2 {
+                250
+            } else {
+                40 + (i % 7) as u8
+            }
+        })
+        .collect();
+    let view = FrameView::new(PixelFormat::Mono8, w, h, &frame).unwrap();
+    let meter = Meter::new(MeteringConfig::default()).unwrap();
+    let all = meter.meter(&view, None).unwrap();
+    assert_eq!((all.width(), all.height()), (322, 241));
+    let mask = RoiMask::rows_from(w, h, h / 2).unwrap();
+    let ground = meter.meter(&view, Some(&mask)).unwrap();
+    assert!(ground.stats().mean < 0.2, "{}", ground.stats().mean);
+    assert!(all.stats().mean > 0.5);
+    let weight = ground.weight().unwrap();
+    assert!(weight[10 * 322 + 10] == 0.0 && weight[200 * 322 + 10] == 1.0);
+}
+
+// ---------- controller and latency ----------
+
+#[test]
+fn the_controller_waits_for_its_command_and_never_reacts_twice() {
+    let config = ControllerConfig {
+        balancing: None,
+        ..Default::default()
+    };
+    let dark = metered_scene(2000.0);
+    let mut cam = CameraController::new(&config, ExposureRange::default()).unwrap();
+    let at = |id: u64, us: f64| FrameInfo {
+        frame_id: id,
+        taken: ExposureSetting {
+            shutter_us: us,
+            gain_db: 0.0,
+        },
+    };
+    let u = cam.unary(&config, &at(0, 2000.0), &dark).unwrap();
+    assert_eq!(u.hold, None);
+    let (cmd, _) = cam.command(u.desired, at(0, 2000.0).taken);
+    let cmd = cmd.expect("a dark image asks for more exposure");
+    assert!(cmd.exposure() > 2000.0);
+    // Latency: the next frame still shows the old exposure.
+    let u = cam.unary(&config, &at(1, 2000.0), &dark).unwrap();
+    assert_eq!(u.hold, Some(Hold::AwaitingCommand));
+    // The same frame again.
+    let u = cam.unary(&config, &at(1, 2000.0), &dark).unwrap();
+    assert_eq!(u.hold, Some(Hold::RepeatedFrame));
+    // The command shows: free to react.
+    let shown = metered_scene(cmd.exposure());
+    let u = cam.unary(&config, &at(2, cmd.shutter_us), &shown).unwrap();
+    assert_eq!(u.hold, None);
+}
+
+// ---------- bad input ----------
+
+#[test]
+fn bad_input_gives_errors_not_panics() {
+    assert!(matches!(
+        FrameView::new(PixelFormat::Mono8, 0, 10, &[]),
+        Err(Error::EmptyImage { .. })
+    ));
+    assert!(matches!(
+        FrameView::new(PixelFormat::Rgb8, 10, 10, &[0; 299]),
+        Err(Error::BufferSize {
+            expected: 300,
+            actual: 299,
+            ..
+        })
+    ));
+    let frame = vec![0u8; 100];
+    let view = FrameView::new(PixelFormat::Mono8, 10, 10, &frame).unwrap();
+    let mask = RoiMask::new(5, 5, vec![1; 25]).unwrap();
+    let meter = Meter::new(MeteringConfig::default()).unwrap();
+    assert!(matches!(
+        meter.meter(&view, Some(&mask)),
+        Err(Error::SizeMismatch { .. })
+    ));
+    let tiny = FrameView::new(PixelFormat::Mono8, 2, 2, &frame[..4]).unwrap();
+    assert!(meter.meter(&tiny, None).is_err());
+    assert!(RoiMask::new(4, 4, vec![0; 15]).is_err());
+    assert!(Metered::from_luma(4, 4, vec![0.0; 15], None).is_err());
+    assert!(Metered::from_luma(4, 4, vec![f32::NAN; 16], None).is_err());
+    for (delta, lambda) in [
+        (f64::NAN, 1000.0),
+        (0.06, f64::NAN),
+        (0.06, -1.0),
+        (1.5, 10.0),
+    ] {
+        let e = GradientMetric::new(MetricParams { delta, lambda }).unwrap_err();
+        assert!(matches!(e, Error::InvalidParameter { .. }), "{e}");
+    }
+    let law = LawParams {
+        kp: f64::NAN,
+        ..Default::default()
+    };
+    assert!(law.validate().unwrap_err().to_string().contains("kp"));
+    let few = EstimatorConfig {
+        anchors: vec![0.8, 1.0, 1.2],
+        ..Default::default()
+    };
+    assert!(few
+        .validate()
+        .unwrap_err()
+        .to_string()
+        .contains("at least 6"));
+    let zero = ExposureRange {
+        shutter_min_us: 100.0,
+        shutter_max_us: 100.0,
+        gain_min_db: 0.0,
+        gain_max_db: 0.0,
+    };
+    assert!(Splitter::new(zero, SplitParams::default()).is_err());
+    let inverted = ExposureRange {
+        shutter_min_us: 100.0,
+        shutter_max_us: 10.0,
+        ..Default::default()
+    };
+    assert!(inverted.validate().is_err());
+    let negative = ExposureRange {
+        shutter_min_us: -1.0,
+        ..Default::default()
+    };
+    assert!(negative.validate().is_err());
+    assert!(NeighbourGraph::new(2, &[(0, 2)]).is_err());
+    assert!(NeighbourGraph::new(2, &[(1, 1)]).is_err());
+    let config = ControllerConfig::default();
+    let mut rig = RigController::new(
+        config.clone(),
+        &[ExposureRange::default(); 2],
+        NeighbourGraph::ring(2).unwrap(),
+    )
+    .unwrap();
+    assert!(rig.step(&[], &[]).is_err());
+    assert!(RigController::new(
+        config.clone(),
+        &[ExposureRange::default()],
+        NeighbourGraph::ring(2).unwrap()
+    )
+    .is_err());
+    let mut cam = CameraController::new(&config, ExposureRange::default()).unwrap();
+    let bad = FrameInfo {
+        frame_id: 0,
+        taken: ExposureSetting {
+            shutter_us: f64::NAN,
+            gain_db: 0.0,
+        },
+    };
+    let m = Metered::from_luma(4, 4, vec![0.5; 16], None).unwrap();
+    assert!(cam.unary(&config, &bad, &m).is_err());
+}
