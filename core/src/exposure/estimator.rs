@@ -346,13 +346,13 @@ impl Estimator {
             &mut self.scratch,
             &mut self.info,
         );
-        let (mut num, mut den) = (0.0f64, 0.0f64);
+        let (mut num, mut den) = (0.0f32, 0.0f32);
         for (&i, &v) in self.info.iter().zip(image.luma()) {
-            if i > 0.0 {
-                num += f64::from(i) * f64::from(v.max(1e-6)).ln();
-                den += f64::from(i);
-            }
+            // Branch-free: pixels without information add nothing.
+            num += i * fastmath::ln(v.max(1e-6));
+            den += i;
         }
+        let (num, den) = (f64::from(num), f64::from(den));
         let intensity = if den > 0.0 { (num / den).exp() } else { 0.5 };
         (m, intensity)
     }
