@@ -105,17 +105,7 @@ impl GradientMetric {
             let a = &image[(y - 1) * w..y * w];
             let b = &image[y * w..(y + 1) * w];
             let c = &image[(y + 1) * w..(y + 2) * w];
-            // Vertical passes: smoothing for ∂x, difference for ∂y.
-            for (((sv, dv), (&a, &b)), &c) in scratch
-                .sv
-                .iter_mut()
-                .zip(scratch.dv.iter_mut())
-                .zip(a.iter().zip(b))
-                .zip(c)
-            {
-                *sv = a + 2.0 * b + c;
-                *dv = c - a;
-            }
+            scratch.vertical_passes(a, b, c);
             let (sv, dv) = (&scratch.sv, &scratch.dv);
             let row_weight = weight.map(|wt| &wt[y * w + 1..y * w + 1 + n]);
             total += f64::from(row_information(
@@ -218,16 +208,7 @@ impl GradientMetric {
             let a = &image[(y - 1) * w..y * w];
             let b = &image[y * w..(y + 1) * w];
             let c = &image[(y + 1) * w..(y + 2) * w];
-            for (((sv, dv), (&a, &b)), &c) in scratch
-                .sv
-                .iter_mut()
-                .zip(scratch.dv.iter_mut())
-                .zip(a.iter().zip(b))
-                .zip(c)
-            {
-                *sv = a + 2.0 * b + c;
-                *dv = c - a;
-            }
+            scratch.vertical_passes(a, b, c);
             let (sv, dv) = (&scratch.sv, &scratch.dv);
             let row = &mut out[y * w + 1..y * w + w - 1];
             let mut row_sum = 0.0f32;
@@ -249,4 +230,22 @@ impl GradientMetric {
 pub struct Scratch {
     sv: Vec<f32>,
     dv: Vec<f32>,
+}
+
+impl Scratch {
+    /// The vertical Sobel passes over rows `a`, `b`, `c`: smoothing for ∂x,
+    /// difference for ∂y.
+    #[inline]
+    fn vertical_passes(&mut self, a: &[f32], b: &[f32], c: &[f32]) {
+        for (((sv, dv), (&a, &b)), &c) in self
+            .sv
+            .iter_mut()
+            .zip(self.dv.iter_mut())
+            .zip(a.iter().zip(b))
+            .zip(c)
+        {
+            *sv = a + 2.0 * b + c;
+            *dv = c - a;
+        }
+    }
 }
