@@ -1,0 +1,358 @@
+//! Calibration file formats: what each reads and writes, and the one entry
+//! point that tells them apart ([`load`], [`save`]).
+//!
+//! | format | reads | writes | one file holds |
+//! | --- | --- | --- | --- |
+//! | [`rig_yaml`] rigview rig (`.yaml`) | yes | yes | a rig |
+//! | [`opencv`] OpenCV FileStorage (`.yaml`, `.xml`) | yes | yes | a camera |
+//! | [`surround`] surround layout (a folder of 4 OpenCV files) | yes | — | a camera each |
+//! | [`kalibr`] Kalibr camchain | yes | yes | a rig (frame of cam0) |
+//! | [`ros`] ROS camera_info | yes | yes | a camera |
+//!
+//! A folder reads as a rig of its per-camera files (OpenCV or ROS; camera
+//! names from the file names), or, if it holds `front`, `left`, `back` and
+//! `right` with the surround keys, as the surround layout with poses
+//! recovered from the ground.
+
+pub mod kalibr;
+pub mod opencv;
+pub mod rig_yaml;
+pub mod ros;
+pub mod surround;
+pub(crate) mod yaml;
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+use std::str::FromStr;
+
+use crate::error::{CalibError, Result};
+use crate::model::ModelKind;
+use crate::rig::{Camera, Frame, Rig};
+
+/// A calibration file format.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Format {
+    /// rigview's own rig YAML.
+    Rig,
+    /// OpenCV FileStorage YAML, one camera a file.
+    OpenCvYaml,
+    /// OpenCV FileStorage XML, one camera a file.
+    OpenCvXml,
+    /// Kalibr camchain YAML.
+    Kalibr,
+    /// ROS camera_info YAML, one camera a file.
+    Ros,
+}
+
+impl Format {
+    /// Every format.
+    pub const ALL: [Format; 5] = [
+        Format::Rig,
+        Format::OpenCvYaml,
+        Format::OpenCvXml,
+        Format::Kalibr,
+        Format::Ros,
+    ];
+
+    /// Its name on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Format::Rig => "rig",
+            Format::OpenCvYaml => "opencv-yaml",
+            Format::OpenCvXml => "opencv-xml",
+            Format::Kalibr => "kalibr",
+            Format::Ros => "ros",
+        }
+    }
+
+    /// Whether one file holds one camera (else a whole rig).
+    pub fn per_camera(self) -> bool {
+        matches!(self, Format::OpenCvYaml | Format::OpenCvXml | Format::Ros)
+    }
+
+    fn extension(self) -> &'static str {
+        match self {
+            Format::OpenCvXml => "xml",
+            _ => "yaml",
+        }
+    }
+}
+
+impl fmt::Display for Format {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl FromStr for Format {
+    type Err = String;
+    fn from_str(s: &str) -> std::result::Result<Self, Self::Err> {
+        Format::ALL
+            .into_iter()
+            .find(|f| f.name() == s)
+            .ok_or_else(|| {
+                let names: Vec<_> = Format::ALL.iter().map(|f| f.name()).collect();
+                format!("unknown format \"{s}\" (known: {})", names.join(", "))
+            })
+    }
+}
+
+/// What [`load`] read.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Loaded {
+    /// The rig.
+    pub rig: Rig,
+    /// The format of the file (or of the folder's files).
+    pub format: Format,
+    /// For the surround layout: how well each recovered pose fits.
+    pub surround: Option<surround::SurroundImport>,
+}
+
+/// Reads a file as UTF-8 text; errors name the file.
+pub fn read_text(path: &Path) -> Result<String> {
+    let file = path.display().to_string();
+    let bytes = std::fs::read(path).map_err(|source| CalibError::Io {
+        file: file.clone(),
+        source,
+    })?;
+    String::from_utf8(bytes).map_err(|e| CalibError::Parse {
+        file,
+        detail: format!(
+            "not UTF-8 text (invalid byte at offset {}); expected a calibration file",
+            e.utf8_error().valid_up_to()
+        ),
+    })
+}
+
+fn has_extension(path: &Path, exts: &[&str]) -> bool {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| exts.iter().any(|x| e.eq_ignore_ascii_case(x)))
+}
+
+/// Tells a file's format from its contents (and, for XML, its name).
+pub fn detect(path: &Path, text: &str) -> Result<Format> {
+    let file = path.display().to_string();
+    let head = text.trim_start_matches('\u{feff}').trim_start();
+    if head.starts_with("%YAML") || text.contains("!!opencv-matrix") {
+        return Ok(Format::OpenCvYaml);
+    }
+    if head.starts_with("<?xml") || head.starts_with("<opencv_storage") {
+        return Ok(Format::OpenCvXml);
+    }
+    if has_extension(path, &["xml"]) {
+        return Ok(Format::OpenCvXml);
+    }
+    let doc = yaml::parse(text, &file)?;
+    let key = |k: &str| doc.get(k).is_some();
+    if key("format") {
+        Ok(Format::Rig)
+    } else if key("cam0") {
+        Ok(Format::Kalibr)
+    } else if key("image_width") || key("distortion_model") {
+        Ok(Format::Ros)
+    } else if key("camera_matrix") {
+        Ok(Format::OpenCvYaml)
+    } else {
+        Err(CalibError::Format {
+            file,
+            detail: "cannot tell the calibration format: expected a rigview rig \
+                     (format: rigview-rig), a Kalibr camchain (cam0: …), a ROS camera_info \
+                     (image_width: …) or an OpenCV FileStorage file (%YAML:1.0 or <?xml)"
+                .into(),
+        })
+    }
+}
+
+fn stem(path: &Path) -> String {
+    path.file_stem()
+        .and_then(|s| s.to_str())
+        .unwrap_or("camera")
+        .to_owned()
+}
+
+/// Reads one camera file (OpenCV or ROS) as a camera named after the file
+/// (OpenCV) or its `camera_name` (ROS).
+fn load_camera(
+    path: &Path,
+    text: &str,
+    format: Format,
+    model: Option<ModelKind>,
+) -> Result<(Camera, Option<opencv::OpenCvCamera>)> {
+    let file = path.display().to_string();
+    match format {
+        Format::OpenCvYaml | Format::OpenCvXml => {
+            let c = opencv::parse(text, format == Format::OpenCvXml, &file, model)?;
+            let cam = Camera {
+                name: stem(path),
+                device: None,
+                intrinsics: c.intrinsics,
+                pose: c.pose,
+            };
+            Ok((cam, Some(c)))
+        }
+        Format::Ros => Ok((ros::parse(text, &file, &stem(path))?, None)),
+        Format::Rig | Format::Kalibr => Err(CalibError::Format {
+            file,
+            detail: format!("a {format} file holds a rig, not one camera of a folder"),
+        }),
+    }
+}
+
+/// Loads a calibration: a file of any format, or a folder of per-camera
+/// files. `format` overrides detection; `model` is the camera model for
+/// OpenCV files that do not say.
+pub fn load(path: &Path, format: Option<Format>, model: Option<ModelKind>) -> Result<Loaded> {
+    let file = path.display().to_string();
+    if path.is_dir() {
+        return load_dir(path, format, model);
+    }
+    let text = read_text(path)?;
+    let format = match format {
+        Some(f) => f,
+        None => detect(path, &text)?,
+    };
+    let rig = match format {
+        Format::Rig => rig_yaml::parse(&text, &file)?,
+        Format::Kalibr => kalibr::parse(&text, &file)?,
+        Format::OpenCvYaml | Format::OpenCvXml | Format::Ros => {
+            let (cam, _) = load_camera(path, &text, format, model)?;
+            Rig::new(Frame::Vehicle, vec![cam], vec![]).map_err(|e| e.in_file(&file))?
+        }
+    };
+    Ok(Loaded {
+        rig,
+        format,
+        surround: None,
+    })
+}
+
+fn load_dir(dir: &Path, format: Option<Format>, model: Option<ModelKind>) -> Result<Loaded> {
+    let name = dir.display().to_string();
+    let entries = std::fs::read_dir(dir).map_err(|source| CalibError::Io {
+        file: name.clone(),
+        source,
+    })?;
+    let mut paths: Vec<PathBuf> = entries
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.is_file() && has_extension(p, &["yaml", "yml", "xml"]))
+        .collect();
+    paths.sort();
+    if paths.is_empty() {
+        return Err(CalibError::Format {
+            file: name,
+            detail: "the folder holds no .yaml, .yml or .xml calibration files".into(),
+        });
+    }
+    let mut cameras = Vec::new();
+    let mut opencv_files = Vec::new();
+    let mut seen = None;
+    for p in &paths {
+        let text = read_text(p)?;
+        let f = match format {
+            Some(f) => f,
+            None => detect(p, &text)?,
+        };
+        let (cam, cv) = load_camera(p, &text, f, model)?;
+        seen.get_or_insert(f);
+        if let Some(cv) = cv {
+            opencv_files.push((cam.name.clone(), p.display().to_string(), cv));
+        }
+        cameras.push(cam);
+    }
+    let format = seen.unwrap_or(Format::OpenCvYaml);
+    let is_surround = surround::CAMERAS.iter().all(|n| {
+        opencv_files
+            .iter()
+            .any(|(c, _, f)| c == n && f.surround.is_some())
+    });
+    if is_surround {
+        let imp = surround::import(&opencv_files)?;
+        return Ok(Loaded {
+            rig: imp.rig.clone(),
+            format,
+            surround: Some(imp),
+        });
+    }
+    let rig = Rig::new(Frame::Vehicle, cameras, vec![]).map_err(|e| e.in_file(&name))?;
+    Ok(Loaded {
+        rig,
+        format,
+        surround: None,
+    })
+}
+
+/// The format to write to a path when none is named: `.xml` is OpenCV XML,
+/// anything else rigview's rig YAML.
+pub fn output_format(path: &Path) -> Format {
+    if has_extension(path, &["xml"]) {
+        Format::OpenCvXml
+    } else {
+        Format::Rig
+    }
+}
+
+fn write_file(path: &Path, text: &str) -> Result<()> {
+    std::fs::write(path, text).map_err(|source| CalibError::Io {
+        file: path.display().to_string(),
+        source,
+    })
+}
+
+/// The rig as the text of a whole-rig format, or of one camera of a
+/// per-camera format.
+pub fn to_text(rig: &Rig, format: Format, camera: usize) -> Result<String> {
+    let cam = rig
+        .cameras
+        .get(camera)
+        .ok_or_else(|| CalibError::Argument(format!("no camera {camera} in the rig")))?;
+    match format {
+        Format::Rig => rig_yaml::to_string(rig),
+        Format::Kalibr => kalibr::write(rig),
+        Format::OpenCvYaml => opencv::write(cam, false),
+        Format::OpenCvXml => opencv::write(cam, true),
+        Format::Ros => ros::write(cam),
+    }
+}
+
+/// Saves a rig. Whole-rig formats write `path`. Per-camera formats write
+/// `path` itself for a one-camera rig; otherwise `path` must contain
+/// `{camera}` (replaced by each name) or be a folder (existing, or ending
+/// in `/`), which gets `NAME.yaml` / `NAME.xml` per camera. Returns the
+/// files written.
+pub fn save(rig: &Rig, path: &Path, format: Option<Format>) -> Result<Vec<PathBuf>> {
+    let format = format.unwrap_or_else(|| output_format(path));
+    if !format.per_camera() {
+        write_file(path, &to_text(rig, format, 0)?)?;
+        return Ok(vec![path.to_owned()]);
+    }
+    let s = path.to_string_lossy();
+    let is_dir = path.is_dir() || s.ends_with('/');
+    let targets: Vec<PathBuf> = if s.contains("{camera}") {
+        rig.cameras
+            .iter()
+            .map(|c| PathBuf::from(s.replace("{camera}", &c.name)))
+            .collect()
+    } else if is_dir {
+        std::fs::create_dir_all(path).map_err(|source| CalibError::Io {
+            file: s.to_string(),
+            source,
+        })?;
+        rig.cameras
+            .iter()
+            .map(|c| path.join(format!("{}.{}", c.name, format.extension())))
+            .collect()
+    } else if rig.cameras.len() == 1 {
+        vec![path.to_owned()]
+    } else {
+        return Err(CalibError::Argument(format!(
+            "{s}: {format} holds one camera a file and the rig has {}: give a folder or a path \
+             with {{camera}} in it",
+            rig.cameras.len()
+        )));
+    };
+    for (i, t) in targets.iter().enumerate() {
+        write_file(t, &to_text(rig, format, i)?)?;
+    }
+    Ok(targets)
+}
