@@ -3,6 +3,7 @@
 //! Until the simulated rig and the desktop app land, `rigview` with no
 //! arguments runs the headless closed-loop demo (`rigview demo`).
 
+mod calib_cmd;
 mod demo;
 
 use anyhow::Result;
@@ -22,12 +23,15 @@ enum Command {
     /// Closed-loop exposure control on a synthetic four-camera rig, printed
     /// frame by frame (the default).
     Demo(demo::DemoArgs),
+    /// Calibration: show, convert, and make intrinsics and ground extrinsics.
+    Calib(calib_cmd::CalibArgs),
 }
 
 fn main() -> Result<()> {
     let cli = Cli::parse();
     match cli.command {
         Some(Command::Demo(args)) => demo::run(&args),
+        Some(Command::Calib(args)) => calib_cmd::run(&args, &mut std::io::stdout().lock()),
         None => demo::run(&demo::DemoArgs::default()),
     }
 }

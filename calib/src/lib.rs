@@ -11,6 +11,7 @@ pub mod formats;
 mod lm;
 pub mod model;
 pub mod pose;
+pub mod report;
 pub mod rig;
 pub mod tools;
 
