@@ -278,3 +278,153 @@ fn ground_cmd(a: &GroundArgs, out: &mut dyn Write) -> Result<()> {
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use std::path::{Path, PathBuf};
+
+    use clap::{CommandFactory, Parser};
+    use rigview_calib::formats;
+    use rigview_calib::tools::ground::{GroundLayout, GroundMat, GroundView};
+    use rigview_calib::tools::render::{render_mat, Palette};
+
+    use super::*;
+
+    #[derive(Debug, Parser)]
+    struct Cli {
+        #[command(subcommand)]
+        calib: CalibCommand,
+    }
+
+    fn data() -> PathBuf {
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/data")
+    }
+
+    fn tmp(name: &str) -> PathBuf {
+        let d = std::env::temp_dir().join(format!("rigview-cli-{}-{name}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        std::fs::create_dir_all(&d).unwrap();
+        d
+    }
+
+    fn run_args(args: &[&str]) -> Result<String> {
+        let cli = Cli::try_parse_from(std::iter::once("calib").chain(args.iter().copied()))?;
+        let mut out = Vec::new();
+        run(&CalibArgs { command: cli.calib }, &mut out)?;
+        Ok(String::from_utf8(out)?)
+    }
+
+    fn s(p: &Path) -> String {
+        p.display().to_string()
+    }
+
+    #[test]
+    fn every_subcommand_has_help() {
+        Cli::command().debug_assert();
+        for sub in ["show", "convert", "intrinsics", "ground"] {
+            let e = Cli::try_parse_from(["calib", sub, "--help"]).unwrap_err();
+            assert_eq!(e.kind(), clap::error::ErrorKind::DisplayHelp);
+            assert!(e.to_string().contains("Usage"), "{sub}");
+        }
+    }
+
+    #[test]
+    fn show_and_convert_the_surround_rig() {
+        let nz = data().join("surround-nz");
+        let shown = run_args(&["show", &s(&nz)]).unwrap();
+        for want in [
+            "[0] front",
+            "[3] right",
+            "yaw",
+            "field of view",
+            "sees ground",
+            "residual",
+        ] {
+            assert!(shown.contains(want), "no \"{want}\" in:\n{shown}");
+        }
+        let d = tmp("convert");
+        let rig = d.join("rig.yaml");
+        run_args(&["convert", &s(&nz), &s(&rig)]).unwrap();
+        let xml = d.join("xml/");
+        let out = run_args(&["convert", &s(&rig), &s(&xml), "--to", "opencv-xml"]).unwrap();
+        assert_eq!(out.lines().count(), 4, "{out}");
+        let a = formats::load(&rig, None, None).unwrap().rig;
+        let b = formats::load(&xml, None, None).unwrap().rig;
+        for c in &a.cameras {
+            let other = b.camera(&c.name).unwrap();
+            assert_eq!((other.intrinsics, other.pose), (c.intrinsics, c.pose));
+        }
+        let shown = run_args(&["show", &s(&rig)]).unwrap();
+        assert!(shown.contains("format: rig"), "{shown}");
+    }
+
+    #[test]
+    fn bad_input_is_an_error_not_a_panic() {
+        let e = run_args(&["show", "/nonexistent/rig.yaml"]).unwrap_err();
+        assert!(e.to_string().contains("/nonexistent/rig.yaml"), "{e}");
+        assert!(run_args(&["intrinsics", "--board", "9by6", "x.png"]).is_err());
+        assert!(run_args(&["convert", "/nonexistent", "/tmp/x.yaml"]).is_err());
+    }
+
+    #[test]
+    fn intrinsics_from_the_sample_chessboards() {
+        let d = tmp("intrinsics");
+        let out_file = d.join("left.yaml");
+        let imgs: Vec<String> = ["01", "02", "03", "04", "05", "06"]
+            .iter()
+            .map(|n| s(&data().join(format!("opencv-samples/left{n}.jpg"))))
+            .collect();
+        let mut args = vec!["intrinsics", "--board", "9x6", "--name", "left", "-o"];
+        let o = s(&out_file);
+        args.push(&o);
+        args.extend(imgs.iter().map(String::as_str));
+        let out = run_args(&args).unwrap();
+        assert!(out.contains("from 6 of 6 images"), "{out}");
+        let rig = formats::load(&out_file, None, None).unwrap().rig;
+        assert!((rig.cameras[0].intrinsics.fx - 533.0).abs() < 15.0);
+    }
+
+    #[test]
+    fn ground_from_a_rendered_mat() {
+        let loaded = formats::load(&data().join("surround-nz"), None, None).unwrap();
+        let truth = loaded.rig.camera("front").unwrap().clone();
+        let d = tmp("ground");
+        let mat = GroundMat {
+            squares: [9, 6],
+            square_m: 0.2,
+            origin_m: [3.2, 0.9],
+            yaw_deg: -90.0,
+            margin_m: 0.2,
+        };
+        render_mat(&truth, &mat, &Palette::default(), 2)
+            .save_png(&d.join("front.png"))
+            .unwrap();
+        let layout = GroundLayout {
+            format: "rigview-ground".into(),
+            version: 1,
+            views: vec![GroundView {
+                camera: "front".into(),
+                image: "front.png".into(),
+                mat,
+            }],
+        };
+        std::fs::write(d.join("layout.yaml"), layout.to_string().unwrap()).unwrap();
+        let out_rig = d.join("solved.yaml");
+        let out = run_args(&[
+            "ground",
+            "--rig",
+            &s(&data().join("surround-nz")),
+            "--layout",
+            &s(&d.join("layout.yaml")),
+            "-o",
+            &s(&out_rig),
+        ])
+        .unwrap();
+        assert!(out.contains("front: 40 corners"), "{out}");
+        let solved = formats::load(&out_rig, None, None).unwrap().rig;
+        let p = solved.camera("front").unwrap().pose.unwrap();
+        let t = truth.pose.unwrap();
+        assert!((p.translation() - t.translation()).norm() < 0.005);
+        assert!(p.rotation_angle_to(&t).to_degrees() < 0.1);
+    }
+}

@@ -167,12 +167,27 @@ pub fn summary(loaded: &Loaded) -> String {
         );
         if let Some(p) = &c.pose {
             let t = p.translation();
-            let [yaw, pitch, roll] = p.ypr_deg();
-            let _ = writeln!(
-                s,
-                "  pose: at ({:.3}, {:.3}, {:.3}) m, yaw {yaw:.1}°, pitch {pitch:.1}° (down), roll {roll:.1}°",
-                t.x, t.y, t.z
-            );
+            if rig.frame == Frame::Vehicle {
+                let [yaw, pitch, roll] = p.ypr_deg();
+                let _ = writeln!(
+                    s,
+                    "  pose: at ({:.3}, {:.3}, {:.3}) m, yaw {yaw:.1}°, pitch {pitch:.1}° (down), roll {roll:.1}°",
+                    t.x, t.y, t.z
+                );
+            } else {
+                let r = p.rotation().scaled_axis();
+                let _ = writeln!(
+                    s,
+                    "  pose: at ({:.3}, {:.3}, {:.3}) m, turned {:.2}° about ({:.3}, {:.3}, {:.3})",
+                    t.x,
+                    t.y,
+                    t.z,
+                    r.norm().to_degrees(),
+                    r.x / r.norm().max(1e-300),
+                    r.y / r.norm().max(1e-300),
+                    r.z / r.norm().max(1e-300)
+                );
+            }
             if rig.frame == Frame::Vehicle {
                 match ground_view(c) {
                     Some(g) => {

@@ -81,6 +81,18 @@ proptest! {
     }
 }
 
+/// Inputs that once crashed OpenCV's own parsers (found by the tests above).
+#[test]
+fn inputs_that_crash_opencv_are_refused_first() {
+    for text in [
+        "<?xml version=",
+        "<?xml version=\"1.0\"?>\n<opencv_storage>\n<camera_matrix type_id=",
+    ] {
+        assert!(opencv::parse(text, true, "f.xml", None).is_err());
+        parse_all(text);
+    }
+}
+
 #[test]
 fn the_seeds_parse() {
     let s = seeds();

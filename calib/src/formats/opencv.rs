@@ -17,7 +17,9 @@
 //! - `rotation_camera_to_rig` (3×3) and `translation_camera_in_rig_m` (3),
 //!   rigview's pose keys, which it writes when the camera has a pose.
 //!
-//! The file is parsed by OpenCV's own `FileStorage`, from memory: the bytes
+//! The file is parsed by OpenCV's own `FileStorage`, from memory, after a
+//! strict well-formedness check (OpenCV 4.6's parsers crash on some
+//! truncated input; see [`parse`]): the bytes
 //! are read here (so a missing file is reported with its path) and handed to
 //! `FileStorage` with the `MEMORY` flag. In that mode OpenCV tells YAML from
 //! XML by the first bytes only, and refuses YAML that lacks the `%YAML`
@@ -91,6 +93,7 @@ pub fn parse(text: &str, xml: bool, file: &str, hint: Option<ModelKind>) -> Resu
             detail: "the file is empty".into(),
         });
     }
+    well_formed(source, xml, file)?;
     let fs = FileStorage::new(source, FileStorage_READ | FileStorage_MEMORY, "").map_err(|e| {
         CalibError::Parse {
             file: file.into(),
@@ -99,6 +102,34 @@ pub fn parse(text: &str, xml: bool, file: &str, hint: Option<ModelKind>) -> Resu
     })?;
     let reader = Reader { fs: &fs, file };
     reader.camera(hint)
+}
+
+/// Checks that the text is well-formed XML or YAML before OpenCV sees it.
+/// OpenCV 4.6's parsers read past the end of some malformed input (the
+/// fuzz test found that `<?xml version=` crashes its XML parser), so only
+/// text that a strict parser accepts is handed to it. For YAML, OpenCV's
+/// `%YAML:1.0` line (not valid YAML itself) is left out of the check.
+fn well_formed(source: &str, xml: bool, file: &str) -> Result<()> {
+    let detail = if xml {
+        roxmltree::Document::parse(source)
+            .err()
+            .map(|e| format!("not well-formed XML: {e}"))
+    } else {
+        let body = match source.split_once('\n') {
+            Some((first, rest)) if first.starts_with("%YAML") => rest,
+            _ => source,
+        };
+        serde_norway::from_str::<serde_norway::Value>(body)
+            .err()
+            .map(|e| format!("not well-formed YAML: {e}"))
+    };
+    match detail {
+        Some(detail) => Err(CalibError::Parse {
+            file: file.into(),
+            detail,
+        }),
+        None => Ok(()),
+    }
 }
 
 struct Reader<'a> {
