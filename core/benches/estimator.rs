@@ -24,7 +24,7 @@ use opencv::core::{self, Mat, MatTraitConst, MatTraitManual, Rect, Size};
 use opencv::imgproc;
 use rigview_core::exposure::estimator::{fit, AnchorScore};
 use rigview_core::exposure::{
-    Estimator, EstimatorConfig, FrameView, Meter, MeteringConfig, MetricParams, PixelFormat,
+    Estimator, EstimatorConfig, FrameView, Isa, Meter, MeteringConfig, MetricParams, PixelFormat,
     Simulation, DEFAULT_ANCHORS,
 };
 use rigview_core::synth::{HdrScene, Illumination, LinearCamera};
@@ -212,8 +212,9 @@ fn estimate_320x240(c: &mut Criterion) {
     let ours = gamma.estimate(&metered).unwrap().gamma_hat;
     let theirs = peer.estimate_u8(&mat).unwrap();
     eprintln!(
-        "estimate_320x240: γ̂ rigview {ours:.6}, OpenCV {theirs:.6}; saturated fraction {:.4}; OpenCV threads {}",
+        "estimate_320x240: γ̂ rigview {ours:.6}, OpenCV {theirs:.6}; saturated fraction {:.4}; rigview kernels {}; OpenCV threads {}",
         metered.stats().saturated_fraction,
+        Isa::detect().name(),
         core::get_num_threads().unwrap()
     );
     assert!((ours - theirs).abs() < 1e-3, "γ̂ {ours} vs {theirs}");
@@ -226,6 +227,18 @@ fn estimate_320x240(c: &mut Criterion) {
     group.bench_function("rigview_scale_clip", |b| {
         b.iter(|| scale_clip.estimate(black_box(&metered)).unwrap().gamma_hat);
     });
+    // The same kernels compiled for narrower instruction sets than the
+    // detected one (chosen at run time; see `Isa`).
+    for isa in Isa::available() {
+        if isa == Isa::detect() {
+            continue;
+        }
+        let mut narrow = estimator(Simulation::Gamma);
+        narrow.set_isa(isa);
+        group.bench_function(format!("rigview_gamma_{}", isa.name()), |b| {
+            b.iter(|| narrow.estimate(black_box(&metered)).unwrap().gamma_hat);
+        });
+    }
     group.bench_function("opencv_gamma", |b| {
         b.iter(|| peer.estimate_u8(black_box(&mat)).unwrap());
     });

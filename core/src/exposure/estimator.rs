@@ -35,7 +35,7 @@
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
 
-use super::fastmath;
+use super::kernel::{self, Isa, Source};
 use super::metering::{Metered, SATURATED_LEVEL};
 use super::metric::{GradientMetric, MetricParams, Scratch};
 use crate::error::{Error, Result};
@@ -283,9 +283,9 @@ pub struct Estimator {
     anchors: Vec<f64>,
     metric: GradientMetric,
     scratch: Scratch,
-    mapped: Vec<f32>,
     logs: Vec<f32>,
     info: Vec<f32>,
+    mapped: Vec<f32>,
 }
 
 impl Estimator {
@@ -300,10 +300,18 @@ impl Estimator {
             config,
             anchors,
             scratch: Scratch::default(),
-            mapped: Vec::new(),
             logs: Vec::new(),
             info: Vec::new(),
+            mapped: Vec::new(),
         })
+    }
+
+    /// Runs the kernels with the vector instruction set `isa` (or the
+    /// widest the CPU has, if it lacks `isa`) instead of the widest; for
+    /// comparisons and benchmarks. Returns the one chosen.
+    pub fn set_isa(&mut self, isa: Isa) -> Isa {
+        self.scratch = Scratch::with_isa(isa);
+        self.scratch.isa()
     }
 
     /// The configuration.
@@ -331,93 +339,99 @@ impl Estimator {
     pub fn score_at(&mut self, image: &Metered, x: f64) -> f64 {
         self.prepare(image);
         self.current_information(image);
-        let recovery = self.recovery(image);
+        let recovery = self.recovery(image, &[x]);
         self.score_mapped(image, x) + recovery.map_or(0.0, |r| r.at(x))
     }
 
-    /// Fills the information map of the image as it is; returns `M` and
-    /// the information-weighted geometric mean intensity.
+    /// `M` of the image as it is and the information-weighted geometric
+    /// mean intensity; fills the information map when scale-and-clip needs
+    /// it.
     fn current_information(&mut self, image: &Metered) -> (f64, f64) {
-        let m = self.metric.information_map(
+        let map = (self.config.simulation == Simulation::ScaleClip).then_some(&mut self.info);
+        let (m, m_log2_i) = self.metric.information_with_log2(
             image.luma(),
+            &self.logs,
             image.width(),
             image.height(),
             image.weight(),
             &mut self.scratch,
-            &mut self.info,
+            map,
         );
-        let (mut num, mut den) = (0.0f32, 0.0f32);
-        for (&i, &v) in self.info.iter().zip(image.luma()) {
-            // Branch-free: pixels without information add nothing.
-            num += i * fastmath::ln(v.max(1e-6));
-            den += i;
-        }
-        let (num, den) = (f64::from(num), f64::from(den));
-        let intensity = if den > 0.0 { (num / den).exp() } else { 0.5 };
+        let intensity = if m > 0.0 { (m_log2_i / m).exp2() } else { 0.5 };
         (m, intensity)
     }
 
-    /// The saturation-recovery term of scale-and-clip (module docs).
-    fn recovery(&mut self, image: &Metered) -> Option<Recovery> {
+    /// The saturation-recovery term of scale-and-clip (module docs) at the
+    /// anchors `xs` (those below 1 matter).
+    fn recovery(&mut self, image: &Metered, xs: &[f64]) -> Option<Recovery> {
         if self.config.simulation != Simulation::ScaleClip {
             return None;
         }
         let (w, h) = (image.width(), image.height());
-        let mut counted = Vec::with_capacity(image.luma().len() / 2);
-        let mut saturated = 0usize;
-        for y in 1..h - 1 {
-            for x in 1..w - 1 {
-                let i = y * w + x;
-                if image.weight().is_some_and(|wt| wt[i] <= 0.0) {
-                    continue;
-                }
-                let v = image.luma()[i];
-                if v >= SATURATED_LEVEL {
-                    saturated += 1;
-                } else {
-                    counted.push((v, self.info[i]));
-                }
+        // The intensities that count: the interior pixels with weight; the
+        // others are set to −1, below every band.
+        let counted = &mut self.mapped;
+        counted.clear();
+        counted.extend_from_slice(image.luma());
+        if let Some(weight) = image.weight() {
+            for (v, &wt) in counted.iter_mut().zip(weight) {
+                *v = if wt > 0.0 { *v } else { -1.0 };
             }
         }
+        for y in 0..h {
+            for x in [0, w - 1] {
+                counted[y * w + x] = -1.0;
+            }
+        }
+        for x in 0..w {
+            counted[x] = -1.0;
+            counted[(h - 1) * w + x] = -1.0;
+        }
+        let isa = self.scratch.isa();
+        let (saturated, _) = kernel::band_sums(isa, counted, &self.info, SATURATED_LEVEL, 2.0);
         if saturated == 0 {
             return None;
         }
-        // Brightest first, so a band [s, 1) is a prefix.
-        counted.sort_by(|a, b| b.0.total_cmp(&a.0));
-        Some(Recovery {
-            saturated,
-            pixels: counted,
-        })
+        let bands = xs
+            .iter()
+            .filter(|&&s| s < 1.0)
+            .map(|&s| {
+                let (count, info) =
+                    kernel::band_sums(isa, counted, &self.info, s as f32, SATURATED_LEVEL);
+                (s, count, info)
+            })
+            .collect();
+        Some(Recovery { saturated, bands })
     }
 
+    /// `log₂ I` of every pixel, floored where the largest γ anchor maps
+    /// it to the smallest normal number (`I^γ ≈ 0` below).
     fn prepare(&mut self, image: &Metered) {
-        if self.config.simulation == Simulation::Gamma {
-            self.logs.clear();
-            self.logs
-                .extend(image.luma().iter().map(|&v| fastmath::ln(v.max(1e-30))));
-        }
+        let gamma_max = self.anchors.iter().copied().fold(1.0, f64::max) as f32;
+        kernel::log2_map(
+            self.scratch.isa(),
+            image.luma(),
+            -126.0 / gamma_max,
+            &mut self.logs,
+        );
     }
 
     fn score_mapped(&mut self, image: &Metered, x: f64) -> f64 {
         if (x - 1.0).abs() < 1e-12 {
             return self.score(image);
         }
-        let xf = x as f32;
-        self.mapped.resize(image.luma().len(), 0.0);
-        match self.config.simulation {
-            Simulation::Gamma => {
-                for (m, &l) in self.mapped.iter_mut().zip(&self.logs) {
-                    *m = fastmath::exp_neg(xf * l);
-                }
-            }
-            Simulation::ScaleClip => {
-                for (m, &v) in self.mapped.iter_mut().zip(image.luma()) {
-                    *m = (xf * v).min(1.0);
-                }
-            }
-        }
-        self.metric.score(
-            &self.mapped,
+        let source = match self.config.simulation {
+            Simulation::Gamma => Source::Gamma {
+                log2: &self.logs,
+                gamma: x as f32,
+            },
+            Simulation::ScaleClip => Source::Scale {
+                luma: image.luma(),
+                s: x as f32,
+            },
+        };
+        self.metric.score_source(
+            source,
             image.width(),
             image.height(),
             image.weight(),
@@ -429,7 +443,9 @@ impl Estimator {
     pub fn estimate(&mut self, image: &Metered) -> Result<Estimate> {
         self.prepare(image);
         let (m_current, info_intensity) = self.current_information(image);
-        let recovery = self.recovery(image);
+        let anchors = std::mem::take(&mut self.anchors);
+        let recovery = self.recovery(image, &anchors);
+        self.anchors = anchors;
         let anchors: Vec<AnchorScore> = self
             .anchors
             .clone()
@@ -515,25 +531,27 @@ impl Estimator {
     }
 }
 
-/// Pixels below saturation (brightest first, with their `m̄`) and the count
-/// of saturated ones.
+/// The count of saturated pixels and, per anchor `s < 1`, how many pixels
+/// lie in the band `[s, 1)` below saturation and the information they carry.
 #[derive(Debug)]
 struct Recovery {
     saturated: usize,
-    pixels: Vec<(f32, f32)>,
+    bands: Vec<(f64, usize, f64)>,
 }
 
 impl Recovery {
-    /// The information darkening by `s < 1` brings back (0 for `s ≥ 1`).
+    /// The information darkening by `s < 1` brings back (0 for `s ≥ 1` or
+    /// an `s` that was not counted).
     fn at(&self, s: f64) -> f64 {
         if s >= 1.0 {
             return 0.0;
         }
-        let band = self.pixels.partition_point(|&(v, _)| f64::from(v) >= s);
+        let Some(&(_, band, info)) = self.bands.iter().find(|b| b.0.total_cmp(&s).is_eq()) else {
+            return 0.0;
+        };
         if band == 0 {
             return 0.0;
         }
-        let info: f64 = self.pixels[..band].iter().map(|&(_, m)| f64::from(m)).sum();
         (self.saturated as f64 / band as f64).min(1.0) * info
     }
 }

@@ -82,14 +82,22 @@ impl ImageStats {
     fn from_pixels<'a>(pixels: impl Iterator<Item = &'a f32>) -> Self {
         let mut histogram = vec![0u32; HISTOGRAM_BINS];
         let (mut sum, mut count, mut sat, mut dark) = (0.0f64, 0usize, 0usize, 0usize);
+        // Eight partial sums, so that the additions do not wait on each
+        // other; flushed to f64 every 4096 pixels.
+        let mut partial = [0.0f32; 8];
         for &v in pixels {
-            sum += f64::from(v);
+            partial[count % 8] += v;
             count += 1;
+            if count % 4096 == 0 {
+                sum += f64::from(partial.iter().sum::<f32>());
+                partial = [0.0; 8];
+            }
             sat += usize::from(v >= SATURATED_LEVEL);
             dark += usize::from(v <= DARK_LEVEL);
             let bin = ((v * HISTOGRAM_BINS as f32) as usize).min(HISTOGRAM_BINS - 1);
             histogram[bin] += 1;
         }
+        sum += f64::from(partial.iter().sum::<f32>());
         let n = count.max(1) as f32;
         Self {
             mean: (sum / count.max(1) as f64) as f32,
@@ -294,10 +302,23 @@ impl Meter {
         let mut coverage = mask.map(|_| vec![0u32; ow * oh]);
         let mut row = vec![0.0f32; gw];
         let inv_block = 1.0 / (k * k) as f32;
+        // 8-bit mono and RGB: the block sums are taken on the bytes, in
+        // integers, and weighted once per metered pixel.
+        let channels = match frame.format() {
+            PixelFormat::Mono8 => Some(1),
+            PixelFormat::Rgb8 => Some(3),
+            _ => None,
+        };
+        let mut bytes = vec![0u32; if channels.is_some() { gw * 3 } else { 0 }];
         for oy in 0..oh {
             let out = &mut luma[oy * ow..(oy + 1) * ow];
+            if let Some(c) = channels {
+                block_sums_8bit(frame, oy * k..(oy + 1) * k, c, k, &mut bytes, out);
+            }
             for gy in oy * k..(oy + 1) * k {
-                if bayer {
+                if channels.is_some() {
+                    // Done above.
+                } else if bayer {
                     bayer_luma_row(
                         frame.format(),
                         frame.row(2 * gy),
@@ -307,8 +328,8 @@ impl Meter {
                 } else {
                     luma_row(frame.format(), frame.row(gy), &mut row);
                 }
-                for (o, block) in out.iter_mut().zip(row.chunks_exact(k)) {
-                    *o += block.iter().sum::<f32>();
+                if channels.is_none() {
+                    add_block_sums(out, &row, k);
                 }
                 if let (Some(m), Some(cov)) = (mask, coverage.as_mut()) {
                     // For Bayer quads the top-left pixel of the quad decides.
@@ -364,6 +385,66 @@ impl Meter {
     }
 }
 
+/// The luminance sums (in [0, 1] units) of `k×k` blocks of an 8-bit frame
+/// with `c` channels (1: mono, 3: RGB) over the frame rows `rows`, into
+/// `out`; `bytes` is scratch.
+fn block_sums_8bit(
+    frame: &FrameView<'_>,
+    rows: std::ops::Range<usize>,
+    c: usize,
+    k: usize,
+    bytes: &mut [u32],
+    out: &mut [f32],
+) {
+    let n = frame.width() * c;
+    let bytes = &mut bytes[..n];
+    bytes.fill(0);
+    for y in rows {
+        for (a, &b) in bytes.iter_mut().zip(&frame.row(y)[..n]) {
+            *a += u32::from(b);
+        }
+    }
+    let to_unit = 1.0 / 255.0;
+    if c == 1 {
+        for (o, block) in out.iter_mut().zip(bytes.chunks_exact(k)) {
+            *o = block.iter().sum::<u32>() as f32 * to_unit;
+        }
+    } else {
+        for (o, block) in out.iter_mut().zip(bytes.chunks_exact(3 * k)) {
+            let (pixels, _) = block.as_chunks::<3>();
+            let [r, g, b] = pixels
+                .iter()
+                .fold([0u32; 3], |[r, g, b], p| [r + p[0], g + p[1], b + p[2]]);
+            *o = (W_R * r as f32 + W_G * g as f32 + W_B * b as f32) * to_unit;
+        }
+    }
+}
+
+/// Adds the sums of `row`'s consecutive blocks of `k` to `out`.
+fn add_block_sums(out: &mut [f32], row: &[f32], k: usize) {
+    /// With the block size known at compile time, the sums vectorise.
+    fn fixed<const K: usize>(out: &mut [f32], row: &[f32]) {
+        let (blocks, _) = row.as_chunks::<K>();
+        for (o, b) in out.iter_mut().zip(blocks) {
+            *o += b.iter().sum::<f32>();
+        }
+    }
+    match k {
+        1 => fixed::<1>(out, row),
+        2 => fixed::<2>(out, row),
+        3 => fixed::<3>(out, row),
+        4 => fixed::<4>(out, row),
+        5 => fixed::<5>(out, row),
+        6 => fixed::<6>(out, row),
+        8 => fixed::<8>(out, row),
+        _ => {
+            for (o, block) in out.iter_mut().zip(row.chunks_exact(k)) {
+                *o += block.iter().sum::<f32>();
+            }
+        }
+    }
+}
+
 /// Luminance of one row of a non-Bayer frame.
 fn luma_row(format: PixelFormat, src: &[u8], dst: &mut [f32]) {
     match format {
@@ -384,7 +465,8 @@ fn luma_row(format: PixelFormat, src: &[u8], dst: &mut [f32]) {
             }
         }
         PixelFormat::Rgb8 => {
-            for (d, s) in dst.iter_mut().zip(src.chunks_exact(3)) {
+            let (pixels, _) = src.as_chunks::<3>();
+            for (d, s) in dst.iter_mut().zip(pixels) {
                 *d = (W_R * f32::from(s[0]) + W_G * f32::from(s[1]) + W_B * f32::from(s[2]))
                     * (1.0 / 255.0);
             }

@@ -14,7 +14,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::fastmath;
+use super::kernel::{self, Isa};
 use crate::error::{check_range, Result};
 
 /// Divides the Sobel magnitude of a [0, 1] image into [0, 1].
@@ -42,8 +42,7 @@ impl Default for MetricParams {
 #[derive(Clone, Debug)]
 pub struct GradientMetric {
     params: MetricParams,
-    delta: f32,
-    lambda: f32,
+    kernel: kernel::Params,
     inv_n: f64,
 }
 
@@ -61,8 +60,7 @@ impl GradientMetric {
         let n = (params.lambda * (1.0 - params.delta)).ln_1p();
         Ok(Self {
             params,
-            delta: params.delta as f32,
-            lambda: params.lambda as f32,
+            kernel: kernel::Params::new(params.lambda as f32, params.delta as f32, SOBEL_NORM),
             inv_n: 1.0 / n,
         })
     }
@@ -92,96 +90,29 @@ impl GradientMetric {
         weight: Option<&[f32]>,
         scratch: &mut Scratch,
     ) -> f64 {
-        if w < 3 || h < 3 || image.len() < w * h {
-            return 0.0;
-        }
-        scratch.sv.resize(w, 0.0);
-        scratch.dv.resize(w, 0.0);
-        let n = w - 2;
-        let shift = self.lambda * self.delta;
-        let scale = self.lambda / SOBEL_NORM;
-        let mut total = 0.0f64;
-        for y in 1..h - 1 {
-            let a = &image[(y - 1) * w..y * w];
-            let b = &image[y * w..(y + 1) * w];
-            let c = &image[(y + 1) * w..(y + 2) * w];
-            scratch.vertical_passes(a, b, c);
-            let (sv, dv) = (&scratch.sv, &scratch.dv);
-            let row_weight = weight.map(|wt| &wt[y * w + 1..y * w + 1 + n]);
-            total += f64::from(row_information(
-                &sv[..n],
-                &sv[2..],
-                &dv[..n],
-                &dv[1..n + 1],
-                &dv[2..],
-                row_weight,
-                scale,
-                shift,
-            ));
-        }
-        total * self.inv_n
+        self.score_source(kernel::Source::Plain(image), w, h, weight, scratch)
     }
-}
 
-/// `log(max(λ·m − λ·δ, 0) + 1)` of one pixel from its vertical passes.
-#[inline(always)]
-fn info(svl: f32, svr: f32, dvl: f32, dvc: f32, dvr: f32, scale: f32, shift: f32) -> f32 {
-    let gx = svr - svl;
-    let gy = dvl + 2.0 * dvc + dvr;
-    let t = (scale * (gx * gx + gy * gy).sqrt() - shift).max(0.0);
-    fastmath::ln(1.0 + t)
-}
-
-/// Σ log(max(λ·m − λ·δ, 0) + 1) over one row, with `λ·m = scale·|∇|`.
-#[allow(clippy::too_many_arguments)]
-#[inline]
-fn row_information(
-    sv_l: &[f32],
-    sv_r: &[f32],
-    dv_l: &[f32],
-    dv_c: &[f32],
-    dv_r: &[f32],
-    weight: Option<&[f32]>,
-    scale: f32,
-    shift: f32,
-) -> f32 {
-    const L: usize = 8;
-    let n = sv_l.len();
-    let full = n / L * L;
-    let (a, _) = sv_l[..full].as_chunks::<L>();
-    let (b, _) = sv_r[..full].as_chunks::<L>();
-    let (c, _) = dv_l[..full].as_chunks::<L>();
-    let (d, _) = dv_c[..full].as_chunks::<L>();
-    let (e, _) = dv_r[..full].as_chunks::<L>();
-    let mut acc = [0.0f32; L];
-    let mut tail = 0.0f32;
-    match weight {
-        None => {
-            for ((((a, b), c), d), e) in a.iter().zip(b).zip(c).zip(d).zip(e) {
-                for l in 0..L {
-                    acc[l] += info(a[l], b[l], c[l], d[l], e[l], scale, shift);
-                }
-            }
-            for i in full..n {
-                tail += info(sv_l[i], sv_r[i], dv_l[i], dv_c[i], dv_r[i], scale, shift);
-            }
-        }
-        Some(wt) => {
-            let (w, _) = wt[..full].as_chunks::<L>();
-            for (((((a, b), c), d), e), w) in a.iter().zip(b).zip(c).zip(d).zip(e).zip(w) {
-                for l in 0..L {
-                    acc[l] += w[l] * info(a[l], b[l], c[l], d[l], e[l], scale, shift);
-                }
-            }
-            for i in full..n {
-                tail += wt[i] * info(sv_l[i], sv_r[i], dv_l[i], dv_c[i], dv_r[i], scale, shift);
-            }
-        }
+    /// `M` of a simulated image, computed on the fly from its source.
+    pub(crate) fn score_source(
+        &self,
+        source: kernel::Source<'_>,
+        w: usize,
+        h: usize,
+        weight: Option<&[f32]>,
+        scratch: &mut Scratch,
+    ) -> f64 {
+        kernel::sum_ln_q(
+            scratch.isa,
+            source,
+            w,
+            h,
+            weight,
+            self.kernel,
+            &mut scratch.rows,
+        ) * self.inv_n
     }
-    acc.iter().sum::<f32>() + tail
-}
 
-impl GradientMetric {
     /// Each pixel's `m̄` (times its weight) into `out` (`w×h`, border 0);
     /// returns their sum, `M`.
     pub fn information_map(
@@ -193,59 +124,99 @@ impl GradientMetric {
         scratch: &mut Scratch,
         out: &mut Vec<f32>,
     ) -> f64 {
-        out.clear();
-        out.resize(w * h, 0.0);
-        if w < 3 || h < 3 || image.len() < w * h {
-            return 0.0;
-        }
-        scratch.sv.resize(w, 0.0);
-        scratch.dv.resize(w, 0.0);
-        let shift = self.lambda * self.delta;
-        let scale = self.lambda / SOBEL_NORM;
+        let (sum, _) = kernel::information(
+            scratch.isa,
+            image,
+            None,
+            w,
+            h,
+            weight,
+            self.kernel,
+            &mut scratch.rows,
+            Some(&mut *out),
+        );
         let inv_n = self.inv_n as f32;
-        let mut total = 0.0f64;
-        for y in 1..h - 1 {
-            let a = &image[(y - 1) * w..y * w];
-            let b = &image[y * w..(y + 1) * w];
-            let c = &image[(y + 1) * w..(y + 2) * w];
-            scratch.vertical_passes(a, b, c);
-            let (sv, dv) = (&scratch.sv, &scratch.dv);
-            let row = &mut out[y * w + 1..y * w + w - 1];
-            let mut row_sum = 0.0f32;
-            for (x, o) in row.iter_mut().enumerate() {
-                let wt = weight.map_or(1.0, |wt| wt[y * w + 1 + x]);
-                let v =
-                    wt * info(sv[x], sv[x + 2], dv[x], dv[x + 1], dv[x + 2], scale, shift) * inv_n;
-                *o = v;
-                row_sum += v;
-            }
-            total += f64::from(row_sum);
+        for v in out.iter_mut() {
+            *v *= inv_n;
         }
-        total
+        sum * self.inv_n
+    }
+
+    /// `M` of the image as it is, and `Σ m̄·log₂ I` from `log2` (`log₂ I`
+    /// per pixel); each pixel's `m̄` goes to `map` when given. Without a map
+    /// or weights, the second sum takes `m̄` to about 2e-5 absolute.
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn information_with_log2(
+        &self,
+        image: &[f32],
+        log2: &[f32],
+        w: usize,
+        h: usize,
+        weight: Option<&[f32]>,
+        scratch: &mut Scratch,
+        map: Option<&mut Vec<f32>>,
+    ) -> (f64, f64) {
+        if map.is_none() && weight.is_none() {
+            let (sum, dot) = kernel::sum_ln_q_and_dot(
+                scratch.isa,
+                image,
+                log2,
+                w,
+                h,
+                self.kernel,
+                &mut scratch.rows,
+            );
+            return (sum * self.inv_n, dot * self.inv_n);
+        }
+        let scaled = map.is_some();
+        let mut map = map;
+        let (sum, sum_log2) = kernel::information(
+            scratch.isa,
+            image,
+            Some(log2),
+            w,
+            h,
+            weight,
+            self.kernel,
+            &mut scratch.rows,
+            map.as_deref_mut(),
+        );
+        if let (true, Some(map)) = (scaled, map) {
+            let inv_n = self.inv_n as f32;
+            for v in map.iter_mut() {
+                *v *= inv_n;
+            }
+        }
+        (sum * self.inv_n, sum_log2 * self.inv_n)
     }
 }
 
-/// Reusable row buffers for [`GradientMetric::score`].
-#[derive(Clone, Debug, Default)]
+/// Reusable row buffers for [`GradientMetric::score`], and the vector
+/// instruction set its kernels run with.
+#[derive(Clone, Debug)]
 pub struct Scratch {
-    sv: Vec<f32>,
-    dv: Vec<f32>,
+    rows: kernel::Rows,
+    isa: Isa,
+}
+
+impl Default for Scratch {
+    fn default() -> Self {
+        Self::with_isa(Isa::detect())
+    }
 }
 
 impl Scratch {
-    /// The vertical Sobel passes over rows `a`, `b`, `c`: smoothing for ∂x,
-    /// difference for ∂y.
-    #[inline]
-    fn vertical_passes(&mut self, a: &[f32], b: &[f32], c: &[f32]) {
-        for (((sv, dv), (&a, &b)), &c) in self
-            .sv
-            .iter_mut()
-            .zip(self.dv.iter_mut())
-            .zip(a.iter().zip(b))
-            .zip(c)
-        {
-            *sv = a + 2.0 * b + c;
-            *dv = c - a;
+    /// Buffers for kernels compiled for `isa` (the detected one when the CPU
+    /// lacks it).
+    pub fn with_isa(isa: Isa) -> Self {
+        Self {
+            rows: kernel::Rows::default(),
+            isa: isa.supported(),
         }
+    }
+
+    /// The instruction set the kernels run with.
+    pub fn isa(&self) -> Isa {
+        self.isa
     }
 }

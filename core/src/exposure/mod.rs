@@ -17,6 +17,7 @@ pub mod controller;
 pub mod estimator;
 mod fastmath;
 pub mod frame;
+mod kernel;
 pub mod laws;
 pub mod metering;
 pub mod metric;
@@ -30,6 +31,7 @@ pub use controller::{
 };
 pub use estimator::{Estimate, Estimator, EstimatorConfig, Simulation, DEFAULT_ANCHORS};
 pub use frame::{FrameView, PixelFormat, RoiMask};
+pub use kernel::Isa;
 pub use laws::{LawKind, LawParams};
 pub use metering::{ImageStats, Meter, Metered, MeteringConfig};
 pub use metric::{GradientMetric, MetricParams};

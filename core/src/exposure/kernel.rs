@@ -1,0 +1,973 @@
+//! The fused per-pixel kernel behind Eq. 1: simulated exposure change →
+//! 3×3 Sobel → magnitude → `ln(λ·max(m − δ, 0) + 1)` → sum, one image row at
+//! a time so that every intermediate stays in the L1 cache.
+//!
+//! Three things make it fast:
+//!
+//! - **One pass per anchor, three rows of state.** Each source row is mapped
+//!   once into a ring of three rows; the vertical Sobel passes run over the
+//!   ring and the horizontal ones over the two pass rows. A row's last,
+//!   partial vector is computed at full width over zero padding, with the
+//!   lanes beyond the row masked out.
+//! - **A sum of logarithms is the logarithm of a product.** The unweighted
+//!   score needs only `Σ ln q` with `q = 1 + λ·max(m − δ, 0) ∈ [1, q_max]`.
+//!   Each lane multiplies its `q`s into a running product and moves the
+//!   product's binary exponent into an integer counter after each factor, so
+//!   it cannot overflow. One logarithm per lane at the end replaces one per
+//!   pixel. The relative rounding error is about 6e-8 per factor, i.e. about
+//!   6e-8 absolute per pixel in `ln q`.
+//! - **Explicit lanes and run-time dispatch.** The loops are written over
+//!   fixed-size arrays of 16 lanes that the compiler turns into vector code
+//!   (16 rather than the register width: fewer, longer chunks measured
+//!   faster on every instruction set), and each kernel is compiled three
+//!   times: for baseline x86-64 (SSE2), for AVX2 + FMA, and for AVX-512. The
+//!   widest the CPU supports is chosen at run time ([`Isa::detect`]).
+//!
+//! The weighted score (a metering mask) and the information map keep one
+//! fast logarithm per pixel: weights are fractional at mask borders.
+
+use std::sync::OnceLock;
+
+use super::fastmath::{self, madd};
+
+/// The vector instruction set a kernel was compiled for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Isa {
+    /// Baseline x86-64 (SSE2) or a non-x86 target, without fused
+    /// multiply-adds.
+    Baseline,
+    /// AVX2 and FMA.
+    Avx2,
+    /// AVX-512 (F) and FMA.
+    Avx512,
+}
+
+impl Isa {
+    /// The widest instruction set this CPU supports (detected once).
+    pub fn detect() -> Self {
+        static DETECTED: OnceLock<Isa> = OnceLock::new();
+        *DETECTED.get_or_init(|| {
+            #[cfg(target_arch = "x86_64")]
+            {
+                let avx2 = std::arch::is_x86_feature_detected!("avx2")
+                    && std::arch::is_x86_feature_detected!("fma");
+                if avx2 && std::arch::is_x86_feature_detected!("avx512f") {
+                    return Isa::Avx512;
+                }
+                if avx2 {
+                    return Isa::Avx2;
+                }
+            }
+            Isa::Baseline
+        })
+    }
+
+    /// Every instruction set this CPU can run, narrowest first.
+    pub fn available() -> Vec<Self> {
+        let best = Self::detect();
+        [Isa::Baseline, Isa::Avx2, Isa::Avx512]
+            .into_iter()
+            .filter(|&isa| isa <= best)
+            .collect()
+    }
+
+    /// `self`, or the widest this CPU has if it lacks `self`.
+    pub fn supported(self) -> Self {
+        self.min(Self::detect())
+    }
+
+    /// The name used in telemetry and benchmarks.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Baseline => "baseline",
+            Self::Avx2 => "avx2",
+            Self::Avx512 => "avx512",
+        }
+    }
+}
+
+impl PartialOrd for Isa {
+    fn partial_cmp(&self, other: &Self) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(other))
+    }
+}
+
+impl Ord for Isa {
+    /// Narrower sets order first.
+    fn cmp(&self, other: &Self) -> std::cmp::Ordering {
+        (*self as u8).cmp(&(*other as u8))
+    }
+}
+
+/// Where the rows of the image to score come from.
+#[derive(Clone, Copy, Debug)]
+pub(crate) enum Source<'a> {
+    /// The image as it is.
+    Plain(&'a [f32]),
+    /// The γ-mapping `I^γ = 2^(γ·log₂ I)`, from `log₂ I` (each value in
+    /// `[−126/γ, 0]`, as [`log2_map`] makes them).
+    Gamma { log2: &'a [f32], gamma: f32 },
+    /// Scale-and-clip `min(1, s·I)`.
+    Scale { luma: &'a [f32], s: f32 },
+}
+
+/// The per-pixel constants of Eq. 1: `q = max(|∇'| + offset, 1)`, where the
+/// rows are mapped already multiplied by `scale`, so that `∇' = scale·∇`,
+/// is `1 + λ·max(m − δ, 0)` with `m = |∇| / (4√2)`.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Params {
+    scale: f32,
+    offset: f32,
+    /// How many rows' factors `q` each column's product takes before its
+    /// exponent is moved out: `2·(1.01·q_max)^group < 2^127` (intensities
+    /// are at most 1, so `q ≤ q_max` up to rounding).
+    group: usize,
+}
+
+impl Params {
+    /// For `λ > 0` and `0 ≤ δ < 1`.
+    pub(crate) fn new(lambda: f32, delta: f32, sobel_norm: f32) -> Self {
+        let q_max = 1.0 + lambda * (1.0 - delta);
+        Self {
+            scale: lambda / sobel_norm,
+            offset: 1.0 - lambda * delta,
+            group: ((125.0 / (1.01 * q_max).log2().max(1.0)) as usize).max(1),
+        }
+    }
+}
+
+/// The most lanes any kernel uses: rows are padded by this much.
+const MAX_LANES: usize = 16;
+
+/// Row buffers, reused from call to call.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct Rows {
+    ring: [Vec<f32>; 3],
+    sv: Vec<f32>,
+    dv: Vec<f32>,
+    product: Vec<f32>,
+    exponent: Vec<i32>,
+    info: Vec<f32>,
+    column: Vec<f32>,
+}
+
+/// A kernel, compiled once per instruction set by [`dispatch`].
+trait Kernel {
+    type Output;
+    /// Runs with `L` lanes, fusing multiply-adds when `FMA`.
+    fn run<const L: usize, const FMA: bool>(self) -> Self::Output;
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx2,fma")]
+fn run_avx512<K: Kernel>(kernel: K) -> K::Output {
+    kernel.run::<16, true>()
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+fn run_avx2<K: Kernel>(kernel: K) -> K::Output {
+    kernel.run::<16, true>()
+}
+
+/// Runs `kernel` compiled for `isa`, or for the widest set the CPU has if
+/// it lacks `isa`.
+fn dispatch<K: Kernel>(isa: Isa, kernel: K) -> K::Output {
+    match isa.supported() {
+        #[cfg(target_arch = "x86_64")]
+        Isa::Avx512 => {
+            // SAFETY: `supported` only returns AVX-512 when the CPU has
+            // AVX-512F, AVX2 and FMA.
+            #[allow(unsafe_code)]
+            unsafe {
+                run_avx512(kernel)
+            }
+        }
+        #[cfg(target_arch = "x86_64")]
+        Isa::Avx2 => {
+            // SAFETY: `supported` only returns AVX2 when the CPU has AVX2
+            // and FMA.
+            #[allow(unsafe_code)]
+            unsafe {
+                run_avx2(kernel)
+            }
+        }
+        _ => kernel.run::<16, false>(),
+    }
+}
+
+/// `Σ w·ln q` over the interior pixels of the `w×h` image `src` (0 when it
+/// is smaller than 3×3 or a buffer is short).
+pub(crate) fn sum_ln_q(
+    isa: Isa,
+    src: Source<'_>,
+    w: usize,
+    h: usize,
+    weight: Option<&[f32]>,
+    p: Params,
+    rows: &mut Rows,
+) -> f64 {
+    if w < 3 || h < 3 || !src.covers(w * h) || weight.is_some_and(|wt| wt.len() < w * h) {
+        return 0.0;
+    }
+    rows.resize(w);
+    dispatch(
+        isa,
+        SumLnQ {
+            src,
+            log2: None,
+            pass: Pass {
+                w,
+                h,
+                weight,
+                p,
+                rows,
+            },
+        },
+    )
+    .0
+}
+
+/// `Σ ln q` over the interior pixels of the unweighted image `luma` (as
+/// [`sum_ln_q`]), and `Σ ln q·log₂ I` with `ln q` to about 1.5e-4 absolute
+/// ([`fastmath::log2_approx`]); for an information-weighted mean that needs
+/// no more.
+pub(crate) fn sum_ln_q_and_dot(
+    isa: Isa,
+    luma: &[f32],
+    log2: &[f32],
+    w: usize,
+    h: usize,
+    p: Params,
+    rows: &mut Rows,
+) -> (f64, f64) {
+    if w < 3 || h < 3 || luma.len() < w * h || log2.len() < w * h {
+        return (0.0, 0.0);
+    }
+    rows.resize(w);
+    dispatch(
+        isa,
+        SumLnQ {
+            src: Source::Plain(luma),
+            log2: Some(log2),
+            pass: Pass {
+                w,
+                h,
+                weight: None,
+                p,
+                rows,
+            },
+        },
+    )
+}
+
+/// The information of the image `luma` as it is: returns `Σ w·ln q` and,
+/// when `log2` (`log₂ I` per pixel) is given, `Σ w·ln q·log₂ I`. When `map`
+/// is given, each interior pixel's `w·ln q` goes there (the border is 0).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn information(
+    isa: Isa,
+    luma: &[f32],
+    log2: Option<&[f32]>,
+    w: usize,
+    h: usize,
+    weight: Option<&[f32]>,
+    p: Params,
+    rows: &mut Rows,
+    mut map: Option<&mut Vec<f32>>,
+) -> (f64, f64) {
+    if let Some(map) = map.as_deref_mut() {
+        map.clear();
+        map.resize(w * h, 0.0);
+    }
+    let short = |v: &[f32]| v.len() < w * h;
+    if w < 3 || h < 3 || short(luma) || log2.is_some_and(short) || weight.is_some_and(short) {
+        return (0.0, 0.0);
+    }
+    rows.resize(w);
+    dispatch(
+        isa,
+        Information {
+            luma,
+            log2,
+            pass: Pass {
+                w,
+                h,
+                weight,
+                p,
+                rows,
+            },
+            map: map.map(Vec::as_mut_slice),
+        },
+    )
+}
+
+/// `log₂ I` of every pixel into `out`, clamped to `[floor, 0]` (`floor` is
+/// at least −126; [`Source::Gamma`] needs `γ·floor ≥ −126`).
+pub(crate) fn log2_map(isa: Isa, luma: &[f32], floor: f32, out: &mut Vec<f32>) {
+    out.clear();
+    out.resize(luma.len(), 0.0);
+    let floor = floor.clamp(-126.0, 0.0);
+    dispatch(isa, Log2Map { luma, floor, out });
+}
+
+/// How many of `values` lie in `[lo, hi)`, and the sum of their `weights`.
+pub(crate) fn band_sums(
+    isa: Isa,
+    values: &[f32],
+    weights: &[f32],
+    lo: f32,
+    hi: f32,
+) -> (usize, f64) {
+    dispatch(
+        isa,
+        BandSums {
+            values,
+            weights,
+            lo,
+            hi,
+        },
+    )
+}
+
+struct BandSums<'a> {
+    values: &'a [f32],
+    weights: &'a [f32],
+    lo: f32,
+    hi: f32,
+}
+
+impl Kernel for BandSums<'_> {
+    type Output = (usize, f64);
+
+    #[inline(always)]
+    fn run<const L: usize, const FMA: bool>(self) -> (usize, f64) {
+        let (mut count, mut sum) = (0usize, 0.0f64);
+        // Blocks short enough that the f32 lane sums and counts stay exact
+        // enough (counts below 2^24).
+        for (v, m) in self
+            .values
+            .chunks(L * 1024)
+            .zip(self.weights.chunks(L * 1024))
+        {
+            let (vc, v_rest) = v.as_chunks::<L>();
+            let (mc, m_rest) = m.as_chunks::<L>();
+            let mut n = [0.0f32; L];
+            let mut acc = [0.0f32; L];
+            for (v, m) in vc.iter().zip(mc) {
+                for l in 0..L {
+                    let inside = v[l] >= self.lo && v[l] < self.hi;
+                    n[l] += if inside { 1.0 } else { 0.0 };
+                    acc[l] += if inside { m[l] } else { 0.0 };
+                }
+            }
+            for (&v, &m) in v_rest.iter().zip(m_rest) {
+                let inside = v >= self.lo && v < self.hi;
+                n[0] += if inside { 1.0 } else { 0.0 };
+                acc[0] += if inside { m } else { 0.0 };
+            }
+            count += n.iter().sum::<f32>() as usize;
+            sum += f64::from(acc.iter().sum::<f32>());
+        }
+        (count, sum)
+    }
+}
+
+impl Source<'_> {
+    fn covers(&self, len: usize) -> bool {
+        match self {
+            Source::Plain(v) => v.len() >= len,
+            Source::Gamma { log2, .. } => log2.len() >= len,
+            Source::Scale { luma, .. } => luma.len() >= len,
+        }
+    }
+
+    /// Row `r` (of width `w`) of the simulated image, clamped to [0, 1]
+    /// and multiplied by `scale`, into `out`.
+    #[inline(always)]
+    fn map_row<const FMA: bool>(&self, r: usize, w: usize, scale: f32, out: &mut [f32]) {
+        let span = r * w..(r + 1) * w;
+        match *self {
+            Source::Plain(v) => {
+                for (o, &v) in out.iter_mut().zip(&v[span]) {
+                    *o = (scale * v).clamp(0.0, scale);
+                }
+            }
+            Source::Gamma { log2, gamma } => {
+                let exp2 = fastmath::Exp2::scaled(scale);
+                for (o, &l) in out.iter_mut().zip(&log2[span]) {
+                    *o = exp2.in_range::<FMA>(gamma * l);
+                }
+            }
+            Source::Scale { luma, s } => {
+                let s = s * scale;
+                for (o, &v) in out.iter_mut().zip(&luma[span]) {
+                    *o = (s * v).clamp(0.0, scale);
+                }
+            }
+        }
+    }
+}
+
+impl Rows {
+    /// Ring rows of `w`; pass rows of `w` plus zero padding, so that a row's
+    /// last vector can be loaded whole.
+    fn resize(&mut self, w: usize) {
+        for r in &mut self.ring {
+            r.resize(w, 0.0);
+        }
+        self.sv.clear();
+        self.sv.resize(w + 2 * MAX_LANES, 0.0);
+        self.dv.clear();
+        self.dv.resize(w + 2 * MAX_LANES, 0.0);
+    }
+
+    /// Maps the rows the first output row needs.
+    #[inline(always)]
+    fn start<const FMA: bool>(&mut self, src: &Source<'_>, w: usize, scale: f32) {
+        src.map_row::<FMA>(0, w, scale, &mut self.ring[0]);
+        src.map_row::<FMA>(1, w, scale, &mut self.ring[1]);
+    }
+
+    /// Maps row `y + 1` and runs the vertical Sobel passes centred on row
+    /// `y`: smoothing for ∂x into `sv`, difference for ∂y into `dv`.
+    #[inline(always)]
+    fn advance<const FMA: bool>(&mut self, src: &Source<'_>, w: usize, scale: f32, y: usize) {
+        let [r0, r1, r2] = &mut self.ring;
+        let (a, b, c) = match (y + 1) % 3 {
+            0 => (r1, r2, r0),
+            1 => (r2, r0, r1),
+            _ => (r0, r1, r2),
+        };
+        src.map_row::<FMA>(y + 1, w, scale, c);
+        for (((sv, dv), (&a, &b)), &c) in self
+            .sv
+            .iter_mut()
+            .zip(self.dv.iter_mut())
+            .zip(a.iter().zip(b.iter()))
+            .zip(c.iter())
+        {
+            *sv = madd::<FMA>(2.0, b, a + c);
+            *dv = c - a;
+        }
+    }
+}
+
+/// `q` of one pixel from its vertical passes.
+#[inline(always)]
+fn q_of<const FMA: bool>(svl: f32, svr: f32, dvl: f32, dvc: f32, dvr: f32, p: &Params) -> f32 {
+    let gx = svr - svl;
+    let gy = madd::<FMA>(2.0, dvc, dvl + dvr);
+    let mag2 = madd::<FMA>(gx, gx, gy * gy);
+    (mag2.sqrt() + p.offset).max(1.0)
+}
+
+/// What is done with each vector of `q`s (a trait rather than a closure, so
+/// that it is inlined into the vector code of each instruction set).
+trait Sink<const L: usize> {
+    /// Takes the `q`s of interior pixels `x..x + L` (those beyond the row
+    /// are 1).
+    fn take(&mut self, x: usize, q: &[f32; L]);
+}
+
+/// Runs `sink.take(x, q)` over the `n` interior pixels of one row, `L` at a
+/// time, from its vertical passes (padded by at least `L + 2`).
+#[inline(always)]
+fn for_each_q<const L: usize, const FMA: bool>(
+    sv: &[f32],
+    dv: &[f32],
+    n: usize,
+    p: &Params,
+    sink: &mut impl Sink<L>,
+) {
+    let chunks = n.div_ceil(L);
+    let span = chunks * L;
+    let (a, _) = sv[..span].as_chunks::<L>();
+    let (b, _) = sv[2..span + 2].as_chunks::<L>();
+    let (c, _) = dv[..span].as_chunks::<L>();
+    let (d, _) = dv[1..span + 1].as_chunks::<L>();
+    let (e, _) = dv[2..span + 2].as_chunks::<L>();
+    let full = n / L;
+    let mut x = 0;
+    for ((((a, b), c), d), e) in a.iter().zip(b).zip(c).zip(d).zip(e).take(full) {
+        let mut q = [0.0f32; L];
+        for l in 0..L {
+            q[l] = q_of::<FMA>(a[l], b[l], c[l], d[l], e[l], p);
+        }
+        sink.take(x, &q);
+        x += L;
+    }
+    if full < chunks {
+        let rest = n - x;
+        let mut q = [0.0f32; L];
+        for l in 0..L {
+            let v = q_of::<FMA>(
+                a[full][l], b[full][l], c[full][l], d[full][l], e[full][l], p,
+            );
+            q[l] = if l < rest { v } else { 1.0 };
+        }
+        sink.take(x, &q);
+    }
+}
+
+/// `L` values of `row` from `x`, padded with zeros beyond its end.
+#[inline(always)]
+fn lanes<const L: usize>(row: &[f32], x: usize) -> [f32; L] {
+    let mut out = [0.0f32; L];
+    match row.get(x..x + L) {
+        Some(v) => out.copy_from_slice(v),
+        None => {
+            let rest = row.len().saturating_sub(x);
+            out[..rest].copy_from_slice(&row[x..x + rest]);
+        }
+    }
+    out
+}
+
+/// Multiplies one row's `q`s into a running product per column, kept as
+/// mantissa × 2^exponent (see [`Params::group`]).
+struct ProductSink<'a> {
+    product: &'a mut [f32],
+}
+
+impl<const L: usize> Sink<L> for ProductSink<'_> {
+    #[inline(always)]
+    fn take(&mut self, x: usize, q: &[f32; L]) {
+        for (p, &q) in self.product[x..x + L].iter_mut().zip(q) {
+            *p *= q;
+        }
+    }
+}
+
+/// [`ProductSink`], and adds `log₂ q·log₂ I` (approximate) per column.
+struct ProductDotSink<'a, const FMA: bool> {
+    product: &'a mut [f32],
+    dot: &'a mut [f32],
+    log2: &'a [f32],
+}
+
+impl<const L: usize, const FMA: bool> Sink<L> for ProductDotSink<'_, FMA> {
+    #[inline(always)]
+    fn take(&mut self, x: usize, q: &[f32; L]) {
+        let li = lanes::<L>(self.log2, x);
+        for (((p, d), &q), &li) in self.product[x..x + L]
+            .iter_mut()
+            .zip(&mut self.dot[x..x + L])
+            .zip(q)
+            .zip(&li)
+        {
+            *p *= q;
+            *d = madd::<FMA>(fastmath::log2_approx::<FMA>(q), li, *d);
+        }
+    }
+}
+
+/// Moves the binary exponent of each column's product into its counter,
+/// leaving the mantissa in [1, 2).
+#[inline(always)]
+fn normalise(product: &mut [f32], exponent: &mut [i32]) {
+    for (p, e) in product.iter_mut().zip(exponent.iter_mut()) {
+        let bits = p.to_bits();
+        *e += (bits >> 23) as i32 - 127;
+        *p = f32::from_bits((bits & 0x007f_ffff) | 0x3f80_0000);
+    }
+}
+
+/// Stores `w·ln q` of one row (whole vectors: the row is padded).
+struct InfoSink<'a, const L: usize, const FMA: bool> {
+    out: &'a mut [f32],
+    weight: Option<&'a [f32]>,
+}
+
+impl<const L: usize, const FMA: bool> Sink<L> for InfoSink<'_, L, FMA> {
+    #[inline(always)]
+    fn take(&mut self, x: usize, q: &[f32; L]) {
+        let f = self.weight.map_or([1.0; L], |wt| lanes::<L>(wt, x));
+        for ((o, &q), &f) in self.out[x..x + L].iter_mut().zip(q).zip(&f) {
+            *o = f * fastmath::ln_with::<FMA>(q);
+        }
+    }
+}
+
+/// Adds `a` and `a·b` column by column into `sum` and `dot` (all of one
+/// length): element-wise, so it vectorises without reassociating a sum.
+#[inline(always)]
+fn accumulate<const FMA: bool>(sum: &mut [f32], dot: &mut [f32], a: &[f32], b: &[f32]) {
+    for (((s, d), &a), &b) in sum.iter_mut().zip(dot.iter_mut()).zip(a).zip(b) {
+        *s += a;
+        *d = madd::<FMA>(a, b, *d);
+    }
+}
+
+/// `Σ v` in double precision.
+fn total(v: &[f32]) -> f64 {
+    v.iter().map(|&v| f64::from(v)).sum()
+}
+
+/// What every pass over an image needs: its size, its weights, Eq. 1's
+/// constants and the row buffers.
+struct Pass<'a> {
+    w: usize,
+    h: usize,
+    weight: Option<&'a [f32]>,
+    p: Params,
+    rows: &'a mut Rows,
+}
+
+struct SumLnQ<'a> {
+    src: Source<'a>,
+    log2: Option<&'a [f32]>,
+    pass: Pass<'a>,
+}
+
+impl Kernel for SumLnQ<'_> {
+    type Output = (f64, f64);
+
+    #[inline(always)]
+    fn run<const L: usize, const FMA: bool>(self) -> (f64, f64) {
+        let Self { src, log2, pass } = self;
+        let Pass {
+            w,
+            h,
+            weight,
+            p,
+            rows,
+        } = pass;
+        let n = w - 2;
+        let span = n.div_ceil(L) * L;
+        rows.product.clear();
+        rows.product.resize(span, 1.0);
+        rows.exponent.clear();
+        rows.exponent.resize(span, 0);
+        rows.info.clear();
+        rows.info.resize(span, 0.0);
+        rows.column.clear();
+        rows.column.resize(span, 0.0);
+        let mut taken = 0;
+        rows.start::<FMA>(&src, w, p.scale);
+        for y in 1..h - 1 {
+            rows.advance::<FMA>(&src, w, p.scale, y);
+            match (weight, log2) {
+                (None, Some(log2)) => {
+                    let mut sink = ProductDotSink::<FMA> {
+                        product: &mut rows.product,
+                        dot: &mut rows.info,
+                        log2: &log2[y * w + 1..y * w + 1 + n],
+                    };
+                    for_each_q::<L, FMA>(&rows.sv, &rows.dv, n, &p, &mut sink);
+                    taken += 1;
+                    if taken == p.group {
+                        normalise(&mut rows.product, &mut rows.exponent);
+                        taken = 0;
+                    }
+                }
+                (None, None) => {
+                    let mut sink = ProductSink {
+                        product: &mut rows.product,
+                    };
+                    for_each_q::<L, FMA>(&rows.sv, &rows.dv, n, &p, &mut sink);
+                    taken += 1;
+                    if taken == p.group {
+                        normalise(&mut rows.product, &mut rows.exponent);
+                        taken = 0;
+                    }
+                }
+                (Some(wt), _) => {
+                    let span = y * w + 1..y * w + 1 + n;
+                    let mut sink = InfoSink::<L, FMA> {
+                        out: &mut rows.info,
+                        weight: Some(&wt[span]),
+                    };
+                    for_each_q::<L, FMA>(&rows.sv, &rows.dv, n, &p, &mut sink);
+                    for (s, &v) in rows.column.iter_mut().zip(&rows.info) {
+                        *s += v;
+                    }
+                }
+            }
+        }
+        normalise(&mut rows.product, &mut rows.exponent);
+        let ln_product: f64 = rows
+            .product
+            .iter()
+            .zip(&rows.exponent)
+            .map(|(&m, &e)| f64::from(e) * std::f64::consts::LN_2 + f64::from(m).ln())
+            .sum();
+        let dot = if log2.is_some() {
+            total(&rows.info) * std::f64::consts::LN_2
+        } else {
+            0.0
+        };
+        (total(&rows.column) + ln_product, dot)
+    }
+}
+
+struct Information<'a> {
+    luma: &'a [f32],
+    log2: Option<&'a [f32]>,
+    pass: Pass<'a>,
+    map: Option<&'a mut [f32]>,
+}
+
+impl Kernel for Information<'_> {
+    type Output = (f64, f64);
+
+    #[inline(always)]
+    fn run<const L: usize, const FMA: bool>(self) -> (f64, f64) {
+        let Self {
+            luma,
+            log2,
+            pass,
+            mut map,
+        } = self;
+        let Pass {
+            w,
+            h,
+            weight,
+            p,
+            rows,
+        } = pass;
+        let n = w - 2;
+        let src = Source::Plain(luma);
+        let mut row = std::mem::take(&mut rows.product);
+        row.clear();
+        row.resize(n.div_ceil(L) * L, 0.0);
+        let mut sum = vec![0.0f32; n];
+        let mut dot = vec![0.0f32; n];
+        rows.start::<FMA>(&src, w, p.scale);
+        for y in 1..h - 1 {
+            rows.advance::<FMA>(&src, w, p.scale, y);
+            let span = y * w + 1..y * w + 1 + n;
+            let mut sink = InfoSink::<L, FMA> {
+                out: &mut row,
+                weight: weight.map(|wt| &wt[span.clone()]),
+            };
+            for_each_q::<L, FMA>(&rows.sv, &rows.dv, n, &p, &mut sink);
+            let v = &row[..n];
+            accumulate::<FMA>(&mut sum, &mut dot, v, log2.map_or(v, |l| &l[span.clone()]));
+            if let Some(map) = map.as_deref_mut() {
+                map[span].copy_from_slice(v);
+            }
+        }
+        rows.product = row;
+        (total(&sum), if log2.is_some() { total(&dot) } else { 0.0 })
+    }
+}
+
+struct Log2Map<'a> {
+    luma: &'a [f32],
+    floor: f32,
+    out: &'a mut [f32],
+}
+
+impl Kernel for Log2Map<'_> {
+    type Output = ();
+
+    #[inline(always)]
+    fn run<const L: usize, const FMA: bool>(self) {
+        let floor = self.floor;
+        for (o, &v) in self.out.iter_mut().zip(self.luma) {
+            let l = fastmath::ln_with::<FMA>(v.max(1e-30)) * std::f32::consts::LOG2_E;
+            *o = l.clamp(floor, 0.0);
+        }
+    }
+}
+
+#[cfg(test)]
+#[allow(clippy::float_cmp)] // exact values: zero, one and powers of two
+mod tests {
+    use super::*;
+    use crate::exposure::metric::SOBEL_NORM;
+    use rand::{Rng, SeedableRng};
+
+    fn textured(w: usize, h: usize, seed: u64) -> Vec<f32> {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+        (0..w * h)
+            .map(|i| {
+                let (x, y) = ((i % w) as f32, (i / w) as f32);
+                let base = 0.5 + 0.4 * (x * 0.3).sin() * (y * 0.17).cos();
+                (base + rng.gen_range(-0.05..0.05)).clamp(0.0, 1.0)
+            })
+            .collect()
+    }
+
+    /// Straightforward double-precision Eq. 1 sum of `w·ln q`.
+    fn reference(img: &[f32], w: usize, h: usize, weight: Option<&[f32]>, lambda: f64) -> f64 {
+        let delta = 0.06;
+        let at = |x: usize, y: usize| f64::from(img[y * w + x]);
+        let mut total = 0.0;
+        for y in 1..h - 1 {
+            for x in 1..w - 1 {
+                let gx = at(x + 1, y - 1) + 2.0 * at(x + 1, y) + at(x + 1, y + 1)
+                    - at(x - 1, y - 1)
+                    - 2.0 * at(x - 1, y)
+                    - at(x - 1, y + 1);
+                let gy = at(x - 1, y + 1) + 2.0 * at(x, y + 1) + at(x + 1, y + 1)
+                    - at(x - 1, y - 1)
+                    - 2.0 * at(x, y - 1)
+                    - at(x + 1, y - 1);
+                let m = (gx * gx + gy * gy).sqrt() / f64::from(SOBEL_NORM);
+                let q = 1.0 + lambda * (m - delta).max(0.0);
+                total += weight.map_or(1.0, |wt| f64::from(wt[y * w + x])) * q.ln();
+            }
+        }
+        total
+    }
+
+    #[test]
+    fn every_isa_matches_the_reference() {
+        // Widths with and without a partial last chunk of 16 lanes.
+        for (w, h) in [(37, 11), (64, 9), (3, 3), (130, 40)] {
+            let img = textured(w, h, w as u64);
+            let weight: Vec<f32> = (0..w * h).map(|i| (i % 7) as f32 / 6.0).collect();
+            for lambda in [1000.0f64, 10.0, 1e9] {
+                let p = Params::new(lambda as f32, 0.06, SOBEL_NORM);
+                for wt in [None, Some(weight.as_slice())] {
+                    let want = reference(&img, w, h, wt, lambda);
+                    for isa in Isa::available() {
+                        let got =
+                            sum_ln_q(isa, Source::Plain(&img), w, h, wt, p, &mut Rows::default());
+                        let tol = 1e-5 * want.abs().max(1.0);
+                        assert!(
+                            (got - want).abs() <= tol,
+                            "{isa:?} {w}×{h} λ={lambda} weighted={}: {got} vs {want}",
+                            wt.is_some()
+                        );
+                        let mut map = Vec::new();
+                        let (sum, _) = information(
+                            isa,
+                            &img,
+                            None,
+                            w,
+                            h,
+                            wt,
+                            p,
+                            &mut Rows::default(),
+                            Some(&mut map),
+                        );
+                        assert!((sum - want).abs() <= tol, "{isa:?} map sum {sum} vs {want}");
+                        let map_sum: f64 = map.iter().map(|&v| f64::from(v)).sum();
+                        assert!(
+                            (map_sum - want).abs() <= tol,
+                            "{isa:?} map {map_sum} vs {want}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn mapped_sources_match_mapping_first() {
+        let (w, h) = (101, 23);
+        let img = textured(w, h, 3);
+        let mut log2 = Vec::new();
+        log2_map(Isa::detect(), &img, -126.0 / 1.9, &mut log2);
+        let p = Params::new(1000.0, 0.06, SOBEL_NORM);
+        for isa in Isa::available() {
+            for gamma in [1.0f32 / 1.9, 1.5] {
+                let mapped: Vec<f32> = img.iter().map(|v| v.powf(gamma)).collect();
+                let want = reference(&mapped, w, h, None, 1000.0);
+                let got = sum_ln_q(
+                    isa,
+                    Source::Gamma { log2: &log2, gamma },
+                    w,
+                    h,
+                    None,
+                    p,
+                    &mut Rows::default(),
+                );
+                assert!(
+                    (got - want).abs() <= 2e-5 * want,
+                    "{isa:?} γ={gamma}: {got} vs {want}"
+                );
+            }
+            for s in [0.6f32, 1.9] {
+                let mapped: Vec<f32> = img.iter().map(|v| (v * s).min(1.0)).collect();
+                let want = reference(&mapped, w, h, None, 1000.0);
+                let got = sum_ln_q(
+                    isa,
+                    Source::Scale { luma: &img, s },
+                    w,
+                    h,
+                    None,
+                    p,
+                    &mut Rows::default(),
+                );
+                assert!(
+                    (got - want).abs() <= 1e-5 * want,
+                    "{isa:?} s={s}: {got} vs {want}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn the_information_dot_matches_the_exact_one() {
+        let (w, h) = (83, 29);
+        let img = textured(w, h, 5);
+        let mut log2 = Vec::new();
+        log2_map(Isa::detect(), &img, -126.0, &mut log2);
+        let p = Params::new(1000.0, 0.06, SOBEL_NORM);
+        for isa in Isa::available() {
+            let (exact_sum, exact_dot) = information(
+                isa,
+                &img,
+                Some(&log2),
+                w,
+                h,
+                None,
+                p,
+                &mut Rows::default(),
+                None,
+            );
+            let (sum, dot) = sum_ln_q_and_dot(isa, &img, &log2, w, h, p, &mut Rows::default());
+            assert!(
+                (sum - exact_sum).abs() <= 1e-5 * exact_sum,
+                "{isa:?}: {sum} vs {exact_sum}"
+            );
+            // ln q to 1.5e-4 of ~5: the weighted mean of log₂ I moves by less
+            // than 1e-4.
+            let (mean, exact_mean) = (dot / sum, exact_dot / exact_sum);
+            assert!(
+                exact_mean < -0.1,
+                "the test image should be mid-grey: {exact_mean}"
+            );
+            assert!(
+                (mean - exact_mean).abs() < 1e-4,
+                "{isa:?}: {mean} vs {exact_mean}"
+            );
+        }
+    }
+
+    #[test]
+    fn short_inputs_score_zero() {
+        let p = Params::new(1000.0, 0.06, SOBEL_NORM);
+        let img = vec![0.5f32; 8];
+        assert_eq!(
+            sum_ln_q(
+                Isa::Baseline,
+                Source::Plain(&img),
+                4,
+                4,
+                None,
+                p,
+                &mut Rows::default()
+            ),
+            0.0
+        );
+        let short_weight = vec![1.0f32; 3];
+        let img = textured(5, 5, 1);
+        assert_eq!(
+            sum_ln_q(
+                Isa::detect(),
+                Source::Plain(&img),
+                5,
+                5,
+                Some(&short_weight),
+                p,
+                &mut Rows::default()
+            ),
+            0.0
+        );
+    }
+}
