@@ -5,11 +5,15 @@
 //!   2018): metering, the gradient-information metric, the γ̂ estimator, the
 //!   update laws, multi-camera balancing, the shutter/gain split, baselines and
 //!   the per-camera and per-rig controllers.
+//! - [`source`]: the frame-source interface that the simulated rig, live
+//!   cameras and replay implement: frame sets, frame metadata, exposure
+//!   commands, stream health.
 //! - [`synth`]: small synthetic high-dynamic-range scenes seen by linear
 //!   cameras, for tests, benchmarks and the headless demo.
 
 pub mod error;
 pub mod exposure;
+pub mod source;
 pub mod synth;
 
 pub use error::{Error, Result};

@@ -1,0 +1,308 @@
+//! The frame-source interface: what every source of frame sets offers the
+//! pipeline, whether it is the simulated rig, live cameras through Aravis, or
+//! a replayed recording.
+//!
+//! A source produces one [`FrameSet`] per trigger, with one slot per camera,
+//! and takes [`ExposureCommand`]s. Each [`Frame`] carries the metadata a
+//! GenICam camera gives (see [`FrameMeta`]); in particular the setting the
+//! frame was *taken* with, which the controller must use rather than the
+//! last one commanded.
+//!
+//! A set is fed to the controller only when [`FrameSet::is_complete`]: every
+//! camera delivered a frame and every frame arrived whole.
+
+use std::sync::Arc;
+use std::time::Duration;
+
+use serde::{Deserialize, Serialize};
+
+use crate::exposure::{ExposureRange, ExposureSetting, FrameView, PixelFormat};
+use crate::{Error, Result};
+
+/// How a frame arrived.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum FrameStatus {
+    /// Every packet arrived.
+    Complete,
+    /// Packets were lost; the pixels are not to be trusted.
+    MissingPackets {
+        /// How many packets were missing.
+        missing: u32,
+    },
+    /// The camera or the transport reported an error.
+    Failed(String),
+}
+
+/// What a camera says about one frame.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct FrameMeta {
+    /// The camera's index in the rig.
+    pub camera: usize,
+    /// Pixel layout.
+    pub format: PixelFormat,
+    /// Width in pixels.
+    pub width: usize,
+    /// Height in pixels.
+    pub height: usize,
+    /// The setting the frame was exposed with (exposure time in µs, gain in
+    /// dB), from chunk data or from tracking the command latency.
+    pub taken: ExposureSetting,
+    /// The camera's timestamp in ns.
+    pub timestamp_ns: u64,
+    /// The camera's frame id (block id).
+    pub frame_id: u64,
+    /// How it arrived.
+    pub status: FrameStatus,
+}
+
+/// One camera's frame: metadata and tightly packed pixels (row stride =
+/// width × bytes per pixel).
+#[derive(Clone, Debug)]
+pub struct Frame {
+    /// What the camera says about it.
+    pub meta: FrameMeta,
+    /// The pixels, shared so that a frame can go to several consumers
+    /// (controller, view, recorder) without copies.
+    pub data: Arc<[u8]>,
+}
+
+impl Frame {
+    /// A frame whose `data` is checked against the size and format in
+    /// `meta`.
+    pub fn new(meta: FrameMeta, data: Arc<[u8]>) -> Result<Self> {
+        FrameView::new(meta.format, meta.width, meta.height, &data)?;
+        Ok(Self { meta, data })
+    }
+
+    /// A view of the pixels for metering.
+    pub fn view(&self) -> Result<FrameView<'_>> {
+        FrameView::new(
+            self.meta.format,
+            self.meta.width,
+            self.meta.height,
+            &self.data,
+        )
+    }
+
+    /// Whether every packet of the frame arrived.
+    pub fn is_complete(&self) -> bool {
+        self.meta.status == FrameStatus::Complete
+    }
+}
+
+/// The frames of one trigger, one slot per camera (`None`: the camera sent
+/// nothing for this trigger).
+#[derive(Clone, Debug)]
+pub struct FrameSet {
+    /// The source's running count of triggers.
+    pub trigger: u64,
+    /// When the trigger fired, in ns (the source's clock).
+    pub timestamp_ns: u64,
+    /// One slot per camera, in rig order.
+    pub frames: Vec<Option<Frame>>,
+}
+
+impl FrameSet {
+    /// Every camera delivered a whole frame: only such sets reach the
+    /// controller.
+    pub fn is_complete(&self) -> bool {
+        self.frames
+            .iter()
+            .all(|f| f.as_ref().is_some_and(Frame::is_complete))
+    }
+
+    /// The largest difference between the cameras' timestamps, in ns (0 for
+    /// fewer than two frames).
+    pub fn timestamp_skew_ns(&self) -> u64 {
+        let stamps = self.frames.iter().flatten().map(|f| f.meta.timestamp_ns);
+        let (lo, hi) = stamps.fold((u64::MAX, 0), |(lo, hi), t| (lo.min(t), hi.max(t)));
+        hi.saturating_sub(lo.min(hi))
+    }
+}
+
+/// A new exposure setting for one camera.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ExposureCommand {
+    /// The camera's index in the rig.
+    pub camera: usize,
+    /// Exposure time (µs) and gain (dB), within the camera's ranges.
+    pub setting: ExposureSetting,
+}
+
+/// What a source knows about one of its cameras.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CameraInfo {
+    /// The camera's name in the rig (e.g. "front").
+    pub name: String,
+    /// Pixel layout of its frames.
+    pub format: PixelFormat,
+    /// Width in pixels.
+    pub width: usize,
+    /// Height in pixels.
+    pub height: usize,
+    /// The exposure and gain ranges it reports.
+    pub range: ExposureRange,
+}
+
+/// The state of one camera's stream.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum StreamState {
+    /// Frames are arriving.
+    Streaming,
+    /// The camera stopped answering.
+    Lost,
+    /// The source is trying to bring it back.
+    Reconnecting,
+}
+
+/// Counters of one camera's stream, since the source started.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct StreamHealth {
+    /// The stream's state.
+    pub state: StreamState,
+    /// Frames per second over the last second or so.
+    pub fps: f64,
+    /// Buffers that arrived whole.
+    pub completed: u64,
+    /// Buffers that arrived with an error or missing packets.
+    pub failed: u64,
+    /// Frames dropped for want of a free buffer.
+    pub underruns: u64,
+    /// Packets that never arrived.
+    pub missing_packets: u64,
+    /// Packets that were asked for again.
+    pub resent_packets: u64,
+}
+
+impl Default for StreamHealth {
+    fn default() -> Self {
+        Self {
+            state: StreamState::Streaming,
+            fps: 0.0,
+            completed: 0,
+            failed: 0,
+            underruns: 0,
+            missing_packets: 0,
+            resent_packets: 0,
+        }
+    }
+}
+
+/// A source of frame sets: the simulated rig, live cameras or a replay.
+///
+/// Sources are driven from one thread; [`FrameSource::next_set`] blocks for
+/// at most `timeout`.
+pub trait FrameSource: Send {
+    /// The cameras, in rig order.
+    fn cameras(&self) -> &[CameraInfo];
+
+    /// The next frame set, or `None` when none arrived within `timeout` or
+    /// the source has ended (see [`FrameSource::is_finished`]).
+    fn next_set(&mut self, timeout: Duration)
+        -> std::result::Result<Option<FrameSet>, SourceError>;
+
+    /// Applies exposure commands; they take effect after the source's
+    /// actuation latency, and later frames report them in
+    /// [`FrameMeta::taken`].
+    fn apply(&mut self, commands: &[ExposureCommand]) -> std::result::Result<(), SourceError>;
+
+    /// Each camera's stream health, in rig order.
+    fn health(&self) -> Vec<StreamHealth>;
+
+    /// Whether the source has no more sets to give (a replay at its end; a
+    /// simulated rig with a frame budget). Live sources never finish.
+    fn is_finished(&self) -> bool {
+        false
+    }
+}
+
+/// What can go wrong in a source.
+#[derive(Debug, thiserror::Error)]
+pub enum SourceError {
+    /// A camera index that the source does not have.
+    #[error(transparent)]
+    Core(#[from] Error),
+    /// A camera failed; the others may go on.
+    #[error("camera {camera} ({name}): {message}")]
+    Camera {
+        /// The camera's index in the rig.
+        camera: usize,
+        /// Its name.
+        name: String,
+        /// What happened.
+        message: String,
+    },
+    /// The source as a whole failed.
+    #[error("{0}")]
+    Failed(String),
+}
+
+/// Checks that a command names a camera of a source with `count` cameras.
+pub fn check_command(command: &ExposureCommand, count: usize) -> Result<()> {
+    if command.camera >= count {
+        return Err(Error::CameraIndex {
+            index: command.camera,
+            count,
+        });
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn frame(camera: usize, t: u64, status: FrameStatus) -> Frame {
+        let meta = FrameMeta {
+            camera,
+            format: PixelFormat::Mono8,
+            width: 4,
+            height: 2,
+            taken: ExposureSetting {
+                shutter_us: 1000.0,
+                gain_db: 0.0,
+            },
+            timestamp_ns: t,
+            frame_id: 1,
+            status,
+        };
+        Frame::new(meta, Arc::from(vec![0u8; 8])).unwrap()
+    }
+
+    #[test]
+    fn a_set_is_complete_only_with_every_frame_whole() {
+        let whole = FrameSet {
+            trigger: 0,
+            timestamp_ns: 0,
+            frames: vec![
+                Some(frame(0, 100, FrameStatus::Complete)),
+                Some(frame(1, 350, FrameStatus::Complete)),
+            ],
+        };
+        assert!(whole.is_complete());
+        assert_eq!(whole.timestamp_skew_ns(), 250);
+        let mut missing = whole.clone();
+        missing.frames[1] = None;
+        assert!(!missing.is_complete());
+        let mut broken = whole.clone();
+        broken.frames[0] = Some(frame(0, 100, FrameStatus::MissingPackets { missing: 3 }));
+        assert!(!broken.is_complete());
+    }
+
+    #[test]
+    fn a_frame_with_the_wrong_size_is_refused() {
+        let meta = frame(0, 0, FrameStatus::Complete).meta;
+        assert!(Frame::new(meta, Arc::from(vec![0u8; 7])).is_err());
+        assert!(check_command(
+            &ExposureCommand {
+                camera: 4,
+                setting: ExposureSetting {
+                    shutter_us: 1.0,
+                    gain_db: 0.0
+                }
+            },
+            4
+        )
+        .is_err());
+    }
+}
