@@ -8,12 +8,15 @@
 //! - [`source`]: the frame-source interface that the simulated rig, live
 //!   cameras and replay implement: frame sets, frame metadata, exposure
 //!   commands, stream health.
+//! - [`surround`]: the bird's-eye surround view: remap tables from the rig
+//!   calibration, blending, ground masks and overlap patches.
 //! - [`synth`]: small synthetic high-dynamic-range scenes seen by linear
 //!   cameras, for tests, benchmarks and the headless demo.
 
 pub mod error;
 pub mod exposure;
 pub mod source;
+pub mod surround;
 pub mod synth;
 
 pub use error::{Error, Result};

@@ -157,6 +157,57 @@ impl<'a> FrameView<'a> {
         let start = y * self.stride;
         &self.data[start..start + self.width * self.format.bytes_per_pixel()]
     }
+
+    /// All pixels as one slice, when the rows are packed (stride = row
+    /// length).
+    pub fn packed(&self) -> Option<&'a [u8]> {
+        let row = self.width * self.format.bytes_per_pixel();
+        (self.stride == row).then(|| &self.data[..row * self.height])
+    }
+
+    /// The luminance in [0, 1] at pixel (`x`, `y`), which must lie in the
+    /// frame: BT.601 weights for RGB; for Bayer, the 2×2 quad holding the
+    /// pixel (as the metering bins it).
+    pub fn luma_at(&self, x: usize, y: usize) -> f32 {
+        use crate::exposure::metering::{W_B, W_G, W_R};
+        let row = self.row(y);
+        match self.format {
+            PixelFormat::Mono8 => f32::from(row[x]) / 255.0,
+            PixelFormat::Mono12 => {
+                f32::from(u16::from_le_bytes([row[2 * x], row[2 * x + 1]]) & 0x0fff) / 4095.0
+            }
+            PixelFormat::Mono16 => {
+                f32::from(u16::from_le_bytes([row[2 * x], row[2 * x + 1]])) / 65535.0
+            }
+            PixelFormat::Rgb8 => {
+                let p = &row[3 * x..3 * x + 3];
+                (W_R * f32::from(p[0]) + W_G * f32::from(p[1]) + W_B * f32::from(p[2])) / 255.0
+            }
+            PixelFormat::BayerRg8
+            | PixelFormat::BayerGr8
+            | PixelFormat::BayerGb8
+            | PixelFormat::BayerBg8 => {
+                let (qx, qy) = (x & !1, y & !1);
+                if qx + 1 >= self.width || qy + 1 >= self.height {
+                    return f32::from(row[x]) / 255.0;
+                }
+                let (top, bottom) = (self.row(qy), self.row(qy + 1));
+                let quad = [top[qx], top[qx + 1], bottom[qx], bottom[qx + 1]];
+                let g = W_G * 0.5;
+                let w = match self.format {
+                    PixelFormat::BayerRg8 => [W_R, g, g, W_B],
+                    PixelFormat::BayerGr8 => [g, W_R, W_B, g],
+                    PixelFormat::BayerGb8 => [g, W_B, W_R, g],
+                    _ => [W_B, g, g, W_R],
+                };
+                quad.iter()
+                    .zip(w)
+                    .map(|(&v, w)| w * f32::from(v))
+                    .sum::<f32>()
+                    / 255.0
+            }
+        }
+    }
 }
 
 /// A region of interest at full frame resolution: non-zero marks a pixel that

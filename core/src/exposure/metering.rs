@@ -14,9 +14,9 @@ use serde::{Deserialize, Serialize};
 use super::frame::{FrameView, PixelFormat, RoiMask};
 use crate::error::{Error, Result};
 
-const W_R: f32 = 0.299;
-const W_G: f32 = 0.587;
-const W_B: f32 = 0.114;
+pub(crate) const W_R: f32 = 0.299;
+pub(crate) const W_G: f32 = 0.587;
+pub(crate) const W_B: f32 = 0.114;
 
 /// Luminance at or above this counts as saturated in [`ImageStats`].
 pub const SATURATED_LEVEL: f32 = 0.98;

@@ -1,0 +1,826 @@
+//! The bird's-eye surround view: the ground around the vehicle, composed from
+//! every camera of a calibrated rig, with ground-only metering masks and the
+//! overlap patches the exposure balancing measures.
+//!
+//! # The canvas
+//!
+//! A [`CanvasSpec`] is a rectangle of the ground plane (z = 0) in the vehicle
+//! frame (x forward, y left, metres) at a resolution in pixels per metre. The
+//! canvas shows it with the vehicle's front up and its left side on the left:
+//! column `c` and row `r` see the ground point at the pixel's centre,
+//!
+//! ```text
+//! x = x_max − (r + ½)/ppm,   y = y_max − (c + ½)/ppm.
+//! ```
+//!
+//! # Who shows what
+//!
+//! Each camera looks past one side of the vehicle's rectangle: the side its
+//! optical axis points to most (by yaw: front, left, back or right). Its
+//! *region* is the ground beyond that side, where it actually sees (the
+//! ground point projects into its image). Where two regions meet (the corners
+//! of a four-camera rig) both cameras see the ground: that is an overlap.
+//! A camera's *exclusive* region is where it is the only one.
+//!
+//! In an overlap, camera `c`'s blend weight falls off with the distance `d_c`
+//! from its exclusive region: `w_c ∝ 1/d_c²`, so for two cameras
+//! `w_A = d_B² / (d_A² + d_B²)`. [`BlendMode::Alpha`] weighs both halves
+//! alike and [`BlendMode::Seams`] gives each overlap pixel to the camera with
+//! the larger linear weight, so that a bad calibration shows as a break in
+//! the mat's lines.
+//!
+//! # Built once, used every frame
+//!
+//! [`SurroundView::build`] maps every canvas pixel directly to sub-pixel
+//! positions in the fisheye images (no intermediate undistorted image) and
+//! turns the maps into OpenCV's fixed-point form (`convertMaps`). Per frame,
+//! [`Composer::compose`] remaps each camera's part of the canvas (OpenCV
+//! `remap`, bilinear) and blends the parts with 8-bit weights.
+//!
+//! It also derives the **ground masks** (the source pixels that reach the
+//! canvas: only these are metered) and the **overlap patches** (a grid of
+//! small ground squares in each overlap, each with its source pixels in both
+//! cameras), from which [`SurroundView::pair_observations`] gives the
+//! balancing its patch means.
+
+mod compose;
+
+use nalgebra::{Point2, Vector3};
+use opencv::core::{Mat, MatTraitConst, MatTraitConstManual, CV_32F};
+use opencv::imgproc;
+use serde::{Deserialize, Serialize};
+
+use rigview_calib::rig::Rig;
+
+pub use compose::{Canvas, Composer};
+
+use crate::error::{Error, Result};
+use crate::exposure::controller::PairObservation;
+use crate::exposure::{FrameView, PatchPair, RoiMask};
+
+/// The ground rectangle a canvas shows, and at what resolution.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CanvasSpec {
+    /// Rearmost ground x shown, metres (vehicle frame).
+    pub x_min_m: f64,
+    /// Foremost ground x shown, metres.
+    pub x_max_m: f64,
+    /// Rightmost ground y shown, metres (y points left).
+    pub y_min_m: f64,
+    /// Leftmost ground y shown, metres.
+    pub y_max_m: f64,
+    /// Canvas pixels per metre of ground.
+    pub px_per_m: f64,
+    /// The vehicle's rectangle on the ground: `[x_min, x_max, y_min, y_max]`,
+    /// metres. Nothing is composed inside it.
+    pub vehicle_m: [f64; 4],
+}
+
+impl Default for CanvasSpec {
+    /// 10 m × 10 m around a 4.6 m × 1.9 m car, at 100 px/m (1000 × 1000 px).
+    fn default() -> Self {
+        Self {
+            x_min_m: -5.0,
+            x_max_m: 5.0,
+            y_min_m: -5.0,
+            y_max_m: 5.0,
+            px_per_m: 100.0,
+            vehicle_m: [-2.3, 2.3, -0.95, 0.95],
+        }
+    }
+}
+
+/// The largest canvas side, pixels.
+const MAX_CANVAS_SIDE: f64 = 8192.0;
+
+impl CanvasSpec {
+    /// Checks the spec: finite numbers, a non-empty extent, a resolution
+    /// giving at most 8192 pixels a side, a vehicle rectangle with min < max.
+    pub fn validate(&self) -> Result<()> {
+        let fields = [
+            ("canvas.x_min_m", self.x_min_m),
+            ("canvas.x_max_m", self.x_max_m),
+            ("canvas.y_min_m", self.y_min_m),
+            ("canvas.y_max_m", self.y_max_m),
+            ("canvas.px_per_m", self.px_per_m),
+            ("canvas.vehicle_m", self.vehicle_m.iter().sum::<f64>()),
+        ];
+        for (name, v) in fields {
+            if !v.is_finite() {
+                return Err(Error::InvalidParameter {
+                    name,
+                    value: v,
+                    expected: "a finite number",
+                });
+            }
+        }
+        if self.x_max_m <= self.x_min_m || self.y_max_m <= self.y_min_m {
+            return Err(Error::InvalidConfig(format!(
+                "canvas: the ground extent x ∈ [{}, {}], y ∈ [{}, {}] m is empty: expected min < max",
+                self.x_min_m, self.x_max_m, self.y_min_m, self.y_max_m
+            )));
+        }
+        let [vx0, vx1, vy0, vy1] = self.vehicle_m;
+        if vx1 < vx0 || vy1 < vy0 {
+            return Err(Error::InvalidConfig(format!(
+                "canvas.vehicle_m = [{vx0}, {vx1}, {vy0}, {vy1}]: expected [x_min, x_max, y_min, y_max] with min ≤ max"
+            )));
+        }
+        let (w, h) = self.size_f64();
+        if self.px_per_m <= 0.0 || w < 1.0 || h < 1.0 || w > MAX_CANVAS_SIDE || h > MAX_CANVAS_SIDE
+        {
+            return Err(Error::InvalidParameter {
+                name: "canvas.px_per_m",
+                value: self.px_per_m,
+                expected: "a resolution that gives a canvas of 1 to 8192 pixels a side",
+            });
+        }
+        Ok(())
+    }
+
+    fn size_f64(&self) -> (f64, f64) {
+        (
+            ((self.y_max_m - self.y_min_m) * self.px_per_m).round(),
+            ((self.x_max_m - self.x_min_m) * self.px_per_m).round(),
+        )
+    }
+
+    /// Canvas width and height in pixels.
+    pub fn size(&self) -> (usize, usize) {
+        let (w, h) = self.size_f64();
+        (w.max(0.0) as usize, h.max(0.0) as usize)
+    }
+
+    /// The ground point (x, y) a canvas position (column, row; pixel centres
+    /// at +½) shows.
+    pub fn ground(&self, col: f64, row: f64) -> (f64, f64) {
+        (
+            self.x_max_m - row / self.px_per_m,
+            self.y_max_m - col / self.px_per_m,
+        )
+    }
+
+    /// The canvas position (column, row) of a ground point.
+    pub fn canvas(&self, x: f64, y: f64) -> (f64, f64) {
+        (
+            (self.y_max_m - y) * self.px_per_m,
+            (self.x_max_m - x) * self.px_per_m,
+        )
+    }
+
+    /// Whether a ground point lies on the vehicle.
+    pub fn on_vehicle(&self, x: f64, y: f64) -> bool {
+        let [x0, x1, y0, y1] = self.vehicle_m;
+        x >= x0 && x <= x1 && y >= y0 && y <= y1
+    }
+
+    /// The vehicle's rectangle on the canvas: column, row, width, height.
+    pub fn vehicle_rect_px(&self) -> [usize; 4] {
+        let [x0, x1, y0, y1] = self.vehicle_m;
+        let (c0, r0) = self.canvas(x1, y1);
+        let (c1, r1) = self.canvas(x0, y0);
+        let (w, h) = self.size();
+        let clamp = |v: f64, hi: usize| (v.round().max(0.0) as usize).min(hi);
+        let (c0, c1) = (clamp(c0, w), clamp(c1, w));
+        let (r0, r1) = (clamp(r0, h), clamp(r1, h));
+        [c0, r0, c1 - c0, r1 - r0]
+    }
+}
+
+/// How overlapping cameras are mixed.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum BlendMode {
+    /// Weights falling off with the distance from each camera's exclusive
+    /// region (the default).
+    #[default]
+    Linear,
+    /// Half and half.
+    Alpha,
+    /// Each overlap pixel from one camera: a hard seam, for checking the
+    /// calibration.
+    Seams,
+}
+
+impl BlendMode {
+    /// Every mode, in the order of [`CameraLayer`]'s weight tables.
+    pub const ALL: [BlendMode; 3] = [BlendMode::Linear, BlendMode::Alpha, BlendMode::Seams];
+
+    /// The name used in settings and on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Linear => "linear",
+            Self::Alpha => "alpha",
+            Self::Seams => "seams",
+        }
+    }
+
+    fn index(self) -> usize {
+        match self {
+            Self::Linear => 0,
+            Self::Alpha => 1,
+            Self::Seams => 2,
+        }
+    }
+}
+
+/// Options of [`SurroundView::build`].
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SurroundOptions {
+    /// Side of an overlap patch on the ground, metres.
+    pub patch_m: f64,
+    /// The fraction of a patch's canvas pixels that both cameras must show.
+    pub patch_coverage: f64,
+    /// The ground masks are computed on every `mask_step`-th source pixel
+    /// (each result covers a `mask_step × mask_step` block).
+    pub mask_step: usize,
+}
+
+impl Default for SurroundOptions {
+    fn default() -> Self {
+        Self {
+            patch_m: 0.25,
+            patch_coverage: 0.9,
+            mask_step: 2,
+        }
+    }
+}
+
+/// One camera's part of the canvas.
+#[derive(Debug)]
+pub struct CameraLayer {
+    /// The camera's index in the rig.
+    pub camera: usize,
+    /// The part of the canvas it contributes to: column, row, width, height.
+    pub roi: [usize; 4],
+    /// Source image size (width, height).
+    pub source: (usize, usize),
+    /// Per ROI pixel, the source position (x, y), or (−1, −1) where the
+    /// camera contributes nothing.
+    pub map: Vec<[f32; 2]>,
+    /// Per blend mode ([`BlendMode::ALL`] order), per ROI pixel, the weight
+    /// in 1/256 (the weights of all cameras sum to 256 on a covered pixel).
+    pub weights: [Vec<u16>; 3],
+    /// OpenCV's fixed-point maps of `map` (`CV_16SC2` and `CV_16UC1`).
+    map1: Mat,
+    map2: Mat,
+}
+
+/// One overlap patch: the source pixels (row-major indices) of one small
+/// square of ground in both cameras.
+#[derive(Clone, Debug, PartialEq)]
+pub struct OverlapPatch {
+    /// The patch's centre on the ground (x, y), metres.
+    pub centre_m: (f64, f64),
+    /// Source pixel indices in camera `i`.
+    pub pixels_i: Vec<u32>,
+    /// Source pixel indices in camera `j`.
+    pub pixels_j: Vec<u32>,
+}
+
+/// The overlap of two neighbouring cameras.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Overlap {
+    /// Camera `i` (the smaller index).
+    pub i: usize,
+    /// Camera `j`.
+    pub j: usize,
+    /// Canvas pixels both cameras show.
+    pub pixels: usize,
+    /// Its patches.
+    pub patches: Vec<OverlapPatch>,
+}
+
+/// The surround view of one rig and canvas, built once per calibration.
+#[derive(Debug)]
+pub struct SurroundView {
+    spec: CanvasSpec,
+    width: usize,
+    height: usize,
+    layers: Vec<CameraLayer>,
+    masks: Vec<RoiMask>,
+    overlaps: Vec<Overlap>,
+}
+
+/// Which side of the vehicle a camera looks past.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Side {
+    Front,
+    Left,
+    Back,
+    Right,
+}
+
+impl Side {
+    fn of_yaw(yaw: f64) -> Self {
+        let d = yaw.to_degrees();
+        if d.abs() <= 45.0 {
+            Side::Front
+        } else if (45.0..=135.0).contains(&d) {
+            Side::Left
+        } else if (-135.0..=-45.0).contains(&d) {
+            Side::Right
+        } else {
+            Side::Back
+        }
+    }
+
+    /// Whether a ground point lies beyond this side of the vehicle.
+    fn beyond(self, vehicle: &[f64; 4], x: f64, y: f64) -> bool {
+        let [x0, x1, y0, y1] = *vehicle;
+        match self {
+            Side::Front => x > x1,
+            Side::Back => x < x0,
+            Side::Left => y > y1,
+            Side::Right => y < y0,
+        }
+    }
+}
+
+impl SurroundView {
+    /// Builds the view of `rig` on `spec`. The rig's cameras need poses in
+    /// the vehicle frame.
+    pub fn build(rig: &Rig, spec: &CanvasSpec, options: &SurroundOptions) -> Result<Self> {
+        spec.validate()?;
+        validate_options(options)?;
+        if rig.frame != rigview_calib::rig::Frame::Vehicle {
+            return Err(Error::InvalidConfig(
+                "surround view: the rig's poses are not in the vehicle frame (x forward, y left, z up, ground z = 0); a camera-frame rig (e.g. a Kalibr camchain) needs its ground pose first (`rigview calib ground`)".into(),
+            ));
+        }
+        let (w, h) = spec.size();
+        let n = rig.cameras.len();
+        // Pass 1: where each camera sees, within its side.
+        let mut sides = Vec::with_capacity(n);
+        for cam in &rig.cameras {
+            let Some(pose) = cam.pose.as_ref() else {
+                return Err(Error::InvalidConfig(format!(
+                    "surround view: camera `{}` has no pose: expected every camera's pose in the vehicle frame",
+                    cam.name
+                )));
+            };
+            let axis = pose.optical_axis();
+            sides.push(Side::of_yaw(axis.y.atan2(axis.x)));
+        }
+        let mut source: Vec<Vec<[f32; 2]>> = vec![vec![[-1.0, -1.0]; w * h]; n];
+        let mut count = vec![0u8; w * h];
+        for r in 0..h {
+            for c in 0..w {
+                let (x, y) = spec.ground(c as f64 + 0.5, r as f64 + 0.5);
+                if spec.on_vehicle(x, y) {
+                    continue;
+                }
+                let p = Vector3::new(x, y, 0.0);
+                for (k, cam) in rig.cameras.iter().enumerate() {
+                    if !sides[k].beyond(&spec.vehicle_m, x, y) {
+                        continue;
+                    }
+                    let Some(px) = cam.project_rig(&p) else {
+                        continue;
+                    };
+                    let (iw, ih) = (
+                        f64::from(cam.intrinsics.width),
+                        f64::from(cam.intrinsics.height),
+                    );
+                    // Bilinear sampling needs the pixel and its right and
+                    // lower neighbours.
+                    if px.x >= 0.0 && px.y >= 0.0 && px.x <= iw - 1.0 && px.y <= ih - 1.0 {
+                        source[k][r * w + c] = [px.x as f32, px.y as f32];
+                        count[r * w + c] += 1;
+                    }
+                }
+            }
+        }
+        // Pass 2: the distance of every canvas pixel from each camera's
+        // exclusive region, and the weights.
+        let mut distance = Vec::with_capacity(n);
+        for (k, src) in source.iter().enumerate() {
+            let exclusive: Vec<u8> = (0..w * h)
+                .map(|i| u8::from(!(src[i][0] >= 0.0 && count[i] == 1)) * 255)
+                .collect();
+            distance.push(distance_to_zero(&exclusive, w, h).map_err(|e| {
+                Error::InvalidConfig(format!(
+                    "surround view: camera {k}: distance transform: {e}"
+                ))
+            })?);
+        }
+        let mut layers = Vec::with_capacity(n);
+        for (k, cam) in rig.cameras.iter().enumerate() {
+            let covered = |i: usize| source[k][i][0] >= 0.0;
+            let Some(roi) = bounding_box(w, h, covered) else {
+                return Err(Error::InvalidConfig(format!(
+                    "surround view: camera `{}` sees none of the canvas (x ∈ [{}, {}], y ∈ [{}, {}] m beyond the vehicle's {:?} side): expected a pose looking at the ground",
+                    cam.name, spec.x_min_m, spec.x_max_m, spec.y_min_m, spec.y_max_m, sides[k]
+                )));
+            };
+            let [c0, r0, rw, rh] = roi;
+            let mut map = Vec::with_capacity(rw * rh);
+            let mut weights: [Vec<u16>; 3] = std::array::from_fn(|_| Vec::with_capacity(rw * rh));
+            for r in r0..r0 + rh {
+                for c in c0..c0 + rw {
+                    let i = r * w + c;
+                    map.push(source[k][i]);
+                    let [lin, alpha, seam] = if covered(i) {
+                        blend_weights(k, i, &source, &distance)
+                    } else {
+                        [0, 0, 0]
+                    };
+                    weights[0].push(lin);
+                    weights[1].push(alpha);
+                    weights[2].push(seam);
+                }
+            }
+            let (map1, map2) = fixed_point_maps(&map, rw, rh).map_err(|e| {
+                Error::InvalidConfig(format!(
+                    "surround view: camera `{}`: convertMaps: {e}",
+                    cam.name
+                ))
+            })?;
+            layers.push(CameraLayer {
+                camera: k,
+                roi,
+                source: (
+                    cam.intrinsics.width as usize,
+                    cam.intrinsics.height as usize,
+                ),
+                map,
+                weights,
+                map1,
+                map2,
+            });
+        }
+        let masks = rig
+            .cameras
+            .iter()
+            .zip(&layers)
+            .map(|(cam, layer)| ground_mask(cam, layer, spec, options.mask_step))
+            .collect::<Result<Vec<_>>>()?;
+        let overlaps = rig
+            .neighbours
+            .iter()
+            .map(|&(i, j)| overlap(spec, w, h, i, j, &source, &layers, options))
+            .collect();
+        Ok(Self {
+            spec: spec.clone(),
+            width: w,
+            height: h,
+            layers,
+            masks,
+            overlaps,
+        })
+    }
+
+    /// The canvas spec.
+    pub fn spec(&self) -> &CanvasSpec {
+        &self.spec
+    }
+
+    /// Canvas width and height, pixels.
+    pub fn size(&self) -> (usize, usize) {
+        (self.width, self.height)
+    }
+
+    /// Each camera's part of the canvas, in rig order.
+    pub fn layers(&self) -> &[CameraLayer] {
+        &self.layers
+    }
+
+    /// Each camera's ground mask (source pixels that reach the canvas), in
+    /// rig order: meter only these.
+    pub fn ground_masks(&self) -> &[RoiMask] {
+        &self.masks
+    }
+
+    /// The overlaps of the rig's neighbour pairs.
+    pub fn overlaps(&self) -> &[Overlap] {
+        &self.overlaps
+    }
+
+    /// Checks that there is one frame per camera, of its calibrated size.
+    pub fn check_frames(&self, frames: &[FrameView<'_>]) -> Result<()> {
+        if frames.len() != self.layers.len() {
+            return Err(Error::InvalidConfig(format!(
+                "surround view: {} frames for a rig of {} cameras",
+                frames.len(),
+                self.layers.len()
+            )));
+        }
+        for (layer, f) in self.layers.iter().zip(frames) {
+            if (f.width(), f.height()) != layer.source {
+                return Err(Error::SizeMismatch {
+                    what: "frame against its camera's calibration",
+                    expected_width: layer.source.0,
+                    expected_height: layer.source.1,
+                    width: f.width(),
+                    height: f.height(),
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// The patch means of every overlap in the current frames (rig order),
+    /// for the balancing (Eq. 5). Frames of another size than the
+    /// calibration are an error.
+    pub fn pair_observations(&self, frames: &[FrameView<'_>]) -> Result<Vec<PairObservation>> {
+        self.check_frames(frames)?;
+        Ok(self
+            .overlaps
+            .iter()
+            .map(|o| PairObservation {
+                i: o.i,
+                j: o.j,
+                patches: o
+                    .patches
+                    .iter()
+                    .map(|p| {
+                        let (mean_i, saturated_i) = patch_stats(&frames[o.i], &p.pixels_i);
+                        let (mean_j, saturated_j) = patch_stats(&frames[o.j], &p.pixels_j);
+                        PatchPair {
+                            mean_i,
+                            saturated_i,
+                            mean_j,
+                            saturated_j,
+                        }
+                    })
+                    .collect(),
+            })
+            .collect())
+    }
+}
+
+fn validate_options(o: &SurroundOptions) -> Result<()> {
+    crate::error::check_range(
+        "surround.patch_m",
+        o.patch_m,
+        0.01,
+        10.0,
+        "a patch side of 0.01 to 10 m",
+    )?;
+    crate::error::check_range(
+        "surround.patch_coverage",
+        o.patch_coverage,
+        0.0,
+        1.0,
+        "a fraction in [0, 1]",
+    )?;
+    if o.mask_step == 0 || o.mask_step > 16 {
+        return Err(Error::InvalidParameter {
+            name: "surround.mask_step",
+            value: o.mask_step as f64,
+            expected: "a step of 1 to 16 source pixels",
+        });
+    }
+    Ok(())
+}
+
+/// Distance (pixels, L2) of every pixel to the nearest 0 of a `w×h` mask.
+fn distance_to_zero(mask: &[u8], w: usize, h: usize) -> opencv::Result<Vec<f32>> {
+    let src = Mat::new_rows_cols_with_data(h as i32, w as i32, mask)?;
+    let mut dst = Mat::default();
+    imgproc::distance_transform(
+        &src,
+        &mut dst,
+        imgproc::DIST_L2,
+        imgproc::DIST_MASK_5,
+        CV_32F,
+    )?;
+    Ok(dst.data_typed::<f32>()?.to_vec())
+}
+
+/// The 1/256 weights of camera `k` at canvas pixel `i` for the three blend
+/// modes.
+fn blend_weights(k: usize, i: usize, source: &[Vec<[f32; 2]>], distance: &[Vec<f32>]) -> [u16; 3] {
+    let seeing: Vec<usize> = (0..source.len())
+        .filter(|&m| source[m][i][0] >= 0.0)
+        .collect();
+    if seeing.len() <= 1 {
+        return [256, 256, 256];
+    }
+    // w ∝ 1/d², with d floored at half a pixel.
+    let inv = |m: usize| 1.0 / f64::from(distance[m][i].max(0.5)).powi(2);
+    let total: f64 = seeing.iter().map(|&m| inv(m)).sum();
+    let linear = inv(k) / total;
+    let best = seeing
+        .iter()
+        .copied()
+        .max_by(|&a, &b| inv(a).total_cmp(&inv(b)))
+        .unwrap_or(k);
+    [
+        to_weight(linear),
+        to_weight(1.0 / seeing.len() as f64),
+        if best == k { 256 } else { 0 },
+    ]
+}
+
+fn to_weight(f: f64) -> u16 {
+    (f * 256.0).round().clamp(0.0, 256.0) as u16
+}
+
+/// The smallest rectangle holding every pixel where `covered` holds.
+fn bounding_box(w: usize, h: usize, covered: impl Fn(usize) -> bool) -> Option<[usize; 4]> {
+    let (mut c0, mut r0, mut c1, mut r1) = (usize::MAX, usize::MAX, 0, 0);
+    for r in 0..h {
+        for c in 0..w {
+            if covered(r * w + c) {
+                c0 = c0.min(c);
+                c1 = c1.max(c);
+                r0 = r0.min(r);
+                r1 = r1.max(r);
+            }
+        }
+    }
+    (c0 != usize::MAX).then(|| [c0, r0, c1 - c0 + 1, r1 - r0 + 1])
+}
+
+/// OpenCV's fixed-point maps (`CV_16SC2` + `CV_16UC1`) of a float map.
+fn fixed_point_maps(map: &[[f32; 2]], w: usize, h: usize) -> opencv::Result<(Mat, Mat)> {
+    let flat: Vec<f32> = map.iter().flat_map(|p| [p[0], p[1]]).collect();
+    let xy = Mat::new_rows_cols_with_data(h as i32, (2 * w) as i32, &flat)?;
+    let xy = xy.reshape(2, h as i32)?;
+    let (mut map1, mut map2) = (Mat::default(), Mat::default());
+    imgproc::convert_maps(
+        &xy,
+        &Mat::default(),
+        &mut map1,
+        &mut map2,
+        opencv::core::CV_16SC2,
+        false,
+    )?;
+    Ok((map1, map2))
+}
+
+/// The source pixels of camera `cam` whose ground point lands on a canvas
+/// pixel the camera contributes to, sampled every `step` pixels.
+fn ground_mask(
+    cam: &rigview_calib::rig::Camera,
+    layer: &CameraLayer,
+    spec: &CanvasSpec,
+    step: usize,
+) -> Result<RoiMask> {
+    let (sw, sh) = layer.source;
+    let [c0, r0, rw, rh] = layer.roi;
+    let mut data = vec![0u8; sw * sh];
+    for y in (0..sh).step_by(step) {
+        for x in (0..sw).step_by(step) {
+            let centre = Point2::new(
+                x as f64 + 0.5 * (step as f64 - 1.0),
+                y as f64 + 0.5 * (step as f64 - 1.0),
+            );
+            let Some(g) = cam.ground_point(&centre) else {
+                continue;
+            };
+            let (c, r) = spec.canvas(g.x, g.y);
+            if c < 0.0 || r < 0.0 {
+                continue;
+            }
+            let (c, r) = (c as usize, r as usize);
+            if c < c0 || r < r0 || c >= c0 + rw || r >= r0 + rh {
+                continue;
+            }
+            if layer.weights[0][(r - r0) * rw + (c - c0)] == 0 {
+                continue;
+            }
+            for yy in y..(y + step).min(sh) {
+                data[yy * sw + x..yy * sw + (x + step).min(sw)].fill(255);
+            }
+        }
+    }
+    RoiMask::new(sw, sh, data)
+}
+
+/// The overlap of cameras `i` and `j` and its patches.
+#[allow(clippy::too_many_arguments)]
+fn overlap(
+    spec: &CanvasSpec,
+    w: usize,
+    h: usize,
+    i: usize,
+    j: usize,
+    source: &[Vec<[f32; 2]>],
+    layers: &[CameraLayer],
+    options: &SurroundOptions,
+) -> Overlap {
+    let both = |p: usize| source[i][p][0] >= 0.0 && source[j][p][0] >= 0.0;
+    let pixels = (0..w * h).filter(|&p| both(p)).count();
+    let cell = (options.patch_m * spec.px_per_m).round().max(2.0) as usize;
+    let need = (options.patch_coverage * (cell * cell) as f64).ceil() as usize;
+    let index = |k: usize, p: usize| {
+        let [x, y] = source[k][p];
+        let (sw, sh) = layers[k].source;
+        let (x, y) = (
+            (x.round() as usize).min(sw - 1),
+            (y.round() as usize).min(sh - 1),
+        );
+        (y * sw + x) as u32
+    };
+    let mut patches = Vec::new();
+    for r0 in (0..h.saturating_sub(cell - 1)).step_by(cell) {
+        for c0 in (0..w.saturating_sub(cell - 1)).step_by(cell) {
+            let cells: Vec<usize> = (r0..r0 + cell)
+                .flat_map(|r| (c0..c0 + cell).map(move |c| r * w + c))
+                .filter(|&p| both(p))
+                .collect();
+            if cells.len() < need.max(1) {
+                continue;
+            }
+            let mut pixels_i: Vec<u32> = cells.iter().map(|&p| index(i, p)).collect();
+            let mut pixels_j: Vec<u32> = cells.iter().map(|&p| index(j, p)).collect();
+            pixels_i.sort_unstable();
+            pixels_i.dedup();
+            pixels_j.sort_unstable();
+            pixels_j.dedup();
+            let centre_m =
+                spec.ground(c0 as f64 + 0.5 * cell as f64, r0 as f64 + 0.5 * cell as f64);
+            patches.push(OverlapPatch {
+                centre_m,
+                pixels_i,
+                pixels_j,
+            });
+        }
+    }
+    Overlap {
+        i,
+        j,
+        pixels,
+        patches,
+    }
+}
+
+/// Mean intensity in [0, 1] and saturated fraction of the pixels `idx` of a
+/// frame (8-bit formats; others are read through their luminance row).
+fn patch_stats(frame: &FrameView<'_>, idx: &[u32]) -> (f32, f32) {
+    if idx.is_empty() {
+        return (0.0, 0.0);
+    }
+    let w = frame.width();
+    let (mut sum, mut sat) = (0.0f64, 0usize);
+    for &p in idx {
+        let p = p as usize;
+        let v = frame.luma_at(p % w, p / w);
+        sum += f64::from(v);
+        sat += usize::from(v >= crate::exposure::metering::SATURATED_LEVEL);
+    }
+    let n = idx.len() as f32;
+    ((sum / idx.len() as f64) as f32, sat as f32 / n)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bad_canvas_specs_are_refused_with_the_field() {
+        let ok = CanvasSpec::default();
+        assert!(ok.validate().is_ok());
+        assert_eq!(ok.size(), (1000, 1000));
+        let cases = [
+            (
+                CanvasSpec {
+                    px_per_m: f64::NAN,
+                    ..ok.clone()
+                },
+                "canvas.px_per_m",
+            ),
+            (
+                CanvasSpec {
+                    px_per_m: 1e6,
+                    ..ok.clone()
+                },
+                "canvas.px_per_m",
+            ),
+            (
+                CanvasSpec {
+                    x_max_m: -6.0,
+                    ..ok.clone()
+                },
+                "ground extent",
+            ),
+            (
+                CanvasSpec {
+                    vehicle_m: [2.0, -2.0, -1.0, 1.0],
+                    ..ok.clone()
+                },
+                "canvas.vehicle_m",
+            ),
+        ];
+        for (spec, field) in cases {
+            let e = spec.validate().unwrap_err().to_string();
+            assert!(e.contains(field), "{e} should name {field}");
+        }
+    }
+
+    #[test]
+    fn canvas_and_ground_coordinates_are_inverse() {
+        let s = CanvasSpec::default();
+        let (x, y) = s.ground(123.5, 456.5);
+        let (c, r) = s.canvas(x, y);
+        assert!((c - 123.5).abs() < 1e-9 && (r - 456.5).abs() < 1e-9);
+        // Front is up, left is left.
+        assert!(s.ground(500.0, 0.0).0 > 4.9);
+        assert!(s.ground(0.0, 500.0).1 > 4.9);
+        let [c0, r0, w, h] = s.vehicle_rect_px();
+        assert_eq!((w, h), (190, 460));
+        assert_eq!((c0, r0), (405, 270));
+    }
+}

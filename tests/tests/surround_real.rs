@@ -1,0 +1,298 @@
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+//! The surround view of the real four-fisheye rig in `shared/data/surround-nz`:
+//! imported through the calibration importer, composed, and checked for
+//! geometric agreement in the four overlaps, against a deliberately
+//! misaligned copy of the rig that must fail the same check.
+
+use std::path::{Path, PathBuf};
+
+use opencv::core::{self, Mat, MatTraitConstManual};
+use opencv::imgproc;
+use rigview_calib::formats;
+use rigview_calib::pose::Pose;
+use rigview_calib::rig::Rig;
+use rigview_core::exposure::{FrameView, PixelFormat};
+use rigview_core::surround::{
+    BlendMode, Canvas, CanvasSpec, Composer, SurroundOptions, SurroundView,
+};
+
+fn data() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/surround-nz")
+}
+
+/// The source project's canvas (16 m × 12 m around the car, whose rectangle
+/// is 5 m × 2 m), at 50 px/m.
+fn spec() -> CanvasSpec {
+    CanvasSpec {
+        x_min_m: -8.0,
+        x_max_m: 8.0,
+        y_min_m: -6.0,
+        y_max_m: 6.0,
+        px_per_m: 50.0,
+        vehicle_m: [-2.5, 2.5, -1.0, 1.0],
+    }
+}
+
+fn images(rig: &Rig) -> Vec<(usize, usize, Vec<u8>)> {
+    rig.cameras
+        .iter()
+        .map(|c| {
+            let img = image::open(data().join(format!("{}.png", c.name)))
+                .unwrap()
+                .to_rgb8();
+            (img.width() as usize, img.height() as usize, img.into_raw())
+        })
+        .collect()
+}
+
+fn views(images: &[(usize, usize, Vec<u8>)]) -> Vec<FrameView<'_>> {
+    images
+        .iter()
+        .map(|(w, h, d)| FrameView::new(PixelFormat::Rgb8, *w, *h, d).unwrap())
+        .collect()
+}
+
+/// Gradient agreement of two warped images over the pixels both show:
+/// `Σ ∇a·∇b / √(Σ|∇a|² Σ|∇b|²)` of the Sobel gradients after a Gaussian
+/// blur of σ = 1.5 px (3 cm), over the common pixels eroded by 4 px (so the
+/// edge of each camera's coverage is no edge). 1 means the same edges in
+/// the same places; misplaced edges pull it towards 0.
+fn gradient_agreement(a: &Canvas, b: &Canvas) -> (f64, usize) {
+    let (w, h) = (a.width as i32, a.height as i32);
+    // The mat: x ∈ [−5, 5] m, y ∈ [−3, 3] m (README of the data).
+    let s = spec();
+    let (c0, r0) = s.canvas(5.0, 3.0);
+    let (c1, r1) = s.canvas(-5.0, -3.0);
+    let on_mat = |i: usize| {
+        let (c, r) = ((i % a.width) as f64, (i / a.width) as f64);
+        c >= c0 && c < c1 && r >= r0 && r < r1
+    };
+    let both: Vec<u8> = a
+        .data
+        .iter()
+        .zip(&b.data)
+        .enumerate()
+        .map(|(i, (&x, &y))| if x > 0 && y > 0 && on_mat(i) { 255 } else { 0 })
+        .collect();
+    let mask = Mat::new_rows_cols_with_data(h, w, &both).unwrap();
+    let mut eroded = Mat::default();
+    let kernel = imgproc::get_structuring_element(
+        imgproc::MORPH_RECT,
+        core::Size::new(9, 9),
+        core::Point::new(-1, -1),
+    )
+    .unwrap();
+    imgproc::erode(
+        &mask,
+        &mut eroded,
+        &kernel,
+        core::Point::new(-1, -1),
+        1,
+        core::BORDER_CONSTANT,
+        core::Scalar::all(0.0),
+    )
+    .unwrap();
+    let grad = |c: &Canvas| {
+        let m = Mat::new_rows_cols_with_data(h, w, &c.data).unwrap();
+        let mut blurred = Mat::default();
+        imgproc::gaussian_blur(
+            &m,
+            &mut blurred,
+            core::Size::new(0, 0),
+            SIGMA_PX,
+            SIGMA_PX,
+            core::BORDER_REPLICATE,
+        )
+        .unwrap();
+        let (mut gx, mut gy) = (Mat::default(), Mat::default());
+        imgproc::sobel(
+            &blurred,
+            &mut gx,
+            core::CV_32F,
+            1,
+            0,
+            3,
+            1.0,
+            0.0,
+            core::BORDER_REPLICATE,
+        )
+        .unwrap();
+        imgproc::sobel(
+            &blurred,
+            &mut gy,
+            core::CV_32F,
+            0,
+            1,
+            3,
+            1.0,
+            0.0,
+            core::BORDER_REPLICATE,
+        )
+        .unwrap();
+        (
+            gx.data_typed::<f32>().unwrap().to_vec(),
+            gy.data_typed::<f32>().unwrap().to_vec(),
+        )
+    };
+    let ((ax, ay), (bx, by)) = (grad(a), grad(b));
+    let m = eroded.data_bytes().unwrap();
+    let (mut ab, mut aa, mut bb, mut n) = (0.0f64, 0.0f64, 0.0f64, 0usize);
+    for i in 0..m.len() {
+        if m[i] == 0 {
+            continue;
+        }
+        let (ax, ay, bx, by) = (
+            f64::from(ax[i]),
+            f64::from(ay[i]),
+            f64::from(bx[i]),
+            f64::from(by[i]),
+        );
+        ab += ax * bx + ay * by;
+        aa += ax * ax + ay * ay;
+        bb += bx * bx + by * by;
+        n += 1;
+    }
+    (ab / (aa * bb).sqrt().max(1e-12), n)
+}
+
+fn agreements(rig: &Rig, imgs: &[(usize, usize, Vec<u8>)]) -> Vec<(String, f64, usize)> {
+    let view = SurroundView::build(rig, &spec(), &SurroundOptions::default()).unwrap();
+    let frames = views(imgs);
+    let mut composer = Composer::new();
+    let warped: Vec<Canvas> = (0..frames.len())
+        .map(|k| composer.warp_camera(&view, k, &frames[k]).unwrap())
+        .collect();
+    view.overlaps()
+        .iter()
+        .map(|o| {
+            let (g, n) = gradient_agreement(&warped[o.i], &warped[o.j]);
+            (
+                format!("{}–{}", rig.cameras[o.i].name, rig.cameras[o.j].name),
+                g,
+                n,
+            )
+        })
+        .collect()
+}
+
+/// The blur before the gradients, canvas pixels (2 cm each).
+const SIGMA_PX: f64 = 3.0;
+
+/// The agreement an aligned pair of cameras reaches. Measured: 0.75–0.93 in
+/// the front–left, front–right and back–right overlaps; a front camera
+/// turned by 3° drops to 0.26 in one of its overlaps.
+const AGREEMENT: f64 = 0.5;
+
+/// The overlap where the data's own calibration does not line up: the
+/// back-left corner of the mat lies about 73° off the left camera's axis,
+/// near where its lens model stops being valid (86.9°), and seams mode
+/// shows the squares there offset by about 20 cm. This overlap is measured
+/// and reported but not held to [`AGREEMENT`].
+const DATA_LIMIT: &str = "left–back";
+
+#[test]
+fn the_real_rig_lines_up_in_its_overlaps_and_a_turned_camera_does_not() {
+    let loaded = formats::load(&data(), None, None).unwrap();
+    let rig = loaded.rig;
+    let imgs = images(&rig);
+    let good = agreements(&rig, &imgs);
+    assert_eq!(good.len(), 4, "four overlaps: {good:?}");
+    for (pair, g, n) in &good {
+        eprintln!("overlap {pair}: gradient agreement {g:.3} over {n} px of the mat");
+        assert!(*n > 2000, "overlap {pair} too small: {n} px");
+        if pair != DATA_LIMIT {
+            assert!(
+                *g > AGREEMENT,
+                "overlap {pair}: agreement {g:.3} ≤ {AGREEMENT}"
+            );
+        }
+    }
+
+    // The front camera turned 3° to the left: the worse of its two overlaps
+    // must fail (a camera is aligned only when all its overlaps agree).
+    let mut turned = rig.clone();
+    let front = turned.index_of("front").unwrap();
+    let pose = turned.cameras[front].pose.unwrap();
+    let [yaw, pitch, roll] = pose.ypr_deg();
+    turned.cameras[front].pose =
+        Some(Pose::from_ypr_deg([yaw + 3.0, pitch, roll], *pose.translation()).unwrap());
+    let bad = agreements(&turned, &imgs);
+    let worst = bad
+        .iter()
+        .filter(|(pair, _, _)| pair.contains("front"))
+        .map(|(pair, g, _)| {
+            eprintln!("turned front camera, overlap {pair}: gradient agreement {g:.3}");
+            *g
+        })
+        .fold(f64::INFINITY, f64::min);
+    assert!(
+        worst < AGREEMENT,
+        "a turned camera passed: worst agreement {worst:.3}"
+    );
+}
+
+#[test]
+fn the_real_rig_composes_and_measures_brightness_ratios() {
+    let rig = formats::load(&data(), None, None).unwrap().rig;
+    let imgs = images(&rig);
+    let view = SurroundView::build(&rig, &spec(), &SurroundOptions::default()).unwrap();
+    let frames = views(&imgs);
+    let mut composer = Composer::new();
+    for mode in BlendMode::ALL {
+        let mut canvas = Canvas::new(0, 0, 3);
+        composer.compose(&view, &frames, mode, &mut canvas).unwrap();
+        assert_eq!((canvas.width, canvas.height), (600, 800));
+        // Everything outside the car that the cameras see is drawn.
+        let [vc, vr, vw, vh] = view.spec().vehicle_rect_px();
+        let lit = (0..canvas.height)
+            .flat_map(|r| (0..canvas.width).map(move |c| (c, r)))
+            .filter(|&(c, r)| !(c >= vc && c < vc + vw && r >= vr && r < vr + vh))
+            .filter(|&(c, r)| {
+                canvas.data[3 * (r * canvas.width + c)..][..3]
+                    .iter()
+                    .any(|&v| v > 0)
+            })
+            .count();
+        let outside = canvas.width * canvas.height - vw * vh;
+        eprintln!(
+            "{}: {:.1} % of the canvas outside the car drawn",
+            mode.name(),
+            100.0 * lit as f64 / outside as f64
+        );
+        assert!(lit as f64 > 0.9 * outside as f64);
+        if std::env::var_os("RIGVIEW_WRITE_IMAGES").is_some() {
+            let path = std::env::temp_dir().join(format!("surround-nz-{}.png", mode.name()));
+            image::save_buffer(
+                &path,
+                &canvas.data,
+                canvas.width as u32,
+                canvas.height as u32,
+                image::ColorType::Rgb8,
+            )
+            .unwrap();
+            eprintln!("wrote {}", path.display());
+        }
+    }
+    // The ground masks hold the ground, not the sky or the car body.
+    for (cam, mask) in rig.cameras.iter().zip(view.ground_masks()) {
+        eprintln!(
+            "{}: ground mask covers {:.1} % of the image",
+            cam.name,
+            100.0 * mask.coverage()
+        );
+        assert!(mask.coverage() > 0.1 && mask.coverage() < 0.95);
+    }
+    let params = rigview_core::exposure::BalanceParams::default();
+    for obs in view.pair_observations(&frames).unwrap() {
+        let r = rigview_core::exposure::balance::pair_ratio(&obs.patches, &params);
+        eprintln!(
+            "brightness ratio {} / {}: {:?} from {} patches",
+            rig.cameras[obs.j].name,
+            rig.cameras[obs.i].name,
+            r,
+            obs.patches.len()
+        );
+        let r = r.unwrap();
+        assert!(r > 0.25 && r < 4.0, "implausible ratio {r}");
+    }
+}
