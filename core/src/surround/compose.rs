@@ -78,8 +78,20 @@ impl Composer {
         self.scratch.resize_with(layers.len(), Vec::new);
         self.converted.resize_with(layers.len(), Mat::default);
         self.warped.resize_with(layers.len(), Mat::default);
-        self.acc.clear();
+        // Pixels no camera covers stay black; blended pixels are summed in
+        // `acc`, which only they use (zeroed where they lie).
+        out.width = w;
+        out.height = h;
+        out.data.clear();
+        out.data.resize(w * h * ch, 0);
         self.acc.resize(w * h * ch, 0);
+        for layer in layers {
+            let [c0, r0, _, _] = layer.roi;
+            for span in layer.spans[mode.index()].iter().filter(|s| s.blend) {
+                let start = ((r0 + span.row as usize) * w + c0 + span.col as usize) * ch;
+                self.acc[start..start + span.len as usize * ch].fill(0);
+            }
+        }
         for (k, (layer, frame)) in layers.iter().zip(frames).enumerate() {
             let (bytes, src_ch) =
                 bytes_8bit(frame, &mut self.scratch[k]).map_err(Error::InvalidConfig)?;
@@ -101,16 +113,21 @@ impl Composer {
                 }
                 _ => remap(&shaped, layer_maps, &mut self.warped[k])?,
             }
-            let [c0, r0, rw, rh] = layer.roi;
+            let [c0, r0, rw, _] = layer.roi;
             let warped = self.warped[k]
                 .data_bytes()
                 .map_err(|e| cv("remap output", e))?;
             let weights = &layer.weights[mode.index()];
-            for rr in 0..rh {
-                let wrow = &weights[rr * rw..(rr + 1) * rw];
-                let src = &warped[rr * rw * ch..(rr + 1) * rw * ch];
-                let start = ((r0 + rr) * w + c0) * ch;
-                let dst = &mut self.acc[start..start + rw * ch];
+            for span in &layer.spans[mode.index()] {
+                let (rr, cc, len) = (span.row as usize, span.col as usize, span.len as usize);
+                let src = &warped[(rr * rw + cc) * ch..(rr * rw + cc + len) * ch];
+                let start = ((r0 + rr) * w + c0 + cc) * ch;
+                if !span.blend {
+                    out.data[start..start + len * ch].copy_from_slice(src);
+                    continue;
+                }
+                let wrow = &weights[rr * rw + cc..rr * rw + cc + len];
+                let dst = &mut self.acc[start..start + len * ch];
                 if ch == 1 {
                     for ((d, &s), &wt) in dst.iter_mut().zip(src).zip(wrow) {
                         *d += wt * u16::from(s);
@@ -126,14 +143,17 @@ impl Composer {
                 }
             }
         }
-        out.width = w;
-        out.height = h;
-        out.data.clear();
-        out.data.extend(
-            self.acc
-                .iter()
-                .map(|&v| ((u32::from(v) + 128) >> 8).min(255) as u8),
-        );
+        // The blended pixels, from their sums.
+        for layer in layers {
+            let [c0, r0, _, _] = layer.roi;
+            for span in layer.spans[mode.index()].iter().filter(|s| s.blend) {
+                let start = ((r0 + span.row as usize) * w + c0 + span.col as usize) * ch;
+                let end = start + span.len as usize * ch;
+                for (o, &v) in out.data[start..end].iter_mut().zip(&self.acc[start..end]) {
+                    *o = ((u32::from(v) + 128) >> 8).min(255) as u8;
+                }
+            }
+        }
         Ok(())
     }
 }

@@ -264,6 +264,50 @@ pub struct CameraLayer {
     /// OpenCV's fixed-point maps of `map` (`CV_16SC2` and `CV_16UC1`).
     map1: Mat,
     map2: Mat,
+    /// Per blend mode, the runs of ROI pixels the camera contributes to.
+    spans: [Vec<Span>; 3],
+}
+
+/// A run of pixels along one ROI row that a camera contributes to: alone
+/// (weight 256, copied) or blended with others.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct Span {
+    /// ROI row.
+    pub(crate) row: u32,
+    /// First ROI column.
+    pub(crate) col: u32,
+    /// Number of pixels.
+    pub(crate) len: u32,
+    /// Whether other cameras contribute too.
+    pub(crate) blend: bool,
+}
+
+/// The runs of non-zero weights of a `rw`-wide ROI, split where the weight
+/// changes between 256 (alone) and less (blended).
+fn spans_of(weights: &[u16], rw: usize) -> Vec<Span> {
+    let mut spans = Vec::new();
+    for (row, line) in weights.chunks_exact(rw.max(1)).enumerate() {
+        let mut col = 0;
+        while col < line.len() {
+            let wt = line[col];
+            if wt == 0 {
+                col += 1;
+                continue;
+            }
+            let blend = wt < 256;
+            let start = col;
+            while col < line.len() && line[col] != 0 && (line[col] < 256) == blend {
+                col += 1;
+            }
+            spans.push(Span {
+                row: row as u32,
+                col: start as u32,
+                len: (col - start) as u32,
+                blend,
+            });
+        }
+    }
+    spans
 }
 
 /// One overlap patch: the source pixels (row-major indices) of one small
@@ -436,9 +480,11 @@ impl SurroundView {
                     cam.name
                 ))
             })?;
+            let spans = std::array::from_fn(|m| spans_of(&weights[m], rw));
             layers.push(CameraLayer {
                 camera: k,
                 roi,
+                spans,
                 source: (
                     cam.intrinsics.width as usize,
                     cam.intrinsics.height as usize,
@@ -634,8 +680,20 @@ fn bounding_box(w: usize, h: usize, covered: impl Fn(usize) -> bool) -> Option<[
 }
 
 /// OpenCV's fixed-point maps (`CV_16SC2` + `CV_16UC1`) of a float map.
+/// Pixels without a source read the source's first pixel instead: their
+/// weight is 0 anyway, and an in-range position keeps `remap` on its fast
+/// path (out-of-range positions go through its slow border handling).
 fn fixed_point_maps(map: &[[f32; 2]], w: usize, h: usize) -> opencv::Result<(Mat, Mat)> {
-    let flat: Vec<f32> = map.iter().flat_map(|p| [p[0], p[1]]).collect();
+    let flat: Vec<f32> = map
+        .iter()
+        .flat_map(|p| {
+            if p[0] >= 0.0 {
+                [p[0], p[1]]
+            } else {
+                [0.0, 0.0]
+            }
+        })
+        .collect();
     let xy = Mat::new_rows_cols_with_data(h as i32, (2 * w) as i32, &flat)?;
     let xy = xy.reshape(2, h as i32)?;
     let (mut map1, mut map2) = (Mat::default(), Mat::default());

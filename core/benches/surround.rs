@@ -1,0 +1,277 @@
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+//! Surround-view composition: four 1288×964 RGB fisheye frames into a
+//! 1000×1000 canvas (10 m × 10 m at 100 px/m) with linear blending, on one
+//! core (OpenCV limited to one thread for both).
+//!
+//! - `rigview`: `Composer::compose` — per camera one fixed-point `remap`
+//!   straight from the fisheye image over its part of the canvas, then
+//!   integer blending.
+//! - `reference`: the straightforward pipeline — per camera, undistort the
+//!   fisheye image to a pinhole view (`fisheye::initUndistortRectifyMap` once,
+//!   `remap` per frame), `warpPerspective` it onto the whole canvas through
+//!   the ground homography, and blend in floating point with the same
+//!   weights.
+//!
+//! The rig: four 185° equidistant fisheyes at 1288×964, 1 m high, looking
+//! past the four sides of a 4.6 m × 1.9 m car, tilted down (front and back
+//! 30°, sides 45°). Results: `BENCHMARKS.md`.
+
+use std::hint::black_box;
+use std::time::Duration;
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use nalgebra::{Matrix3, Vector3};
+use opencv::core::{self, Mat, MatTraitConst, Scalar, Size, CV_32F, CV_32FC3};
+use opencv::{calib3d, imgproc};
+use rand::{Rng, SeedableRng};
+use rigview_calib::model::{Distortion, Intrinsics};
+use rigview_calib::pose::Pose;
+use rigview_calib::rig::{Camera, Frame, Rig};
+use rigview_core::exposure::{FrameView, PixelFormat};
+use rigview_core::surround::{
+    BlendMode, Canvas, CanvasSpec, Composer, SurroundOptions, SurroundView,
+};
+
+const W: usize = 1288;
+const H: usize = 964;
+
+fn rig() -> Rig {
+    // Equidistant: r = f·θ; 185° across the width.
+    let f = (W as f64 / 2.0) / (92.5f64).to_radians();
+    let intrinsics = Intrinsics {
+        width: W as u32,
+        height: H as u32,
+        fx: f,
+        fy: f,
+        cx: W as f64 / 2.0 - 0.5,
+        cy: H as f64 / 2.0 - 0.5,
+        distortion: Distortion::Fisheye([0.0; 4]),
+    };
+    let cams = [
+        ("front", [0.0, 30.0, 0.0], [2.3, 0.0, 1.0]),
+        ("left", [90.0, 45.0, 0.0], [0.0, 0.95, 1.0]),
+        ("back", [180.0, 30.0, 0.0], [-2.3, 0.0, 1.0]),
+        ("right", [-90.0, 45.0, 0.0], [0.0, -0.95, 1.0]),
+    ];
+    let cameras = cams
+        .iter()
+        .map(|(name, ypr, t)| {
+            let mut c = Camera::new(*name, intrinsics);
+            c.pose = Some(Pose::from_ypr_deg(*ypr, Vector3::from(*t)).unwrap());
+            c
+        })
+        .collect();
+    Rig::new(
+        Frame::Vehicle,
+        cameras,
+        vec![(0, 1), (1, 2), (2, 3), (0, 3)],
+    )
+    .unwrap()
+}
+
+fn frames() -> Vec<Vec<u8>> {
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+    (0..4)
+        .map(|_| (0..W * H * 3).map(|_| rng.gen::<u8>()).collect())
+        .collect()
+}
+
+/// The straightforward pipeline, with its per-camera tables built once.
+struct Reference {
+    undistort: Vec<(Mat, Mat)>,
+    homography: Vec<Mat>,
+    weights: Vec<Mat>,
+    undistorted: Mat,
+    warped: Mat,
+    warped_f: Mat,
+    weighted: Mat,
+    acc: Mat,
+    out: Mat,
+}
+
+impl Reference {
+    fn new(rig: &Rig, spec: &CanvasSpec, view: &SurroundView) -> Self {
+        let (cw, ch) = view.size();
+        let mut undistort = Vec::new();
+        let mut homography = Vec::new();
+        for cam in &rig.cameras {
+            let k = &cam.intrinsics;
+            let km = Mat::from_slice_2d(&k.camera_matrix()).unwrap();
+            let d = Mat::from_slice(&[0.0f64; 4]).unwrap();
+            // A pinhole view of 120° across the width.
+            let fp = (W as f64 / 2.0) / (60f64).to_radians().tan();
+            let p = [[fp, 0.0, k.cx], [0.0, fp, k.cy], [0.0, 0.0, 1.0]];
+            let pm = Mat::from_slice_2d(&p).unwrap();
+            let (mut m1, mut m2) = (Mat::default(), Mat::default());
+            calib3d::fisheye_init_undistort_rectify_map(
+                &km,
+                &d,
+                &Mat::eye(3, 3, core::CV_64F).unwrap(),
+                &pm,
+                Size::new(W as i32, H as i32),
+                core::CV_16SC2,
+                &mut m1,
+                &mut m2,
+            )
+            .unwrap();
+            undistort.push((m1, m2));
+            // Canvas (c, r, 1) → ground (x, y, 1) → pinhole pixel.
+            let pose = cam.pose.unwrap();
+            let r_cw = pose.rotation_matrix().transpose();
+            let t_cw = -r_cw * pose.translation();
+            let ground_to_cam = Matrix3::from_columns(&[
+                r_cw.column(0).into_owned(),
+                r_cw.column(1).into_owned(),
+                t_cw,
+            ]);
+            let ppm = spec.px_per_m;
+            let canvas_to_ground = Matrix3::new(
+                0.0,
+                -1.0 / ppm,
+                spec.x_max_m - 0.5 / ppm,
+                -1.0 / ppm,
+                0.0,
+                spec.y_max_m - 0.5 / ppm,
+                0.0,
+                0.0,
+                1.0,
+            );
+            let kp = Matrix3::new(fp, 0.0, k.cx, 0.0, fp, k.cy, 0.0, 0.0, 1.0);
+            let h = kp * ground_to_cam * canvas_to_ground;
+            let rows: Vec<[f64; 3]> = (0..3).map(|r| [h[(r, 0)], h[(r, 1)], h[(r, 2)]]).collect();
+            homography.push(Mat::from_slice_2d(&rows).unwrap());
+        }
+        // The same linear weights as rigview's, as full-canvas floats.
+        let weights = view
+            .layers()
+            .iter()
+            .map(|layer| {
+                let mut full = vec![0.0f32; cw * ch];
+                let [c0, r0, rw, rh] = layer.roi;
+                for rr in 0..rh {
+                    for cc in 0..rw {
+                        full[(r0 + rr) * cw + c0 + cc] =
+                            f32::from(layer.weights[0][rr * rw + cc]) / 256.0;
+                    }
+                }
+                let m = Mat::new_rows_cols_with_data(ch as i32, cw as i32, &full)
+                    .unwrap()
+                    .try_clone()
+                    .unwrap();
+                let mut m3 = Mat::default();
+                imgproc::cvt_color(&m, &mut m3, imgproc::COLOR_GRAY2RGB, 0).unwrap();
+                m3
+            })
+            .collect();
+        Self {
+            undistort,
+            homography,
+            weights,
+            undistorted: Mat::default(),
+            warped: Mat::default(),
+            warped_f: Mat::default(),
+            weighted: Mat::default(),
+            acc: Mat::default(),
+            out: Mat::default(),
+        }
+    }
+
+    fn compose(&mut self, frames: &[Vec<u8>], size: (usize, usize)) {
+        let dsize = Size::new(size.0 as i32, size.1 as i32);
+        self.acc = Mat::new_size_with_default(dsize, CV_32FC3, Scalar::all(0.0)).unwrap();
+        for (k, f) in frames.iter().enumerate() {
+            let src = Mat::new_rows_cols_with_data(H as i32, (W * 3) as i32, f).unwrap();
+            let src = src.reshape(3, H as i32).unwrap();
+            let (m1, m2) = &self.undistort[k];
+            imgproc::remap(
+                &src,
+                &mut self.undistorted,
+                m1,
+                m2,
+                imgproc::INTER_LINEAR,
+                core::BORDER_CONSTANT,
+                Scalar::all(0.0),
+            )
+            .unwrap();
+            imgproc::warp_perspective(
+                &self.undistorted,
+                &mut self.warped,
+                &self.homography[k],
+                dsize,
+                imgproc::INTER_LINEAR | imgproc::WARP_INVERSE_MAP,
+                core::BORDER_CONSTANT,
+                Scalar::all(0.0),
+            )
+            .unwrap();
+            self.warped
+                .convert_to(&mut self.warped_f, CV_32F, 1.0, 0.0)
+                .unwrap();
+            core::multiply(
+                &self.warped_f,
+                &self.weights[k],
+                &mut self.weighted,
+                1.0,
+                -1,
+            )
+            .unwrap();
+            let mut sum = Mat::default();
+            core::add(&self.acc, &self.weighted, &mut sum, &core::no_array(), -1).unwrap();
+            self.acc = sum;
+        }
+        self.acc
+            .convert_to(&mut self.out, core::CV_8U, 1.0, 0.0)
+            .unwrap();
+    }
+}
+
+fn compose(c: &mut Criterion) {
+    let threads = core::get_num_threads().unwrap();
+    core::set_num_threads(1).unwrap();
+    let rig = rig();
+    let spec = CanvasSpec::default();
+    let view = SurroundView::build(&rig, &spec, &SurroundOptions::default()).unwrap();
+    let data = frames();
+    let views: Vec<FrameView<'_>> = data
+        .iter()
+        .map(|d| FrameView::new(PixelFormat::Rgb8, W, H, d).unwrap())
+        .collect();
+    let mut composer = Composer::new();
+    let mut canvas = Canvas::new(0, 0, 3);
+    let mut reference = Reference::new(&rig, &spec, &view);
+    composer
+        .compose(&view, &views, BlendMode::Linear, &mut canvas)
+        .unwrap();
+    reference.compose(&data, view.size());
+    let covered: usize = view
+        .layers()
+        .iter()
+        .map(|l| l.weights[0].iter().filter(|&&w| w > 0).count())
+        .sum();
+    eprintln!(
+        "surround: canvas {:?}, {} camera-pixel contributions ({:.2} per canvas pixel), OpenCV threads 1 (was {threads})",
+        view.size(),
+        covered,
+        covered as f64 / (view.size().0 * view.size().1) as f64
+    );
+
+    let mut group = c.benchmark_group("surround_4x1288x964_to_1000x1000");
+    group
+        .sample_size(20)
+        .warm_up_time(Duration::from_secs(1))
+        .measurement_time(Duration::from_secs(4));
+    group.bench_function("rigview_linear_rgb", |b| {
+        b.iter(|| {
+            composer
+                .compose(&view, black_box(&views), BlendMode::Linear, &mut canvas)
+                .unwrap();
+        });
+    });
+    group.bench_function("reference_undistort_warp_float_blend", |b| {
+        b.iter(|| reference.compose(black_box(&data), view.size()));
+    });
+    group.finish();
+    core::set_num_threads(threads).unwrap();
+}
+
+criterion_group!(benches, compose);
+criterion_main!(benches);
