@@ -63,6 +63,27 @@ pub enum Error {
         /// How many cameras there are.
         count: usize,
     },
+    /// A file (a simulation, scene or rig description) cannot be read or
+    /// parsed; `detail` says where and why.
+    #[error("{file}: {detail}")]
+    File {
+        /// The file (or the name of a built-in description).
+        file: String,
+        /// What is wrong, with the field and line where the parser knows them.
+        detail: String,
+    },
+    /// A field of a description holds a value out of its range.
+    #[error("{file}: field \"{field}\": expected {expected}, found {found}")]
+    Field {
+        /// The file (or the name of a built-in description).
+        file: String,
+        /// The field, with its path (`scene.obstacles[2].size_m[0]`).
+        field: String,
+        /// What a valid value looks like.
+        expected: String,
+        /// What was found instead.
+        found: String,
+    },
 }
 
 /// `Result` with [`Error`].

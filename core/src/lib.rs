@@ -15,6 +15,7 @@
 
 pub mod error;
 pub mod exposure;
+pub mod sim;
 pub mod source;
 pub mod surround;
 pub mod synth;
