@@ -266,6 +266,29 @@ fn compose(c: &mut Criterion) {
                 .unwrap();
         });
     });
+    let mut mono = Canvas::new(0, 0, 1);
+    group.bench_function("rigview_linear_mono_from_rgb", |b| {
+        b.iter(|| {
+            composer
+                .compose(&view, black_box(&views), BlendMode::Linear, &mut mono)
+                .unwrap();
+        });
+    });
+    let gray: Vec<Vec<u8>> = data
+        .iter()
+        .map(|d| d.chunks_exact(3).map(|p| p[1]).collect())
+        .collect();
+    let gray_views: Vec<FrameView<'_>> = gray
+        .iter()
+        .map(|d| FrameView::new(PixelFormat::Mono8, W, H, d).unwrap())
+        .collect();
+    group.bench_function("rigview_linear_mono8", |b| {
+        b.iter(|| {
+            composer
+                .compose(&view, black_box(&gray_views), BlendMode::Linear, &mut mono)
+                .unwrap();
+        });
+    });
     group.bench_function("reference_undistort_warp_float_blend", |b| {
         b.iter(|| reference.compose(black_box(&data), view.size()));
     });
