@@ -8,7 +8,7 @@
 //! format: rigview-sim
 //! version: 1
 //! rig: reference            # the built-in reference rig, or a rig file (relative to this file)
-//! scene: car-park           # a scene preset (car-park, low-sun) or a scene (see below)
+//! scene: car-park           # a scene preset (car-park, low-sun, overcast) or a scene (see below)
 //! script: tunnel            # a script preset (constant, steps, ramp, tunnel) or a list of events
 //! sensor: {bits: 12}        # the camera model; every field has the reference camera's default
 //! trigger_hz: 20
@@ -27,7 +27,7 @@
 //! scene:
 //!   seed: 7
 //!   ground:
-//!     asphalt: {reflectance: 0.12, variation: 0.35, grain_m: 0.03}
+//!     asphalt: {reflectance: 0.12, variation: 0.35, grain: 0.5, grain_m: 0.03}
 //!     lanes:
 //!     - {from_m: [-40, -5.5], to_m: [40, -5.5], width_m: 0.15, dash_m: 3, gap_m: 3}
 //!     mat: {centre_m: [0, 0], size_m: [10, 6], hole_m: [5, 2], square_m: 0.4, circle_square_m: 0.8}
@@ -68,7 +68,7 @@ pub const VERSION: u32 = 1;
 
 /// The built-in simulations: `(name, scene preset, script preset, what it
 /// shows)`.
-pub const PRESETS: [(&str, &str, &str, &str); 5] = [
+pub const PRESETS: [(&str, &str, &str, &str); 6] = [
     (
         "reference",
         "car-park",
@@ -99,10 +99,16 @@ pub const PRESETS: [(&str, &str, &str, &str); 5] = [
         "constant",
         "a low sun straight ahead: the front camera faces it",
     ),
+    (
+        "overcast",
+        "overcast",
+        "constant",
+        "the car park under an overcast sky: soft light, no cast shadows",
+    ),
 ];
 
 /// The built-in scenes.
-pub const SCENE_PRESETS: [&str; 2] = ["car-park", "low-sun"];
+pub const SCENE_PRESETS: [&str; 3] = ["car-park", "low-sun", "overcast"];
 /// The built-in scripts.
 pub const SCRIPT_PRESETS: [&str; 4] = ["constant", "steps", "ramp", "tunnel"];
 
@@ -406,11 +412,30 @@ fn low_sun() -> Scene {
     }
 }
 
+/// The car park under an overcast sky: no sun, a sky three times brighter
+/// at the zenith than at the horizon (after the CIE overcast sky), about a
+/// third of the sunny scene's light.
+fn overcast() -> Scene {
+    Scene {
+        sun: Sun {
+            level: 0.0,
+            ..Default::default()
+        },
+        sky: super::scene::Sky {
+            level: 0.25,
+            horizon: 0.45,
+            zenith: 1.4,
+        },
+        ..car_park()
+    }
+}
+
 /// A scene preset by name.
 pub fn scene_preset(name: &str) -> Option<Scene> {
     match name {
         "car-park" => Some(car_park()),
         "low-sun" => Some(low_sun()),
+        "overcast" => Some(overcast()),
         _ => None,
     }
 }

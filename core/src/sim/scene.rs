@@ -34,7 +34,7 @@
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 
-use super::texture::{band, detail, fbm, hash2, mix, value_noise};
+use super::texture::{band, detail, fbm, hash2, mix};
 use super::{check_field as check, FieldError};
 
 /// The scene: ground, obstacles, the rig's own vehicle, sun and sky.
@@ -116,7 +116,9 @@ pub struct Asphalt {
     pub reflectance: f64,
     /// Relative variation of the patches (0: uniform).
     pub variation: f64,
-    /// Size of the grain, metres.
+    /// Relative contrast of the aggregate (0: smooth).
+    pub grain: f64,
+    /// Size of the finest grain, metres.
     pub grain_m: f64,
 }
 
@@ -125,6 +127,7 @@ impl Default for Asphalt {
         Self {
             reflectance: 0.12,
             variation: 0.35,
+            grain: 0.5,
             grain_m: 0.03,
         }
     }
@@ -343,6 +346,13 @@ impl Scene {
             0.0,
             1.0,
             "a relative variation in [0, 1]",
+        )?;
+        check(
+            "scene.ground.asphalt.grain",
+            a.grain,
+            0.0,
+            1.0,
+            "a relative contrast in [0, 1]",
         )?;
         check(
             "scene.ground.asphalt.grain_m",
@@ -1013,14 +1023,17 @@ impl Built {
         let g = &self.scene.ground;
         if let Some(m) = &g.mat {
             if let Some(r) = mat_reflectance(m, x, y) {
-                return r;
+                // Creases and dirt on the cloth.
+                return r * (1.0 + 0.06 * fbm(self.scene.seed ^ 0x3a, x, y, 0.5, 3, fp));
             }
         }
         let a = &g.asphalt;
         let seed = self.scene.seed;
+        // Patches from 2 m down to 12 cm, and the aggregate from 4 grains
+        // down to one.
         let patches = fbm(seed, x, y, 2.0, 5, fp);
-        let grain = value_noise(seed ^ 0xa5, x / a.grain_m, y / a.grain_m) * detail(fp, a.grain_m);
-        let mut r = a.reflectance * (1.0 + a.variation * patches) * (1.0 + 0.3 * grain);
+        let grain = fbm(seed ^ 0xa5, x, y, 4.0 * a.grain_m, 3, fp);
+        let mut r = a.reflectance * (1.0 + a.variation * patches) * (1.0 + a.grain * grain);
         for l in &g.lanes {
             let cover = lane_cover(l, x, y, fp);
             if cover > 0.0 {

@@ -5,7 +5,8 @@
 //!   default, 0.1 EV apart), and the exposure where it is largest.
 //! - [`fixed_points`]: the exposures where the estimator's `γ̂` crosses 1
 //!   from below (the stable fixed points of a gradient controller), found
-//!   on the noise-free render by a scan and bisection.
+//!   on the noise-free render by a scan and bisection, each with the size of
+//!   the jump of `γ̂` across it.
 //! - [`overlap_ratios`]: the true brightness ratio of each overlap at equal
 //!   exposure, from the noise-free irradiance over the surround view's
 //!   overlap patches (the same patches the balancing measures).
@@ -151,50 +152,91 @@ pub fn sweep(
     })
 }
 
+/// Where and how finely [`fixed_points`] searches.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FixedPointSearch {
+    /// The estimator.
+    pub estimator: EstimatorConfig,
+    /// Metering.
+    pub metering: MeteringConfig,
+    /// Lowest exposure level.
+    pub lo: f64,
+    /// Highest exposure level.
+    pub hi: f64,
+    /// Scan step, EV.
+    pub step_ev: f64,
+}
+
+impl Default for FixedPointSearch {
+    /// The default estimator and metering, 2⁴ to 2²⁰ µs in steps of 0.1 EV.
+    fn default() -> Self {
+        Self {
+            estimator: EstimatorConfig::default(),
+            metering: MeteringConfig::default(),
+            lo: 16.0,
+            hi: 1_048_576.0,
+            step_ev: 0.1,
+        }
+    }
+}
+
+/// A stable fixed point of the estimator.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FixedPoint {
+    /// The exposure level where `γ̂` crosses 1 from below.
+    pub exposure: f64,
+    /// `γ̂` just above minus just below it: small where `γ̂` crosses 1
+    /// smoothly (a loop converges there), large where it jumps across 1 (a
+    /// loop with a finite step circles it).
+    pub jump: f64,
+}
+
 /// The stable fixed points of the estimator for one camera at `t` seconds:
 /// the levels in `[lo, hi]` where `γ̂` (γ-equivalent) crosses 1 from below
-/// as the exposure grows, scanned every half stop and refined by bisection
-/// to about 0.001 EV. Usually one.
-#[allow(clippy::too_many_arguments)]
+/// as the exposure grows, scanned every `step_ev` and refined by bisection
+/// to about 0.001 EV, on the noise-free render metered like the controller
+/// (`mask`).
 pub fn fixed_points(
     render: &SimRender,
     camera: usize,
     t: f64,
-    estimator: &EstimatorConfig,
-    metering: &MeteringConfig,
     mask: Option<&RoiMask>,
-    lo: f64,
-    hi: f64,
-) -> Result<Vec<f64>> {
-    if !(lo > 0.0 && hi > lo) {
+    search: &FixedPointSearch,
+) -> Result<Vec<FixedPoint>> {
+    if !(search.lo > 0.0 && search.hi > search.lo && search.step_ev > 0.0) {
         return Err(Error::InvalidConfig(format!(
-            "fixed-point search from {lo} to {hi}: expected 0 < lo < hi"
+            "fixed-point search from {} to {} in steps of {} EV: expected 0 < lo < hi and a positive step",
+            search.lo, search.hi, search.step_ev
         )));
     }
-    let meter = Meter::new(*metering)?;
-    let mut est = Estimator::new(estimator.clone())?;
+    let meter = Meter::new(search.metering)?;
+    let mut est = Estimator::new(search.estimator.clone())?;
     let mut g = |l: f64| -> Result<f64> {
         let m = meter_noise_free(render, camera, t, l.exp2(), &meter, mask)?;
         Ok(est.estimate(&m)?.gamma_hat - 1.0)
     };
-    let (l0, l1) = (lo.log2(), hi.log2());
-    let n = ((l1 - l0) / 0.5).ceil().max(1.0) as usize;
+    let (l0, l1) = (search.lo.log2(), search.hi.log2());
+    let n = ((l1 - l0) / search.step_ev).ceil().max(1.0) as usize;
     let mut out = Vec::new();
     let mut prev = (l0, g(l0)?);
     for k in 1..=n {
         let l = l0 + (l1 - l0) * k as f64 / n as f64;
         let v = g(l)?;
         if prev.1 < 0.0 && v >= 0.0 {
-            let (mut a, mut b) = (prev.0, l);
-            while b - a > 1e-3 {
-                let m = 0.5 * (a + b);
-                if g(m)? < 0.0 {
-                    a = m;
+            let (mut a, mut b) = ((prev.0, prev.1), (l, v));
+            while b.0 - a.0 > 1e-3 {
+                let m = 0.5 * (a.0 + b.0);
+                let gm = g(m)?;
+                if gm < 0.0 {
+                    a = (m, gm);
                 } else {
-                    b = m;
+                    b = (m, gm);
                 }
             }
-            out.push((0.5 * (a + b)).exp2());
+            out.push(FixedPoint {
+                exposure: (0.5 * (a.0 + b.0)).exp2(),
+                jump: b.1 - a.1,
+            });
         }
         prev = (l, v);
     }

@@ -1,0 +1,294 @@
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+//! The exposure core in closed loop on the simulated rig under constant
+//! light: every camera under its own gradient auto-exposure (nonlinear law,
+//! latency 1 frame, surround-view ground masks), for both exposure
+//! simulations, against the ground truth of the noise-free renders: the
+//! estimator's fixed points and the dense-sweep optimum of `M`.
+//!
+//! Two constant-light presets: `reference` (sun and a building's shadow:
+//! sunlit and shadowed ground in the same view) and `overcast` (soft light).
+//! The renders are a quarter of the resolution (322×241), which the metering
+//! sees 1:1, as it sees a full frame after its 4× downsampling.
+//!
+//! Run with `--nocapture` for the table of figures.
+
+use std::sync::Arc;
+
+use rigview_core::exposure::{
+    ControlMode, ControllerConfig, EstimatorConfig, Meter, MeteringConfig, NeighbourGraph,
+    RigController, Simulation,
+};
+use rigview_core::sim::truth::{self, FixedPoint, FixedPointSearch, Sweep, SweepOptions};
+use rigview_core::sim::{ClosedLoop, SimConfig, SimRender, SimRig, SimRigOptions};
+use rigview_core::surround::{CanvasSpec, SurroundOptions, SurroundView};
+
+const FRAMES: usize = 60;
+/// The frames over which a loop is judged settled.
+const TAIL: usize = 20;
+
+fn render(preset: &str) -> Arc<SimRender> {
+    let config = SimConfig {
+        scale: 0.25,
+        ..SimConfig::preset(preset).unwrap()
+    };
+    Arc::new(SimRender::new(&config).unwrap())
+}
+
+fn view(render: &SimRender) -> SurroundView {
+    let spec = CanvasSpec {
+        px_per_m: 25.0,
+        ..CanvasSpec::default()
+    };
+    SurroundView::build(render.rig(), &spec, &SurroundOptions::default()).unwrap()
+}
+
+fn config(simulation: Simulation) -> ControllerConfig {
+    ControllerConfig {
+        mode: ControlMode::Gradient,
+        estimator: EstimatorConfig {
+            simulation,
+            ..Default::default()
+        },
+        balancing: None,
+        ..Default::default()
+    }
+}
+
+/// log2 of the exposure each camera's frames were taken with, frame by
+/// frame.
+fn run(render: &Arc<SimRender>, view: SurroundView, simulation: Simulation) -> Vec<Vec<f64>> {
+    let n = render.cameras().len();
+    let ranges: Vec<_> = render.cameras().iter().map(|c| c.range).collect();
+    let graph = NeighbourGraph::new(n, &[]).unwrap();
+    let controller = RigController::new(config(simulation), &ranges, graph).unwrap();
+    let source = SimRig::new(render.clone(), SimRigOptions::default()).unwrap();
+    let meter = Meter::new(MeteringConfig::default()).unwrap();
+    let mut lp = ClosedLoop::new(source, controller, meter, Some(view)).unwrap();
+    let mut out = vec![Vec::new(); n];
+    for _ in 0..FRAMES {
+        let step = lp.step().unwrap().unwrap();
+        for f in step.set.frames.iter().flatten() {
+            out[f.meta.camera].push(f.meta.taken.exposure().log2());
+        }
+    }
+    out
+}
+
+/// What one camera did and what the truth says.
+#[derive(Debug)]
+struct Outcome {
+    preset: &'static str,
+    simulation: Simulation,
+    camera: String,
+    /// The range of log2 E over the last [`TAIL`] frames.
+    lo: f64,
+    hi: f64,
+    /// The fixed point the loop is at (log2 E) and the jump of γ̂ across it.
+    fixed: Option<(f64, f64)>,
+    /// The dense-sweep optimum (log2 E).
+    best: f64,
+    /// M at the fixed point over M at the optimum.
+    m_ratio: f64,
+    /// The first frame from which the exposure stays in its final band.
+    settled_after: usize,
+}
+
+impl Outcome {
+    /// Its last exposures lie within 0.25 EV (the noise moves γ̂ a little
+    /// from frame to frame).
+    fn converged(&self) -> bool {
+        self.hi - self.lo <= 0.25
+    }
+    fn gap(&self) -> Option<f64> {
+        self.fixed.map(|(f, _)| f - self.best)
+    }
+}
+
+fn evaluate(preset: &'static str) -> Vec<Outcome> {
+    let render = render(preset);
+    let surround = view(&render);
+    let sweep_options = SweepOptions {
+        lo: 16.0,
+        hi: 262_144.0,
+        steps: 141,
+        ..Default::default()
+    };
+    let sweeps: Vec<Sweep> = (0..render.cameras().len())
+        .map(|cam| {
+            truth::sweep(
+                &render,
+                cam,
+                0.0,
+                &sweep_options,
+                surround.ground_masks().get(cam),
+            )
+            .unwrap()
+        })
+        .collect();
+    let mut out = Vec::new();
+    for simulation in [Simulation::ScaleClip, Simulation::Gamma] {
+        let traj = run(&render, view(&render), simulation);
+        for (cam, t) in traj.iter().enumerate() {
+            let tail = &t[t.len() - TAIL..];
+            let lo = tail.iter().copied().fold(f64::MAX, f64::min);
+            let hi = tail.iter().copied().fold(f64::MIN, f64::max);
+            let mean = tail.iter().sum::<f64>() / TAIL as f64;
+            let search = FixedPointSearch {
+                estimator: config(simulation).estimator,
+                lo: (lo - 1.0).exp2(),
+                hi: (hi + 1.0).exp2(),
+                step_ev: 0.05,
+                ..Default::default()
+            };
+            let found: Vec<FixedPoint> =
+                truth::fixed_points(&render, cam, 0.0, surround.ground_masks().get(cam), &search)
+                    .unwrap();
+            // A converged loop is at the fixed point nearest its exposure; a
+            // circling loop at one inside the band it circles.
+            let fixed = found
+                .iter()
+                .map(|f| (f.exposure.log2(), f.jump))
+                .filter(|(f, _)| *f >= lo - 0.15 && *f <= hi + 0.15)
+                .min_by(|a, b| (a.0 - mean).abs().total_cmp(&(b.0 - mean).abs()));
+            let sweep = &sweeps[cam];
+            let settled_after = t
+                .iter()
+                .rposition(|l| *l < lo - 0.05 || *l > hi + 0.05)
+                .map_or(0, |k| k + 1);
+            out.push(Outcome {
+                preset,
+                simulation,
+                camera: render.cameras()[cam].name.clone(),
+                lo,
+                hi,
+                fixed,
+                best: sweep.best.log2(),
+                m_ratio: fixed.map_or(0.0, |(f, _)| sweep.score_at(f.exp2()) / sweep.best_score),
+                settled_after,
+            });
+        }
+    }
+    out
+}
+
+fn print(outcomes: &[Outcome]) {
+    println!(
+        "{:>9} {:>10} {:>6} | {:>13} | {:>15} | {:>6} {:>7} | {:>7} | {:>7}",
+        "preset",
+        "simulation",
+        "camera",
+        "loop log2 E",
+        "fixed (jump γ̂)",
+        "sweep",
+        "gap EV",
+        "M/M_max",
+        "settled"
+    );
+    for o in outcomes {
+        let (f, j) = o.fixed.unwrap_or((f64::NAN, f64::NAN));
+        println!(
+            "{:>9} {:>10} {:>6} | {:>6.2}–{:<6.2} | {f:>7.3} ({j:>5.2}) | {:>6.2} {:>+7.2} | {:>7.3} | {:>7}",
+            o.preset,
+            o.simulation.name(),
+            o.camera,
+            o.lo,
+            o.hi,
+            o.best,
+            o.gap().unwrap_or(f64::NAN),
+            o.m_ratio,
+            if o.converged() {
+                format!("{} fr", o.settled_after)
+            } else {
+                "cycle".into()
+            }
+        );
+    }
+}
+
+/// Every camera ends at a fixed point of its estimator: converged onto it
+/// (its last 20 exposures within 0.25 EV, their middle within 0.15 EV of
+/// the fixed point)
+/// or, where γ̂ jumps across 1 there, circling it in a band of at most 1 EV;
+/// and that fixed point keeps at least 90 % of the best `M` of the dense
+/// sweep.
+#[test]
+fn constant_light_settles_every_camera_at_its_fixed_point() {
+    let outcomes: Vec<Outcome> = ["reference", "overcast"]
+        .into_iter()
+        .flat_map(evaluate)
+        .collect();
+    print(&outcomes);
+    for s in [Simulation::ScaleClip, Simulation::Gamma] {
+        let gaps: Vec<f64> = outcomes
+            .iter()
+            .filter(|o| o.simulation == s)
+            .filter_map(Outcome::gap)
+            .collect();
+        let worst = gaps.iter().copied().fold(0.0, |a: f64, g| a.max(g.abs()));
+        let mean = gaps.iter().sum::<f64>() / gaps.len() as f64;
+        println!(
+            "{}: fixed point − sweep optimum: mean {mean:+.2} EV, largest |gap| {worst:.2} EV",
+            s.name()
+        );
+    }
+    for o in &outcomes {
+        let what = format!("{} {} {}", o.preset, o.simulation.name(), o.camera);
+        let (f, jump) = o.fixed.unwrap_or_else(|| {
+            panic!(
+                "{what}: no fixed point of the estimator near {:.2}–{:.2}",
+                o.lo, o.hi
+            )
+        });
+        if o.converged() {
+            let mean = 0.5 * (o.lo + o.hi);
+            assert!(
+                (mean - f).abs() <= 0.15,
+                "{what}: settled at {mean:.3}, fixed point {f:.3}"
+            );
+        } else {
+            assert!(
+                jump > 0.2,
+                "{what}: circles {:.2}–{:.2} around a fixed point {f:.3} that γ̂ crosses smoothly",
+                o.lo,
+                o.hi
+            );
+            assert!(
+                o.hi - o.lo <= 1.0,
+                "{what}: circles {:.2}–{:.2}",
+                o.lo,
+                o.hi
+            );
+        }
+        assert!(
+            o.m_ratio >= 0.9,
+            "{what}: M at the fixed point is {:.3} of the best",
+            o.m_ratio
+        );
+    }
+}
+
+/// The acceptance figure as first stated: the scale-and-clip fixed point
+/// within 0.2 EV of the dense-sweep optimum. Not met on the simulated rig:
+/// the estimator's saturation-recovery term assumes the image's intensities
+/// continue smoothly past saturation, which a bimodal histogram (white mat
+/// against asphalt, sun against shadow) breaks, and under sun and shadow
+/// `M(E)` has plateaus. Run with `--ignored --nocapture` to see the gaps.
+#[test]
+#[ignore = "not met: the scale-and-clip fixed points lie 0.2–2 EV from the sweep optimum on the simulated rig"]
+fn scale_clip_fixed_points_lie_within_0_2_ev_of_the_sweep_optimum() {
+    let outcomes: Vec<Outcome> = ["reference", "overcast"]
+        .into_iter()
+        .flat_map(evaluate)
+        .filter(|o| o.simulation == Simulation::ScaleClip)
+        .collect();
+    print(&outcomes);
+    for o in &outcomes {
+        let gap = o.gap().unwrap_or(f64::INFINITY);
+        assert!(
+            gap.abs() <= 0.2,
+            "{} {}: gap {gap:+.2} EV",
+            o.preset,
+            o.camera
+        );
+    }
+}
