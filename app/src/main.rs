@@ -8,6 +8,7 @@ mod demo;
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};
+use rigview::live;
 
 /// rigview: capture, exposure control and surround view for rigs of
 /// synchronised cameras.
@@ -25,6 +26,9 @@ enum Command {
     Demo(demo::DemoArgs),
     /// Calibration: show, convert, and make intrinsics and ground extrinsics.
     Calib(calib_cmd::CalibArgs),
+    /// Capture from the rig's GenICam cameras and control their exposure
+    /// (headless until the desktop app lands).
+    Live(live::cmd::LiveArgs),
 }
 
 fn main() -> Result<()> {
@@ -32,6 +36,7 @@ fn main() -> Result<()> {
     match cli.command {
         Some(Command::Demo(args)) => demo::run(&args),
         Some(Command::Calib(args)) => calib_cmd::run(&args, &mut std::io::stdout().lock()),
+        Some(Command::Live(args)) => live::cmd::run(&args, &mut std::io::stdout().lock()),
         None => demo::run(&demo::DemoArgs::default()),
     }
 }

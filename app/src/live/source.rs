@@ -1,0 +1,390 @@
+//! [`LiveSource`]: the rig's cameras through Aravis, as a [`FrameSource`].
+
+use std::collections::VecDeque;
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{self, Receiver, RecvTimeoutError, Sender};
+use std::sync::Arc;
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use rigview_calib::{DeviceId, Rig};
+use rigview_core::exposure::ExposureSetting;
+use rigview_core::source::{
+    check_command, CameraInfo, ExposureCommand, FrameSet, FrameSource, SourceError, StreamHealth,
+    StreamState,
+};
+
+use super::assemble::{Assembler, SetCounters};
+use super::camera::{DeviceSpec, Event, Schedule, Worker};
+use super::config::{CaptureConfig, TriggerMode};
+use super::health::{CameraStatus, HealthCell};
+use super::LiveError;
+
+/// One camera to open.
+#[derive(Clone, Debug)]
+pub struct CameraSpec {
+    /// Its name in the rig.
+    pub name: String,
+    /// How to reach it.
+    pub device: DeviceSpec,
+}
+
+impl CameraSpec {
+    /// The cameras of a rig file, by their device ids (GenICam id or IP
+    /// address); a camera without one is an error that names it.
+    pub fn from_rig(rig: &Rig) -> Result<Vec<CameraSpec>, LiveError> {
+        rig.cameras
+            .iter()
+            .map(|c| {
+                let device = match &c.device {
+                    Some(DeviceId::GenICam(id)) => DeviceSpec::Id(id.clone()),
+                    Some(DeviceId::Ip(ip)) => DeviceSpec::Id(ip.to_string()),
+                    None => {
+                        return Err(LiveError::NoDevice {
+                            camera: c.name.clone(),
+                        })
+                    }
+                };
+                Ok(CameraSpec {
+                    name: c.name.clone(),
+                    device,
+                })
+            })
+            .collect()
+    }
+}
+
+/// Everything the source knows about the rig right now.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LiveStatus {
+    /// Per camera, in rig order.
+    pub cameras: Vec<CameraStatus>,
+    /// The assembled sets.
+    pub sets: SetCounters,
+}
+
+struct Handle {
+    thread: Option<JoinHandle<()>>,
+    commands: Sender<ExposureSetting>,
+    health: HealthCell,
+}
+
+/// Live frame sets from the rig's cameras.
+///
+/// Each camera runs in its own thread (opened one after another behind one
+/// global lock); frames are matched into sets by arrival time; a camera that
+/// stops answering is marked lost while the others go on, and rejoins when
+/// it comes back.
+pub struct LiveSource {
+    infos: Vec<CameraInfo>,
+    start: Vec<ExposureSetting>,
+    handles: Vec<Handle>,
+    events: Receiver<Event>,
+    assembler: Assembler,
+    states: Vec<StreamState>,
+    stop: Arc<AtomicBool>,
+    log: VecDeque<String>,
+    config: CaptureConfig,
+    started_ns: u64,
+}
+
+impl std::fmt::Debug for LiveSource {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("LiveSource")
+            .field("cameras", &self.infos)
+            .field("states", &self.states)
+            .finish_non_exhaustive()
+    }
+}
+
+const LOG_LINES: usize = 1000;
+
+impl LiveSource {
+    /// Opens and configures every camera, runs their start-up
+    /// auto-exposure, and starts streaming. Fails, naming the camera, if one
+    /// cannot be opened within `config.open_timeout`.
+    pub fn open(cameras: Vec<CameraSpec>, config: CaptureConfig) -> Result<Self, LiveError> {
+        config.validate()?;
+        if cameras.is_empty() {
+            return Err(LiveError::NoCameras);
+        }
+        let schedule = match config.trigger {
+            TriggerMode::Software { .. } => config.trigger.period().map(|period| Schedule {
+                epoch: Instant::now(),
+                epoch_wall_ns: host_now_ns(),
+                period,
+            }),
+            _ => None,
+        };
+        let stop = Arc::new(AtomicBool::new(false));
+        let (tx, events) = mpsc::channel();
+        let mut handles = Vec::with_capacity(cameras.len());
+        for (index, spec) in cameras.iter().enumerate() {
+            let (ctx, crx) = mpsc::channel();
+            let health = HealthCell::new(&spec.name, &spec.device.describe());
+            let worker = Worker {
+                index,
+                name: spec.name.clone(),
+                spec: spec.device.clone(),
+                config: config.clone(),
+                schedule,
+                events: tx.clone(),
+                commands: crx,
+                health: health.clone(),
+                stop: stop.clone(),
+            };
+            let (events, cell) = (tx.clone(), health.clone());
+            let thread = std::thread::Builder::new()
+                .name(format!("camera {}", spec.name))
+                .spawn(move || {
+                    // A panic in Aravis's bindings ends this camera only.
+                    if catch_unwind(AssertUnwindSafe(|| worker.run())).is_err() {
+                        let message =
+                            "its thread failed; restart rigview to bring it back".to_owned();
+                        cell.set_state(StreamState::Lost);
+                        cell.error(message.clone());
+                        let _ = events.send(Event::OpenFailed {
+                            error: message.clone(),
+                        });
+                        let _ = events.send(Event::State {
+                            camera: index,
+                            state: StreamState::Lost,
+                            message,
+                        });
+                    }
+                })
+                .map_err(|e| LiveError::Thread(e.to_string()))?;
+            handles.push(Handle {
+                thread: Some(thread),
+                commands: ctx,
+                health,
+            });
+        }
+        drop(tx);
+        let n = cameras.len();
+        let mut source = LiveSource {
+            infos: Vec::new(),
+            start: Vec::new(),
+            handles,
+            events,
+            assembler: Assembler::new(n, nanos(config.sync_tolerance), nanos(config.set_timeout)),
+            states: vec![StreamState::Reconnecting; n],
+            stop,
+            log: VecDeque::new(),
+            config: config.clone(),
+            started_ns: u64::MAX,
+        };
+        let mut infos: Vec<Option<(CameraInfo, ExposureSetting)>> = vec![None; n];
+        // Opening is one at a time; each camera may take the whole open
+        // timeout, then its start-up settling.
+        let deadline = Instant::now()
+            + config.open_timeout * u32::try_from(n).unwrap_or(u32::MAX)
+            + config.auto_settle
+            + Duration::from_secs(10);
+        while infos.iter().any(Option::is_none) {
+            let left = deadline.saturating_duration_since(Instant::now());
+            match source.events.recv_timeout(left) {
+                Ok(Event::Ready {
+                    camera,
+                    info,
+                    setting,
+                }) => {
+                    source.note(format!(
+                        "{}: open, {}×{} {}, exposure {:.0}–{:.0} µs, gain {:.1}–{:.1} dB; starting at {:.0} µs, {:.2} dB",
+                        info.name,
+                        info.width,
+                        info.height,
+                        info.format.genicam_name(),
+                        info.range.shutter_min_us,
+                        info.range.shutter_max_us,
+                        info.range.gain_min_db,
+                        info.range.gain_max_db,
+                        setting.shutter_us,
+                        setting.gain_db
+                    ));
+                    if let Some(slot) = infos.get_mut(camera) {
+                        *slot = Some((info, setting));
+                    }
+                    if let Some(s) = source.states.get_mut(camera) {
+                        *s = StreamState::Streaming;
+                    }
+                }
+                Ok(Event::OpenFailed { error, .. }) => return Err(LiveError::Open(error)),
+                Ok(Event::Frame(_)) => {}
+                Ok(Event::State {
+                    camera, message, ..
+                }) => source.note(format!("camera {camera}: {message}")),
+                Err(RecvTimeoutError::Timeout) => {
+                    let missing: Vec<&str> = infos
+                        .iter()
+                        .zip(&cameras)
+                        .filter(|(i, _)| i.is_none())
+                        .map(|(_, c)| c.name.as_str())
+                        .collect();
+                    return Err(LiveError::Open(format!(
+                        "timed out waiting for {}",
+                        missing.join(", ")
+                    )));
+                }
+                Err(RecvTimeoutError::Disconnected) => {
+                    return Err(LiveError::Open("the camera threads ended".into()))
+                }
+            }
+        }
+        for (info, setting) in infos.into_iter().flatten() {
+            source.infos.push(info);
+            source.start.push(setting);
+        }
+        // Frames of earlier triggers may have been dropped for some cameras
+        // while others were still starting: sets begin after this point.
+        source.started_ns = host_now_ns();
+        Ok(source)
+    }
+
+    /// Each camera's setting when rigview took over (after its own
+    /// auto-exposure settled).
+    pub fn start_settings(&self) -> &[ExposureSetting] {
+        &self.start
+    }
+
+    /// The capture configuration.
+    pub fn config(&self) -> &CaptureConfig {
+        &self.config
+    }
+
+    /// Health, settings and set counters.
+    pub fn status(&self) -> LiveStatus {
+        LiveStatus {
+            cameras: self.handles.iter().map(|h| h.health.snapshot()).collect(),
+            sets: self.assembler.counters().clone(),
+        }
+    }
+
+    /// What happened since the last call (opens, losses, rejoins), oldest
+    /// first.
+    pub fn take_messages(&mut self) -> Vec<String> {
+        self.log.drain(..).collect()
+    }
+
+    fn note(&mut self, line: String) {
+        if self.log.len() >= LOG_LINES {
+            self.log.pop_front();
+        }
+        self.log.push_back(line);
+    }
+
+    fn handle(&mut self, event: Event) {
+        match event {
+            Event::Frame(a) => {
+                let c = a.frame.meta.camera;
+                if self.states.get(c) == Some(&StreamState::Streaming)
+                    && a.host_ns >= self.started_ns
+                {
+                    self.assembler.push(a);
+                }
+            }
+            Event::State {
+                camera,
+                state,
+                message,
+            } => {
+                let name = self
+                    .infos
+                    .get(camera)
+                    .map_or_else(|| format!("camera {camera}"), |i| i.name.clone());
+                if let Some(s) = self.states.get_mut(camera) {
+                    *s = state;
+                }
+                if state != StreamState::Streaming {
+                    self.assembler.drop_camera(camera);
+                } else {
+                    self.assembler.restart_ids(camera);
+                }
+                let word = match state {
+                    StreamState::Streaming => "streaming",
+                    StreamState::Lost => "LOST",
+                    StreamState::Reconnecting => "reconnecting",
+                };
+                self.note(format!("{name}: {word}: {message}"));
+            }
+            Event::Ready { .. } | Event::OpenFailed { .. } => {}
+        }
+    }
+
+    fn active(&self) -> Vec<bool> {
+        self.states
+            .iter()
+            .map(|s| *s == StreamState::Streaming)
+            .collect()
+    }
+}
+
+fn nanos(d: Duration) -> u64 {
+    u64::try_from(d.as_nanos()).unwrap_or(u64::MAX)
+}
+
+fn host_now_ns() -> u64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, nanos)
+}
+
+impl FrameSource for LiveSource {
+    fn cameras(&self) -> &[CameraInfo] {
+        &self.infos
+    }
+
+    fn next_set(&mut self, timeout: Duration) -> Result<Option<FrameSet>, SourceError> {
+        let deadline = Instant::now() + timeout;
+        loop {
+            while let Ok(e) = self.events.try_recv() {
+                self.handle(e);
+            }
+            let active = self.active();
+            if let Some(set) = self.assembler.pop(host_now_ns(), &active) {
+                return Ok(Some(set));
+            }
+            let left = deadline.saturating_duration_since(Instant::now());
+            if left.is_zero() {
+                return Ok(None);
+            }
+            match self.events.recv_timeout(left.min(Duration::from_millis(5))) {
+                Ok(e) => self.handle(e),
+                Err(RecvTimeoutError::Timeout) => {}
+                Err(RecvTimeoutError::Disconnected) => {
+                    return Err(SourceError::Failed("every camera thread has ended".into()))
+                }
+            }
+        }
+    }
+
+    fn apply(&mut self, commands: &[ExposureCommand]) -> Result<(), SourceError> {
+        for c in commands {
+            check_command(c, self.handles.len())?;
+            if let Some(h) = self.handles.get(c.camera) {
+                // A camera whose thread ended is reported by its health.
+                let _ = h.commands.send(c.setting);
+            }
+        }
+        Ok(())
+    }
+
+    fn health(&self) -> Vec<StreamHealth> {
+        self.handles
+            .iter()
+            .map(|h| h.health.snapshot().health)
+            .collect()
+    }
+}
+
+impl Drop for LiveSource {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::SeqCst);
+        for h in &mut self.handles {
+            if let Some(t) = h.thread.take() {
+                let _ = t.join();
+            }
+        }
+    }
+}
