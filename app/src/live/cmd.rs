@@ -335,7 +335,15 @@ fn run_rig(
 
     use super::{CameraSpec, DeviceSpec, LiveSource};
 
+    let mut config = config;
     let specs = if args.fake {
+        // The in-process fake cameras ignore software triggers: in trigger
+        // mode they fire on their own clock, like a trigger box.
+        if !matches!(config.trigger, TriggerMode::FreeRun { .. }) {
+            config.trigger = TriggerMode::Hardware {
+                line: "Line0".into(),
+            };
+        }
         super::ffi::enable_interface("Fake");
         let levels: Vec<f32> = (0..rig.cameras.len())
             .map(|i| if i % 4 == 2 { 16.0 } else { 1.0 })
