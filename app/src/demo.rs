@@ -1,17 +1,23 @@
-//! The headless closed-loop demo: four linear cameras side by side on one
-//! synthetic high-dynamic-range scene (camera 2 faces a region 16× brighter
-//! than the rest), each controlled by the gradient-based exposure core, with
-//! or without balancing, and commands that take effect one frame late.
+//! The headless closed-loop demo on the simulated rig: four 185° fisheye
+//! cameras on a car in a sunny car park (or any simulation preset or file),
+//! each controlled by the gradient-based exposure core, balanced with its
+//! neighbours through the surround view's overlaps, with commands that take
+//! effect after the cameras' actuation latency. Every frame set prints each
+//! camera's exposure, γ̂ and M, and each overlap's brightness ratio as
+//! measured and as the simulation's ground truth predicts it.
 
 use std::io::Write;
+use std::sync::Arc;
+use std::time::Instant;
 
 use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
 use rigview_core::exposure::{
-    ControllerConfig, EstimatorConfig, ExposureRange, ExposureSetting, LawKind, LawParams,
-    MeteringConfig, NeighbourGraph, RigController, Simulation,
+    ControllerConfig, EstimatorConfig, LawKind, LawParams, Meter, MeteringConfig, NeighbourGraph,
+    RigController, Simulation,
 };
-use rigview_core::synth::{LinearCamera, StripHarness, StripRig};
+use rigview_core::sim::{truth, ClosedLoop, Pacing, SimConfig, SimRender, SimRig, SimRigOptions};
+use rigview_core::surround::{CanvasSpec, SurroundOptions, SurroundView};
 
 /// Single-camera or balanced control.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -42,14 +48,28 @@ pub enum Sim {
     ScaleClip,
 }
 
+/// Which pixels are metered.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum Roi {
+    /// The ground that reaches the bird's-eye view (as the paper meters it).
+    Ground,
+    /// Whole frames.
+    Full,
+}
+
 /// Options of `rigview demo`.
 #[derive(Clone, Debug, Args)]
 pub struct DemoArgs {
-    /// Frame sets to run.
-    #[arg(long, default_value_t = 40)]
-    pub frames: u64,
+    /// The simulation: a preset (reference, steps, ramp, tunnel, backlight,
+    /// overcast) or a simulation file (see assets/sim/).
+    #[arg(long, default_value = "reference")]
+    pub scenario: String,
+    /// Frame sets to run [default: the scenario's length at its trigger
+    /// rate].
+    #[arg(long)]
+    pub frames: Option<u64>,
     /// Print every K-th frame set.
-    #[arg(long, default_value_t = 4)]
+    #[arg(long, default_value_t = 1)]
     pub every: u64,
     /// Single-camera or balanced control.
     #[arg(long, value_enum, default_value_t = Mode::Multi)]
@@ -60,45 +80,102 @@ pub struct DemoArgs {
     /// Exposure simulation of the estimator.
     #[arg(long, value_enum, default_value_t = Sim::Gamma)]
     pub simulation: Sim,
-    /// Frames between a command and the first frame that shows it.
-    #[arg(long, default_value_t = 1)]
-    pub latency: u64,
-    /// Starting shutter time of every camera, µs.
-    #[arg(long, default_value_t = 2000.0)]
-    pub start_us: f64,
+    /// Which pixels are metered.
+    #[arg(long, value_enum, default_value_t = Roi::Ground)]
+    pub roi: Roi,
+    /// Frames between a command and the first frame that shows it, 0 to 2
+    /// [default: the scenario's].
+    #[arg(long)]
+    pub latency: Option<u32>,
+    /// Starting shutter time of every camera, µs [default: the scenario's].
+    #[arg(long)]
+    pub start_us: Option<f64>,
+    /// Render at this fraction of the rig's resolution (0.25: 322×241).
+    #[arg(long, default_value_t = 1.0)]
+    pub scale: f64,
+    /// Output bits of the cameras, 8 or 12 [default: the scenario's].
+    #[arg(long)]
+    pub bits: Option<u32>,
+    /// Seed of the sensor noise [default: the scenario's].
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Produce frame sets at the trigger rate instead of as fast as possible.
+    #[arg(long)]
+    pub realtime: bool,
 }
 
 impl Default for DemoArgs {
     fn default() -> Self {
         Self {
-            frames: 40,
-            every: 4,
+            scenario: "reference".into(),
+            frames: None,
+            every: 1,
             mode: Mode::Multi,
             law: Law::Nonlinear,
             simulation: Sim::Gamma,
-            latency: 1,
-            start_us: 2000.0,
+            roi: Roi::Ground,
+            latency: None,
+            start_us: None,
+            scale: 1.0,
+            bits: None,
+            seed: None,
+            realtime: false,
         }
     }
 }
 
+fn name<T: ValueEnum>(v: T) -> String {
+    v.to_possible_value()
+        .map_or("?".into(), |p| p.get_name().to_owned())
+}
+
+/// The simulation the options ask for.
+fn sim_config(args: &DemoArgs) -> Result<SimConfig> {
+    let mut c = SimConfig::named(&args.scenario)
+        .with_context(|| format!("loading the simulation \"{}\"", args.scenario))?;
+    c.scale = args.scale;
+    if let Some(l) = args.latency {
+        c.latency_frames = l;
+    }
+    if let Some(s) = args.start_us {
+        c.start.shutter_us = s;
+    }
+    if let Some(b) = args.bits {
+        c.sensor.bits = b;
+    }
+    if let Some(s) = args.seed {
+        c.seed = s;
+    }
+    c.validate().context("the demo's options")?;
+    Ok(c)
+}
+
 /// Runs the demo and prints what it does.
 pub fn run(args: &DemoArgs) -> Result<()> {
-    let levels = [1.0, 1.0, 16.0, 1.0];
-    let rig = StripRig::new(640, 480, 160, &levels, 11).context("building the synthetic rig")?;
-    let cameras = rig.cameras();
-    let start = ExposureSetting {
-        shutter_us: args.start_us,
-        gain_db: 0.0,
-    };
-    let mut harness = StripHarness::new(
-        rig,
-        LinearCamera::default(),
-        MeteringConfig::default(),
-        args.latency,
-        start,
-    )?;
-    let config = ControllerConfig {
+    let out = std::io::stdout();
+    run_to(args, &mut out.lock())
+}
+
+/// Runs the demo, printing to `out`.
+pub fn run_to(args: &DemoArgs, out: &mut impl Write) -> Result<()> {
+    let config = sim_config(args)?;
+    let started = Instant::now();
+    let render = Arc::new(SimRender::new(&config).context("building the simulated rig")?);
+    let traced = started.elapsed().as_secs_f64();
+    let cams = render.cameras();
+    let n = cams.len();
+    let view = SurroundView::build(
+        render.rig(),
+        &CanvasSpec::default(),
+        &SurroundOptions::default(),
+    )
+    .context("building the surround view of the simulated rig")?;
+    let dr = truth::dynamic_range(&render, 0.0)?;
+    let frames = args
+        .frames
+        .unwrap_or_else(|| (config.duration_s * config.trigger_hz).round().max(1.0) as u64);
+
+    let controller_config = ControllerConfig {
         estimator: EstimatorConfig {
             simulation: match args.simulation {
                 Sim::Gamma => Simulation::Gamma,
@@ -120,29 +197,96 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         },
         ..Default::default()
     };
-    let ranges = vec![ExposureRange::default(); cameras];
-    let mut controller = RigController::new(config, &ranges, NeighbourGraph::ring(cameras)?)?;
+    let ranges: Vec<_> = cams.iter().map(|c| c.range).collect();
+    let graph = NeighbourGraph::new(n, &render.rig().neighbours)?;
+    let controller = RigController::new(controller_config, &ranges, graph)?;
+    let source = SimRig::new(
+        render.clone(),
+        SimRigOptions {
+            pacing: if args.realtime {
+                Pacing::Realtime
+            } else {
+                Pacing::AsFastAsAsked
+            },
+            frames: Some(frames),
+            latency: None,
+        },
+    )?;
+    let meter = Meter::new(MeteringConfig::default())?;
+    let masked_view = match args.roi {
+        Roi::Ground => Some(view),
+        Roi::Full => None,
+    };
+    let mut lp = ClosedLoop::new(source, controller, meter, masked_view)?;
+    // The overlaps' ground truth needs the view even when whole frames are
+    // metered.
+    let truth_view = match lp.view() {
+        Some(_) => None,
+        None => Some(SurroundView::build(
+            render.rig(),
+            &CanvasSpec::default(),
+            &SurroundOptions::default(),
+        )?),
+    };
 
-    let out = std::io::stdout();
-    let mut out = out.lock();
+    let info = &cams[0];
     writeln!(
         out,
-        "rigview demo: {cameras} simulated linear cameras, 640×480 Mono8, metered at 320×240; camera 2 faces a region 16× brighter.\n\
-         control: {} law, {} simulation, {} mode, latency {} frame(s); E = shutter_us · 10^(gain_dB/20)\n",
-        args.law.to_possible_value().map_or("?".into(), |v| v.get_name().to_owned()),
-        args.simulation.to_possible_value().map_or("?".into(), |v| v.get_name().to_owned()),
-        args.mode.to_possible_value().map_or("?".into(), |v| v.get_name().to_owned()),
-        args.latency
+        "rigview demo: simulated rig, scenario \"{}\": {n} cameras {}×{} {} ({}° fisheye), trigger {} Hz{}, latency {} frame(s)",
+        args.scenario,
+        info.width,
+        info.height,
+        info.format.genicam_name(),
+        config.lens_fov_deg,
+        config.trigger_hz,
+        if args.realtime { "" } else { " (run as fast as possible)" },
+        lp.source().latency()
     )?;
-    write!(out, "{:>5}", "set")?;
-    for i in 0..cameras {
-        write!(out, " | cam{i}: {:>8} {:>5} {:>7}", "E", "γ̂", "M")?;
+    writeln!(
+        out,
+        "scene traced in {traced:.2} s; scene dynamic range {:.1e} (0.01–99.99 % of pixels); sensor {:.1} dB, {} bits",
+        dr.ratio(),
+        render.sensor().dynamic_range_db(),
+        render.sensor().bits
+    )?;
+    writeln!(
+        out,
+        "control: {} law, {} simulation, {} mode, metering {}; E = shutter_us · 10^(gain_dB/20)",
+        name(args.law),
+        name(args.simulation),
+        name(args.mode),
+        match args.roi {
+            Roi::Ground => "the surround view's ground",
+            Roi::Full => "whole frames",
+        }
+    )?;
+    writeln!(
+        out,
+        "overlaps: log2 r_ij measured (and as the ground truth predicts it from E_j/E_i)\n"
+    )?;
+    let pairs: Vec<(usize, usize)> = render.rig().neighbours.clone();
+    write!(out, "{:>5} {:>6} {:>6}", "set", "t/s", "light")?;
+    for c in cams {
+        write!(out, " | {:>6}: {:>7} {:>5} {:>6}", c.name, "E", "γ̂", "M")?;
     }
-    writeln!(out, " | median |log2 r|")?;
+    write!(out, " |")?;
+    for &(i, j) in &pairs {
+        let label = format!("{}-{}", short(&cams[i].name), short(&cams[j].name));
+        write!(out, " {label:>12}")?;
+    }
+    writeln!(out)?;
+
     let mut last_spread = f64::NAN;
-    for f in 0..args.frames {
-        let (_, step) = harness.step(&mut controller)?;
-        let mut logs: Vec<f64> = step
+    for f in 0..frames {
+        let Some(step) = lp.step()? else {
+            break;
+        };
+        let t = step.set.timestamp_ns as f64 * 1e-9;
+        let Some(rig_step) = step.step else {
+            writeln!(out, "{f:>5} {t:>6.2}  incomplete set, skipped")?;
+            continue;
+        };
+        let mut logs: Vec<f64> = rig_step
             .ratios
             .iter()
             .filter_map(|r| r.r_ij)
@@ -150,22 +294,52 @@ pub fn run(args: &DemoArgs) -> Result<()> {
             .collect();
         logs.sort_by(f64::total_cmp);
         last_spread = logs.get(logs.len() / 2).copied().unwrap_or(f64::NAN);
-        if f % args.every.max(1) == 0 || f + 1 == args.frames {
-            write!(out, "{f:>5}")?;
-            for c in &step.cameras {
-                let (g, m) = c
-                    .estimate
-                    .as_ref()
-                    .map_or((f64::NAN, f64::NAN), |e| (e.gamma_hat, e.m_current));
-                write!(out, " | {:>13.0} {:>5.2} {:>7.0}", c.taken.exposure(), g, m)?;
-            }
-            writeln!(out, " | {last_spread:.3}")?;
+        if f % args.every.max(1) != 0 && f + 1 != frames {
+            continue;
         }
+        let light = render.levels(t).sun.log2();
+        write!(out, "{f:>5} {t:>6.2} {light:>+6.2}")?;
+        for c in &rig_step.cameras {
+            let (g, m) = c
+                .estimate
+                .as_ref()
+                .map_or((f64::NAN, f64::NAN), |e| (e.gamma_hat, e.m_current));
+            write!(out, " | {:>15.0} {g:>5.2} {m:>6.0}", c.taken.exposure())?;
+        }
+        write!(out, " |")?;
+        let view = lp
+            .view()
+            .or(truth_view.as_ref())
+            .context("no surround view")?;
+        let truths = truth::overlap_ratios(&render, view, t)?;
+        for &(i, j) in &pairs {
+            let measured = rig_step
+                .ratios
+                .iter()
+                .find(|r| r.i == i && r.j == j)
+                .and_then(|r| r.r_ij)
+                .map_or(f64::NAN, f64::log2);
+            let predicted = truths
+                .iter()
+                .find(|o| o.i == i && o.j == j)
+                .and_then(|o| o.ratio)
+                .map_or(f64::NAN, |r| {
+                    (r * rig_step.cameras[j].taken.exposure()
+                        / rig_step.cameras[i].taken.exposure())
+                    .log2()
+                });
+            write!(out, " {measured:>+5.2}({predicted:>+5.2})")?;
+        }
+        writeln!(out)?;
     }
     writeln!(
         out,
-        "\nafter {} frame sets: median |log2 r_ij| over the overlaps = {last_spread:.3}",
-        args.frames
+        "\nafter {frames} frame sets: median |log2 r_ij| over the overlaps = {last_spread:.3}"
     )?;
     Ok(())
+}
+
+/// The first letter of a camera's name, for column labels.
+fn short(name: &str) -> String {
+    name.chars().next().map_or("?".into(), |c| c.to_string())
 }

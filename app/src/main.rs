@@ -1,7 +1,7 @@
 //! The `rigview` command line.
 //!
-//! Until the simulated rig and the desktop app land, `rigview` with no
-//! arguments runs the headless closed-loop demo (`rigview demo`).
+//! Until the desktop app lands, `rigview` with no arguments runs the
+//! headless closed-loop demo on the simulated rig (`rigview demo`).
 
 mod calib_cmd;
 mod demo;
@@ -21,8 +21,8 @@ struct Cli {
 
 #[derive(Debug, Subcommand)]
 enum Command {
-    /// Closed-loop exposure control on a synthetic four-camera rig, printed
-    /// frame by frame (the default).
+    /// Closed-loop exposure control on the simulated four-camera fisheye rig,
+    /// printed frame by frame (the default).
     Demo(demo::DemoArgs),
     /// Calibration: show, convert, and make intrinsics and ground extrinsics.
     Calib(calib_cmd::CalibArgs),
