@@ -5,6 +5,7 @@
 
 mod calib_cmd;
 mod demo;
+mod surround_cmd;
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};
@@ -26,6 +27,8 @@ enum Command {
     Demo(demo::DemoArgs),
     /// Calibration: show, convert, and make intrinsics and ground extrinsics.
     Calib(calib_cmd::CalibArgs),
+    /// Compose still images of a calibrated rig into a bird's-eye view.
+    Surround(surround_cmd::SurroundArgs),
     /// Capture from the rig's GenICam cameras and control their exposure
     /// (headless until the desktop app lands).
     Live(live::cmd::LiveArgs),
@@ -37,6 +40,7 @@ fn main() -> Result<()> {
         Some(Command::Demo(args)) => demo::run(&args),
         Some(Command::Calib(args)) => calib_cmd::run(&args, &mut std::io::stdout().lock()),
         Some(Command::Live(args)) => live::cmd::run(&args, &mut std::io::stdout().lock()),
+        Some(Command::Surround(args)) => surround_cmd::run(&args, &mut std::io::stdout().lock()),
         None => demo::run(&demo::DemoArgs::default()),
     }
 }

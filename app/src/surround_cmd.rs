@@ -1,0 +1,310 @@
+//! `rigview surround`: compose still images into a bird's-eye view, to check
+//! a calibration.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context, Result};
+use clap::{Args, ValueEnum};
+use rigview_calib::formats;
+use rigview_core::exposure::balance::pair_ratio;
+use rigview_core::exposure::{BalanceParams, FrameView, PixelFormat};
+use rigview_core::surround::{
+    BlendMode, Canvas, CanvasSpec, Composer, SurroundOptions, SurroundView,
+};
+
+/// A blend mode on the command line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum Blend {
+    /// Weights falling off with the distance from each camera's own region.
+    Linear,
+    /// Half and half in the overlaps.
+    Alpha,
+    /// A hard seam through each overlap: misalignment shows as broken lines.
+    Seams,
+}
+
+impl From<Blend> for BlendMode {
+    fn from(b: Blend) -> Self {
+        match b {
+            Blend::Linear => BlendMode::Linear,
+            Blend::Alpha => BlendMode::Alpha,
+            Blend::Seams => BlendMode::Seams,
+        }
+    }
+}
+
+/// Options of `rigview surround`.
+#[derive(Debug, Args)]
+pub struct SurroundArgs {
+    /// The rig: a rig file or calibration in any supported format (a folder
+    /// of per-camera files works too). Its poses must be in the vehicle
+    /// frame.
+    #[arg(long)]
+    pub rig: PathBuf,
+    /// One image per camera, in rig order, or as NAME=PATH (e.g.
+    /// front=front.png). Any format the `image` crate reads.
+    #[arg(long, num_args = 1.., required = true)]
+    pub images: Vec<String>,
+    /// Where to write the bird's-eye view (PNG).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// How overlapping cameras are mixed.
+    #[arg(long, value_enum, default_value = "linear")]
+    pub blend: Blend,
+    /// The ground shown: X_MIN X_MAX Y_MIN Y_MAX in metres (vehicle frame: x
+    /// forward, y left).
+    #[arg(long, num_args = 4, value_names = ["X_MIN", "X_MAX", "Y_MIN", "Y_MAX"], allow_negative_numbers = true)]
+    pub extent_m: Option<Vec<f64>>,
+    /// The vehicle's rectangle: X_MIN X_MAX Y_MIN Y_MAX in metres.
+    #[arg(long, num_args = 4, value_names = ["X_MIN", "X_MAX", "Y_MIN", "Y_MAX"], allow_negative_numbers = true)]
+    pub vehicle_m: Option<Vec<f64>>,
+    /// Canvas pixels per metre.
+    #[arg(long, default_value_t = 100.0)]
+    pub px_per_m: f64,
+    /// A top-down picture of the vehicle to paste over its rectangle.
+    #[arg(long)]
+    pub vehicle_image: Option<PathBuf>,
+}
+
+/// Runs `rigview surround`, reporting to `out`.
+pub fn run(args: &SurroundArgs, out: &mut impl Write) -> Result<()> {
+    let loaded = formats::load(&args.rig, None, None)
+        .with_context(|| format!("loading the rig {}", args.rig.display()))?;
+    let rig = loaded.rig;
+    let defaults = CanvasSpec::default();
+    let four = |v: &Option<Vec<f64>>, d: [f64; 4]| match v.as_deref() {
+        Some([a, b, c, e]) => [*a, *b, *c, *e],
+        _ => d,
+    };
+    let [x_min_m, x_max_m, y_min_m, y_max_m] = four(
+        &args.extent_m,
+        [
+            defaults.x_min_m,
+            defaults.x_max_m,
+            defaults.y_min_m,
+            defaults.y_max_m,
+        ],
+    );
+    let spec = CanvasSpec {
+        x_min_m,
+        x_max_m,
+        y_min_m,
+        y_max_m,
+        px_per_m: args.px_per_m,
+        vehicle_m: four(&args.vehicle_m, defaults.vehicle_m),
+    };
+    let paths = image_paths(&args.images, &rig)?;
+    let images = paths
+        .iter()
+        .map(|p| {
+            image::open(p)
+                .map(|i| i.to_rgb8())
+                .with_context(|| format!("reading the image {}", p.display()))
+        })
+        .collect::<Result<Vec<_>>>()?;
+    for ((cam, img), path) in rig.cameras.iter().zip(&images).zip(&paths) {
+        let (w, h) = (cam.intrinsics.width, cam.intrinsics.height);
+        if (img.width(), img.height()) != (w, h) {
+            bail!(
+                "{}: the image is {}×{}, but camera `{}` is calibrated for {w}×{h}",
+                path.display(),
+                img.width(),
+                img.height(),
+                cam.name
+            );
+        }
+    }
+    let view = SurroundView::build(&rig, &spec, &SurroundOptions::default())
+        .context("building the surround view")?;
+    let frames = images
+        .iter()
+        .map(|i| {
+            FrameView::new(
+                PixelFormat::Rgb8,
+                i.width() as usize,
+                i.height() as usize,
+                i.as_raw(),
+            )
+        })
+        .collect::<rigview_core::Result<Vec<_>>>()?;
+    let mut canvas = Canvas::new(0, 0, 3);
+    Composer::new().compose(&view, &frames, args.blend.into(), &mut canvas)?;
+    if let Some(path) = &args.vehicle_image {
+        paste_vehicle(&mut canvas, &spec, path)?;
+    }
+    image::save_buffer(
+        &args.out,
+        &canvas.data,
+        canvas.width as u32,
+        canvas.height as u32,
+        image::ColorType::Rgb8,
+    )
+    .with_context(|| format!("writing {}", args.out.display()))?;
+    writeln!(
+        out,
+        "wrote {} ({}×{} px, {} px/m, {} blending)",
+        args.out.display(),
+        canvas.width,
+        canvas.height,
+        spec.px_per_m,
+        BlendMode::from(args.blend).name()
+    )?;
+    for (cam, mask) in rig.cameras.iter().zip(view.ground_masks()) {
+        writeln!(
+            out,
+            "{}: ground mask {:.1} % of the image",
+            cam.name,
+            100.0 * mask.coverage()
+        )?;
+    }
+    let params = BalanceParams::default();
+    for (obs, overlap) in view.pair_observations(&frames)?.iter().zip(view.overlaps()) {
+        let (a, b) = (&rig.cameras[obs.i].name, &rig.cameras[obs.j].name);
+        match pair_ratio(&obs.patches, &params) {
+            Some(r) => writeln!(
+                out,
+                "overlap {a}–{b}: {} px, {} patches, brightness {b}/{a} = {r:.3} ({:+.2} EV)",
+                overlap.pixels,
+                obs.patches.len(),
+                r.log2()
+            )?,
+            None => writeln!(
+                out,
+                "overlap {a}–{b}: {} px, no usable patch for a brightness ratio",
+                overlap.pixels
+            )?,
+        }
+    }
+    Ok(())
+}
+
+/// The image of each camera, in rig order.
+fn image_paths(args: &[String], rig: &rigview_calib::rig::Rig) -> Result<Vec<PathBuf>> {
+    let n = rig.cameras.len();
+    let named: Vec<Option<(&str, &str)>> = args.iter().map(|a| a.split_once('=')).collect();
+    if named.iter().all(Option::is_some) {
+        let mut paths = vec![None; n];
+        for (name, path) in named.into_iter().flatten() {
+            let Some(k) = rig.index_of(name) else {
+                bail!(
+                    "--images {name}={path}: the rig has no camera `{name}` (it has {})",
+                    names(rig)
+                );
+            };
+            paths[k] = Some(PathBuf::from(path));
+        }
+        return paths
+            .into_iter()
+            .enumerate()
+            .map(|(k, p)| {
+                p.with_context(|| {
+                    format!("--images: no image for camera `{}`", rig.cameras[k].name)
+                })
+            })
+            .collect();
+    }
+    if args.len() != n {
+        bail!(
+            "--images: {} images for a rig of {n} cameras ({}): give one per camera in rig order, or NAME=PATH",
+            args.len(),
+            names(rig)
+        );
+    }
+    Ok(args.iter().map(PathBuf::from).collect())
+}
+
+fn names(rig: &rigview_calib::rig::Rig) -> String {
+    rig.cameras
+        .iter()
+        .map(|c| c.name.as_str())
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// Pastes a picture of the vehicle over its rectangle.
+fn paste_vehicle(canvas: &mut Canvas, spec: &CanvasSpec, path: &Path) -> Result<()> {
+    let [c0, r0, w, h] = spec.vehicle_rect_px();
+    if w == 0 || h == 0 {
+        return Ok(());
+    }
+    let img = image::open(path)
+        .with_context(|| format!("reading the vehicle image {}", path.display()))?
+        .to_rgb8();
+    let img = image::imageops::resize(
+        &img,
+        w as u32,
+        h as u32,
+        image::imageops::FilterType::Triangle,
+    );
+    for (y, row) in img.rows().enumerate() {
+        for (x, p) in row.enumerate() {
+            let i = 3 * ((r0 + y) * canvas.width + c0 + x);
+            if let Some(dst) = canvas.data.get_mut(i..i + 3) {
+                dst.copy_from_slice(&p.0);
+            }
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn data() -> PathBuf {
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/surround-nz")
+    }
+
+    fn args(images: Vec<String>, out: PathBuf) -> SurroundArgs {
+        SurroundArgs {
+            rig: data(),
+            images,
+            out,
+            blend: Blend::Seams,
+            extent_m: Some(vec![-8.0, 8.0, -6.0, 6.0]),
+            vehicle_m: Some(vec![-2.5, 2.5, -1.0, 1.0]),
+            px_per_m: 25.0,
+            vehicle_image: Some(data().join("car.png")),
+        }
+    }
+
+    #[test]
+    fn composes_the_real_rig_from_named_images() {
+        let dir = std::env::temp_dir().join(format!("rigview-surround-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let out_png = dir.join("bev.png");
+        let images = ["back", "front", "left", "right"]
+            .iter()
+            .map(|n| format!("{n}={}", data().join(format!("{n}.png")).display()))
+            .collect();
+        let mut report = Vec::new();
+        run(&args(images, out_png.clone()), &mut report).unwrap();
+        let report = String::from_utf8(report).unwrap();
+        assert!(report.contains("overlap front–left"), "{report}");
+        assert!(report.contains("brightness"), "{report}");
+        let written = image::open(&out_png).unwrap();
+        assert_eq!((written.width(), written.height()), (300, 400));
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn wrong_image_lists_are_errors_naming_the_problem() {
+        let out = std::env::temp_dir().join("never-written.png");
+        let e = run(&args(vec!["a.png".into()], out.clone()), &mut Vec::new()).unwrap_err();
+        assert!(
+            format!("{e:#}").contains("1 images for a rig of 4 cameras"),
+            "{e:#}"
+        );
+        let e = run(
+            &args(vec!["top=a.png".into(); 4], out.clone()),
+            &mut Vec::new(),
+        )
+        .unwrap_err();
+        assert!(format!("{e:#}").contains("no camera `top`"), "{e:#}");
+        let small = data().join("car.png");
+        let images = vec![small.display().to_string(); 4];
+        let e = run(&args(images, out), &mut Vec::new()).unwrap_err();
+        assert!(format!("{e:#}").contains("calibrated for 960×640"), "{e:#}");
+    }
+}
