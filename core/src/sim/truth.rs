@@ -255,6 +255,10 @@ pub struct OverlapTruth {
     /// over that in `i` (`None`: no patch). At exposures `E_i`, `E_j` below
     /// saturation the frames' `r_ij` should be `ratio · E_j / E_i`.
     pub ratio: Option<f64>,
+    /// The median over the patches of `|log2(patch ratio / ratio)|`: how much
+    /// the patches disagree. Near 0 when both cameras see the same ground in
+    /// every patch (the calibration lines up); large when they do not.
+    pub spread: Option<f64>,
     /// Patches used.
     pub patches: usize,
 }
@@ -302,11 +306,17 @@ pub fn overlap_ratios(
                 .filter(|p| !p.pixels_i.is_empty() && !p.pixels_j.is_empty())
                 .map(|p| mean(o.j, &p.pixels_j) / mean(o.i, &p.pixels_i).max(1e-30))
                 .collect();
+            let ratio = (!r.is_empty()).then(|| median(&mut r));
+            let spread = ratio.map(|m| {
+                let mut d: Vec<f64> = r.iter().map(|p| (p / m).log2().abs()).collect();
+                median(&mut d)
+            });
             OverlapTruth {
                 i: o.i,
                 j: o.j,
                 patches: r.len(),
-                ratio: (!r.is_empty()).then(|| median(&mut r)),
+                ratio,
+                spread,
             }
         })
         .collect())
