@@ -7,7 +7,7 @@
 
 use std::sync::Arc;
 
-use opencv::core::{self, Mat, MatTraitConst, Point2f, TermCriteria, Vector};
+use opencv::core::{self, Mat, Point2f, TermCriteria, Vector};
 use opencv::imgproc;
 use rigview_core::exposure::{
     BalanceParams, ControllerConfig, ExposureSetting, FrameView, Meter, MeteringConfig,
@@ -47,6 +47,28 @@ fn checker_corners() -> Vec<(f64, f64)> {
 /// The rig's full resolution: at half resolution a square 4–5 m away spans
 /// only a few source pixels and the corners wander by up to 1 canvas px.
 const SCALE: f64 = 1.0;
+
+/// How far OpenCV's sub-pixel saddle search (a 7×7 px = 14 cm window),
+/// seeded at each true corner, moves in the canvas: where it settles is
+/// where the composed image has the corner.
+fn corner_offsets(canvas: &Canvas, truth: &[(f32, f32)]) -> Vec<f64> {
+    let img = Mat::new_rows_cols_with_data(canvas.height as i32, canvas.width as i32, &canvas.data)
+        .unwrap();
+    let mut found: Vector<Point2f> = truth.iter().map(|&(x, y)| Point2f::new(x, y)).collect();
+    imgproc::corner_sub_pix(
+        &img,
+        &mut found,
+        core::Size::new(7, 7),
+        core::Size::new(-1, -1),
+        TermCriteria::new(core::TermCriteria_COUNT + core::TermCriteria_EPS, 50, 1e-3).unwrap(),
+    )
+    .unwrap();
+    truth
+        .iter()
+        .zip(found.iter())
+        .map(|(&(tx, ty), p)| f64::from((p.x - tx).hypot(p.y - ty)))
+        .collect()
+}
 
 #[test]
 fn the_mat_corners_land_within_a_canvas_pixel_of_their_true_positions() {
@@ -99,11 +121,7 @@ fn the_mat_corners_land_within_a_canvas_pixel_of_their_true_positions() {
         mean > 20.0,
         "the canvas is too dark to find corners: mean {mean:.1}"
     );
-    let img = Mat::new_rows_cols_with_data(canvas.height as i32, canvas.width as i32, &canvas.data)
-        .unwrap();
-    // Each true corner seeds OpenCV's sub-pixel saddle search (a 7×7 px =
-    // 14 cm window); where the search settles is where the composed image
-    // has the corner.
+    // Each true corner seeds the saddle search ([`corner_offsets`]).
     let truth: Vec<(f32, f32)> = checker_corners()
         .into_iter()
         .map(|(x, y)| {
@@ -113,20 +131,7 @@ fn the_mat_corners_land_within_a_canvas_pixel_of_their_true_positions() {
             ((c - 0.5) as f32, (r - 0.5) as f32)
         })
         .collect();
-    let mut found: Vector<Point2f> = truth.iter().map(|&(x, y)| Point2f::new(x, y)).collect();
-    imgproc::corner_sub_pix(
-        &img,
-        &mut found,
-        core::Size::new(7, 7),
-        core::Size::new(-1, -1),
-        TermCriteria::new(core::TermCriteria_COUNT + core::TermCriteria_EPS, 50, 1e-3).unwrap(),
-    )
-    .unwrap();
-    let errors: Vec<f64> = truth
-        .iter()
-        .zip(found.iter())
-        .map(|(&(tx, ty), p)| f64::from((p.x - tx).hypot(p.y - ty)))
-        .collect();
+    let errors = corner_offsets(&canvas, &truth);
     for ((&(tx, ty), e), (x, y)) in truth.iter().zip(&errors).zip(checker_corners()) {
         if *e > 0.6 {
             println!("corner ({x:+.1}, {y:+.1}) m at ({tx:.1}, {ty:.1}) px: {e:.2} px off");
@@ -156,22 +161,7 @@ fn the_mat_corners_land_within_a_canvas_pixel_of_their_true_positions() {
     Composer::new()
         .compose(&bad_view, &frames, BlendMode::Seams, &mut bad)
         .unwrap();
-    let bad_img =
-        Mat::new_rows_cols_with_data(bad.height as i32, bad.width as i32, &bad.data).unwrap();
-    let mut moved: Vector<Point2f> = truth.iter().map(|&(x, y)| Point2f::new(x, y)).collect();
-    imgproc::corner_sub_pix(
-        &bad_img,
-        &mut moved,
-        core::Size::new(7, 7),
-        core::Size::new(-1, -1),
-        TermCriteria::new(core::TermCriteria_COUNT + core::TermCriteria_EPS, 50, 1e-3).unwrap(),
-    )
-    .unwrap();
-    let bad_worst = truth
-        .iter()
-        .zip(moved.iter())
-        .map(|(&(tx, ty), p)| f64::from((p.x - tx).hypot(p.y - ty)))
-        .fold(0.0, f64::max);
+    let bad_worst = corner_offsets(&bad, &truth).into_iter().fold(0.0, f64::max);
     println!("front camera turned 2°: worst corner {bad_worst:.2} px");
     assert!(
         bad_worst > 1.0,
