@@ -21,7 +21,7 @@ use rigview_core::source::{CameraInfo, Frame, FrameMeta, FrameStatus, StreamStat
 use super::assemble::Arrived;
 use super::config::{CaptureConfig, TriggerMode};
 use super::fake::{render_into, FakeView};
-use super::ffi::{install_fill, FillGuard};
+use super::ffi::{install_fill, FillFn, FillGuard};
 use super::health::{HealthCell, StreamCounts};
 use super::tracker::{IdUnwrapper, SettingTracker};
 
@@ -36,7 +36,8 @@ pub enum DeviceSpec {
     /// opens it.
     Id(String),
     /// An Aravis in-process fake camera with this serial number, showing
-    /// `view`.
+    /// `view` (a camera of the simulated rig) in `view`'s pixel format and
+    /// size.
     Fake {
         /// Serial number (unique per fake camera).
         serial: String,
@@ -183,29 +184,16 @@ fn open(name: &str, spec: &DeviceSpec, config: &CaptureConfig) -> Result<Conn, S
                 .fake_camera()
                 .ok_or_else(|| "the fake device has no fake camera".to_owned())?;
             // In trigger mode the in-process fake camera does not wait for
-            // software triggers: it fires on its own at this rate, aligned
-            // to the monotonic clock, like a trigger box shared by the rig.
-            fake.set_trigger_frequency(
-                config
-                    .trigger
-                    .period()
-                    .map_or(20.0, |p| 1.0 / p.as_secs_f64().max(1e-4)),
-            );
-            let view = view.clone();
-            let per_raw = view.gain_db_per_raw;
-            let (w, h) = (view.width, view.height);
+            // software triggers: it fires on its own, aligned to the
+            // monotonic clock, like a trigger box shared by the rig; here at
+            // the simulation's trigger rate.
+            fake.set_trigger_frequency(view.render.config().trigger_hz);
             let guard = install_fill(
                 &fake,
-                w,
-                h,
-                Box::new(move |pixels, _, _, exposure_us, gain_raw| {
-                    render_into(
-                        &view,
-                        f64::from(exposure_us),
-                        f64::from(gain_raw) * per_raw,
-                        pixels,
-                    );
-                }),
+                view.width,
+                view.height,
+                view.format.bytes_per_pixel(),
+                fake_fill(view.clone(), config.gain_raw_db_per_step),
             );
             let camera = Camera::with_device(&device).map_err(|e| msg("cannot open", e))?;
             (camera, Some((device, guard)))
@@ -219,10 +207,51 @@ fn open(name: &str, spec: &DeviceSpec, config: &CaptureConfig) -> Result<Conn, S
             width: u32::try_from(view.width).unwrap_or(u32::MAX),
             height: u32::try_from(view.height).unwrap_or(u32::MAX),
         });
-        config.pixel_format = rigview_core::exposure::PixelFormat::Mono8;
+        config.pixel_format = view.format;
     }
     let loopback = matches!(spec, DeviceSpec::Id(id) if is_loopback(id));
-    configure(name, camera, fake, &config, loopback)
+    let conn = configure(name, camera, fake, &config, loopback)?;
+    if let DeviceSpec::Fake { view, .. } = spec {
+        // The fill callback writes a whole frame into each buffer.
+        if conn.payload < view.buffer_len() {
+            return Err(format!(
+                "the fake camera's payload ({} bytes) is smaller than a {}×{} {} frame",
+                conn.payload,
+                view.width,
+                view.height,
+                view.format.genicam_name()
+            ));
+        }
+    }
+    Ok(conn)
+}
+
+/// The fill callback of a fake camera showing `view`: its registers' raw
+/// gain read as `db_per_step` dB a step (as the camera's thread reads it),
+/// its frame ids made monotonic (as the camera's thread makes them), so a
+/// frame's id, timestamp and `taken` setting are the ones it was rendered
+/// with.
+fn fake_fill(view: FakeView, db_per_step: f64) -> Box<FillFn> {
+    let ids = Mutex::new(IdUnwrapper::default());
+    Box::new(move |pixels, args| {
+        let frame = ids
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .unwrap(args.frame_id);
+        let shown = render_into(
+            &view,
+            frame,
+            args.timestamp_ns,
+            f64::from(args.exposure_us),
+            f64::from(args.gain_raw) * db_per_step,
+            pixels,
+        );
+        // (Only an exposure time of 0 µs, which the fake camera's range
+        // excludes, makes the simulation refuse a frame.)
+        if shown.is_err() {
+            pixels.fill(0);
+        }
+    })
 }
 
 fn configure(

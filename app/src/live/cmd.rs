@@ -32,9 +32,14 @@ pub enum Trigger {
 #[derive(Clone, Debug, Args)]
 pub struct LiveArgs {
     /// The rig file (rigview rig YAML); each camera needs a `device` (GenICam
-    /// id or IP address).
-    #[arg(long, value_name = "FILE")]
-    pub rig: PathBuf,
+    /// id or IP address). Needed unless `--fake`.
+    #[arg(
+        long,
+        value_name = "FILE",
+        required_unless_present = "fake",
+        conflicts_with = "fake"
+    )]
+    pub rig: Option<PathBuf>,
     /// Stop after this many frame sets.
     #[arg(long, value_name = "N")]
     pub frames: Option<u64>,
@@ -54,7 +59,7 @@ pub struct LiveArgs {
     #[arg(long, default_value = "Mono8", value_parser = parse_pixel_format)]
     pub pixel_format: PixelFormat,
     /// Region of interest, WIDTHxHEIGHT[+X+Y] (default: as the camera has it).
-    #[arg(long)]
+    #[arg(long, conflicts_with = "fake")]
     pub region: Option<Region>,
     /// GigE Vision packet size in bytes (default: the largest that gets
     /// through).
@@ -81,10 +86,20 @@ pub struct LiveArgs {
     /// dB per step of GainRaw, for cameras without Gain in dB.
     #[arg(long, default_value_t = 1.0, value_name = "DB")]
     pub gain_raw_db: f64,
-    /// Use Aravis's in-process fake cameras instead of the rig's devices
-    /// (to try rigview without hardware).
+    /// Instead of a rig's cameras, Aravis's in-process fake cameras showing
+    /// the simulated rig (to try rigview without hardware): one fake camera
+    /// per simulated camera, at its size, on a trigger clock of `--rate`.
     #[arg(long)]
     pub fake: bool,
+    /// The simulation the fake cameras show: a preset (reference, steps,
+    /// ramp, tunnel, backlight, overcast) or a simulation file (see
+    /// assets/sim/) [default: reference].
+    #[arg(long, value_name = "NAME|FILE", requires = "fake")]
+    pub scenario: Option<String>,
+    /// Render the fake cameras at this fraction of the simulated rig's
+    /// resolution (0.25: 322×241) [default: 1].
+    #[arg(long, requires = "fake")]
+    pub scale: Option<f64>,
 }
 
 fn parse_pixel_format(s: &str) -> std::result::Result<PixelFormat, String> {
@@ -307,70 +322,125 @@ pub fn format_status(
 
 /// Runs `rigview live`.
 pub fn run(args: &LiveArgs, out: &mut dyn Write) -> Result<()> {
+    // (clap lets these through next to --rig, which rules out --fake.)
+    if !args.fake && (args.scenario.is_some() || args.scale.is_some()) {
+        anyhow::bail!("--scenario and --scale choose what the fake cameras show: they need --fake");
+    }
     let config = args.capture_config()?;
-    let rig = rigview_calib::formats::load(&args.rig, None, None)
-        .with_context(|| format!("reading the rig file {}", args.rig.display()))?
-        .rig;
-    run_rig(args, &rig, config, out)
+    run_cameras(args, config, out)
 }
 
 #[cfg(not(feature = "aravis"))]
-fn run_rig(
-    _args: &LiveArgs,
-    _rig: &rigview_calib::Rig,
-    _config: CaptureConfig,
-    _out: &mut dyn Write,
-) -> Result<()> {
+fn run_cameras(_args: &LiveArgs, _config: CaptureConfig, _out: &mut dyn Write) -> Result<()> {
     Err(super::LiveError::NoAravis.into())
 }
 
+/// The rig file's cameras.
 #[cfg(feature = "aravis")]
-fn run_rig(
+fn rig_cameras(args: &LiveArgs) -> Result<Vec<super::CameraSpec>> {
+    let path = args
+        .rig
+        .as_ref()
+        .context("--rig FILE names the cameras (or --fake runs fake cameras)")?;
+    let rig = rigview_calib::formats::load(path, None, None)
+        .with_context(|| format!("reading the rig file {}", path.display()))?
+        .rig;
+    Ok(super::CameraSpec::from_rig(&rig)?)
+}
+
+/// The in-process fake cameras of `--fake`, showing the simulated rig of
+/// `--scenario`, and the capture configuration they run with.
+#[cfg(feature = "aravis")]
+fn fake_cameras(
     args: &LiveArgs,
-    rig: &rigview_calib::Rig,
-    config: CaptureConfig,
+    mut config: CaptureConfig,
     out: &mut dyn Write,
-) -> Result<()> {
+) -> Result<(Vec<super::CameraSpec>, CaptureConfig)> {
+    use std::sync::Arc;
     use std::time::Instant;
 
-    use super::{CameraSpec, DeviceSpec, LiveSource};
+    use rigview_core::sim::{SimConfig, SimRender, PRESETS};
 
-    let mut config = config;
-    let specs = if args.fake {
-        // The in-process fake cameras ignore software triggers: in trigger
-        // mode they fire on their own clock, like a trigger box.
-        if !matches!(config.trigger, TriggerMode::FreeRun { .. }) {
-            config.trigger = TriggerMode::Hardware {
-                line: "Line0".into(),
-            };
-        }
-        super::ffi::enable_interface("Fake");
-        let levels: Vec<f32> = (0..rig.cameras.len())
-            .map(|i| if i % 4 == 2 { 16.0 } else { 1.0 })
-            .collect();
-        let views = super::fake::FakeView::strip(
-            320,
-            240,
-            &levels,
-            11,
-            rigview_core::synth::LinearCamera {
-                noise_dn: 1.0,
-                ..Default::default()
-            },
-        )?;
-        rig.cameras
-            .iter()
-            .zip(views)
-            .map(|(c, view)| CameraSpec {
-                name: c.name.clone(),
-                device: DeviceSpec::Fake {
-                    serial: format!("RV-{}", c.name),
-                    view,
-                },
-            })
-            .collect()
+    use super::fake::FakeView;
+    use super::{CameraSpec, DeviceSpec};
+
+    // The in-process fake cameras ignore software triggers: in trigger
+    // mode they fire on their own clock, like a trigger box.
+    if !matches!(config.trigger, TriggerMode::FreeRun { .. }) {
+        config.trigger = TriggerMode::Hardware {
+            line: "Line0".into(),
+        };
+    }
+    super::fake::check_format(config.pixel_format)?;
+    let scenario = args.scenario.as_deref().unwrap_or("reference");
+    if !PRESETS.iter().any(|p| p.0 == scenario) && !std::path::Path::new(scenario).exists() {
+        anyhow::bail!(
+            "--scenario {scenario}: neither a simulation preset ({}) nor a simulation file",
+            PRESETS.map(|p| p.0).join(", ")
+        );
+    }
+    let mut sim = SimConfig::named(scenario)
+        .with_context(|| format!("loading the simulation \"{scenario}\""))?;
+    sim.scale = args.scale.unwrap_or(1.0);
+    // The fake cameras fire at the simulation's trigger rate.
+    sim.trigger_hz = args.rate;
+    let started = Instant::now();
+    let render = Arc::new(SimRender::new(&sim).with_context(|| {
+        format!(
+            "building the simulation \"{scenario}\" (--scale {}, --rate {})",
+            sim.scale, args.rate
+        )
+    })?);
+    // The script starts when the controller takes over from the cameras'
+    // own start-up auto-exposure (give or take the time to open them).
+    let epoch_ns = super::fake::clock_ns()
+        .saturating_add(u64::try_from(config.auto_settle.as_nanos()).unwrap_or(u64::MAX));
+    let views = FakeView::rig(&render, config.pixel_format, epoch_ns)?;
+    let mut sizes: Vec<String> = views
+        .iter()
+        .map(|v| format!("{}×{}", v.width, v.height))
+        .collect();
+    sizes.dedup();
+    writeln!(
+        out,
+        "simulation \"{}\": {} cameras of {} {}, traced in {:.1} s",
+        sim.name,
+        views.len(),
+        sizes.join(", "),
+        config.pixel_format.genicam_name(),
+        started.elapsed().as_secs_f64()
+    )?;
+    super::ffi::enable_interface("Fake");
+    let specs = views
+        .into_iter()
+        .zip(render.cameras())
+        .enumerate()
+        .map(|(i, (view, info))| {
+            let name = info.name.clone();
+            // Aravis takes serial numbers of at most 15 bytes.
+            let mut serial = format!("RV{i}-{name}");
+            while serial.len() > 15 {
+                serial.pop();
+            }
+            CameraSpec {
+                name,
+                device: DeviceSpec::Fake { serial, view },
+            }
+        })
+        .collect();
+    Ok((specs, config))
+}
+
+#[cfg(feature = "aravis")]
+fn run_cameras(args: &LiveArgs, config: CaptureConfig, out: &mut dyn Write) -> Result<()> {
+    use std::time::Instant;
+
+    use super::LiveSource;
+
+    let (specs, config) = if args.fake {
+        fake_cameras(args, config, out)?
     } else {
-        CameraSpec::from_rig(rig)?
+        (rig_cameras(args)?, config)
     };
     writeln!(
         out,

@@ -29,15 +29,30 @@ pub fn shutdown() {
     unsafe { aravis_sys::arv_shutdown() }
 }
 
-/// What a fill callback receives: the frame to fill (tightly packed, as
-/// wide and high as the camera's region), the exposure time in µs and the
-/// raw gain of the fake camera's registers.
-pub type FillFn = dyn Fn(&mut [u8], usize, usize, u32, u32) + Send + Sync;
+/// What the fake camera tells a fill callback about the frame it fills.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FillArgs {
+    /// The frame's id as the fake camera numbers it (the id its buffer
+    /// arrives with: 16 bit, 0 skipped).
+    pub frame_id: u64,
+    /// The frame's timestamp (the one its buffer arrives with), ns.
+    pub timestamp_ns: u64,
+    /// The exposure time register, µs.
+    pub exposure_us: u32,
+    /// The `GainRaw` register.
+    pub gain_raw: u32,
+}
+
+/// A fill callback: the frame to fill (tightly packed, as wide and high as
+/// the camera's region, in the pixel format it was installed for) and what
+/// the fake camera says about it.
+pub type FillFn = dyn Fn(&mut [u8], FillArgs) + Send + Sync;
 
 struct FillData {
     fill: Box<FillFn>,
     width: usize,
     height: usize,
+    bytes_per_pixel: usize,
 }
 
 /// A fill callback installed on an in-process fake camera. Dropping it
@@ -65,7 +80,7 @@ unsafe extern "C" fn fill_trampoline(
     user: *mut c_void,
     exposure_time_us: u32,
     gain: u32,
-    _format: aravis_sys::ArvPixelFormat,
+    format: aravis_sys::ArvPixelFormat,
 ) {
     if buffer.is_null() || user.is_null() {
         return;
@@ -79,41 +94,60 @@ unsafe extern "C" fn fill_trampoline(
     // valid out-pointer. (The fake camera does not set the received size, so
     // `size` may be 0.)
     let ptr = unsafe { aravis_sys::arv_buffer_get_data(buffer, &mut size) };
-    // SAFETY: as above; these read the image size the fake camera has just
-    // set from its Width and Height registers.
-    let (bw, bh) = unsafe {
+    // SAFETY: as above; these read the image size, frame id and timestamp
+    // the fake camera has just set from its registers, its frame counter
+    // and its clock.
+    let (bw, bh, frame_id, timestamp_ns) = unsafe {
         (
             aravis_sys::arv_buffer_get_image_width(buffer),
             aravis_sys::arv_buffer_get_image_height(buffer),
+            aravis_sys::arv_buffer_get_frame_id(buffer),
+            aravis_sys::arv_buffer_get_timestamp(buffer),
         )
     };
-    let need = data.width * data.height;
+    // PFNC pixel formats hold their bits per pixel in bits 16–23.
+    let format_bytes = ((format >> 16) & 0xff) as usize / 8;
     let image = usize::try_from(bw).unwrap_or(0) * usize::try_from(bh).unwrap_or(0);
-    if ptr.is_null() || image != need {
+    let need = data.width * data.height * data.bytes_per_pixel;
+    if ptr.is_null()
+        || image != data.width * data.height
+        || format_bytes != data.bytes_per_pixel
+        || need == 0
+    {
         return;
     }
-    // SAFETY: the fake camera calls us only after checking that the buffer
-    // holds at least Width × Height bytes, which is `need`; nothing else
-    // touches them during the callback.
+    // SAFETY: rigview gives the stream only buffers of the payload size the
+    // camera reports for its region and pixel format (Width × Height × bytes
+    // per pixel), which `open` checks is at least `need` before acquisition
+    // starts, and the fake camera calls us only with a frame of that region
+    // and format (checked above); nothing else touches the buffer during the
+    // callback.
     let pixels = unsafe { std::slice::from_raw_parts_mut(ptr, need) };
+    let args = FillArgs {
+        frame_id,
+        timestamp_ns,
+        exposure_us: exposure_time_us,
+        gain_raw: gain,
+    };
     // A panic must not unwind into C; the frame then keeps what it had.
-    let _ = catch_unwind(AssertUnwindSafe(|| {
-        (data.fill)(pixels, data.width, data.height, exposure_time_us, gain);
-    }));
+    let _ = catch_unwind(AssertUnwindSafe(|| (data.fill)(pixels, args)));
 }
 
 /// Installs `fill` as the pattern of `camera`, for frames of
-/// `width × height` Mono8 pixels.
+/// `width × height` pixels of `bytes_per_pixel` bytes. The buffers given to
+/// the camera's stream must hold at least that many bytes.
 pub fn install_fill(
     camera: &FakeCamera,
     width: usize,
     height: usize,
+    bytes_per_pixel: usize,
     fill: Box<FillFn>,
 ) -> FillGuard {
     let data = Box::into_raw(Box::new(FillData {
         fill,
         width,
         height,
+        bytes_per_pixel,
     }));
     let raw: *mut aravis_sys::ArvFakeCamera = camera.to_glib_none().0;
     // SAFETY: `raw` is a valid fake camera for the call; `data` stays valid

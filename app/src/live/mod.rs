@@ -8,8 +8,8 @@
 //! | [`assemble`] | frame sets: one frame per camera and trigger, matched by arrival time within a tolerance; incomplete sets are counted |
 //! | [`health`] | per-camera stream health (state, fps, completed/failed/underrun buffers, missing/resent packets) |
 //! | `LiveSource` | all of it as a [`rigview_core::source::FrameSource`] |
-//! | [`fake`] | what Aravis's in-process fake cameras show (a synthetic scene rendered at their exposure and gain) |
-//! | [`cmd`] | `rigview live`: capture and exposure control, headless, with a status line per second |
+//! | [`fake`] | what Aravis's in-process fake cameras show: the simulated rig ([`rigview_core::sim`]), each frame rendered at the fake camera's exposure time and gain, with the noise of its frame id and the light of its timestamp |
+//! | [`cmd`] | `rigview live`: capture and exposure control, headless, with a status line per second (`--fake`: on fake cameras showing a simulation) |
 //!
 //! Everything that needs Aravis is behind the `aravis` feature (on by
 //! default).
