@@ -487,6 +487,49 @@ fn the_controller_waits_for_its_command_and_never_reacts_twice() {
     assert_eq!(u.hold, None);
 }
 
+#[test]
+fn a_command_the_camera_quantises_counts_as_shown() {
+    let config = ControllerConfig {
+        balancing: None,
+        ..Default::default()
+    };
+    let dark = metered_scene(40.0);
+    let at = |id: u64, us: f64| FrameInfo {
+        frame_id: id,
+        taken: ExposureSetting {
+            shutter_us: us,
+            gain_db: 0.0,
+        },
+    };
+    // Cameras apply exposure on their own grid: whole microseconds, or
+    // sensor rows (here 14.6 µs); either can be well over 0.2 % off at short
+    // exposures.
+    for grid in [1.0, 14.6] {
+        let mut cam = CameraController::new(&config, ExposureRange::default()).unwrap();
+        let u = cam.unary(&config, &at(0, 40.0), &dark).unwrap();
+        let (cmd, _) = cam.command(u.desired, at(0, 40.0).taken);
+        let cmd = cmd.expect("a dark image asks for more exposure");
+        let applied = (cmd.shutter_us / grid).floor() * grid + 0.6 * grid;
+        assert!(
+            (applied / cmd.shutter_us - 1.0).abs() > 2e-3,
+            "the quantisation must exceed the 0.2 % tolerance for this test to mean anything"
+        );
+        let u = cam
+            .unary(&config, &at(1, applied), &metered_scene(applied))
+            .unwrap();
+        assert_eq!(
+            u.hold, None,
+            "grid {grid} µs: the applied command must count as shown"
+        );
+    }
+    // A frame still at the old exposure keeps waiting.
+    let mut cam = CameraController::new(&config, ExposureRange::default()).unwrap();
+    let u = cam.unary(&config, &at(0, 40.0), &dark).unwrap();
+    let _ = cam.command(u.desired, at(0, 40.0).taken);
+    let u = cam.unary(&config, &at(1, 40.0), &dark).unwrap();
+    assert_eq!(u.hold, Some(Hold::AwaitingCommand));
+}
+
 // ---------- bad input ----------
 
 #[test]

@@ -137,8 +137,27 @@ const SETTLED_TOLERANCE: f64 = 2e-3;
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Pending {
-    exposure: f64,
+    /// The setting the frame before the command was taken with.
+    from: ExposureSetting,
+    /// The command.
+    setting: ExposureSetting,
     waited: u32,
+}
+
+impl Pending {
+    /// Whether a frame taken with `taken` shows this command: its exposure
+    /// equals the command's to 0.2 %, or it has moved from the old setting
+    /// and lies nearer the command than the old setting (in log exposure).
+    /// Cameras quantise exposure time (whole microseconds, sensor rows), so
+    /// what they apply may differ slightly from what was commanded.
+    fn shown_by(&self, taken: &ExposureSetting) -> bool {
+        let (e, to, from) = (
+            taken.exposure(),
+            self.setting.exposure(),
+            self.from.exposure(),
+        );
+        (e / to - 1.0).abs() <= SETTLED_TOLERANCE || (e / to).ln().abs() < (e / from).ln().abs()
+    }
 }
 
 /// The unary step of one camera.
@@ -232,7 +251,7 @@ impl CameraController {
         } else {
             self.last_frame = Some(info.frame_id);
             if let Some(p) = self.pending.as_mut() {
-                let shows = (taken / p.exposure - 1.0).abs() <= SETTLED_TOLERANCE;
+                let shows = p.shown_by(&info.taken);
                 if shows || p.waited >= config.latency_timeout_frames {
                     self.pending = None;
                 } else {
@@ -292,7 +311,8 @@ impl CameraController {
             return (None, clamped);
         }
         self.pending = Some(Pending {
-            exposure: setting.exposure(),
+            from: taken,
+            setting,
             waited: 0,
         });
         (Some(setting), clamped)
