@@ -5,13 +5,16 @@
 //!   2018): metering, the gradient-information metric, the γ̂ estimator, the
 //!   update laws, multi-camera balancing, the shutter/gain split, baselines and
 //!   the per-camera and per-rig controllers.
+//! - [`sim`]: the simulated HDR rig (scene, scripted light, EMVA 1288
+//!   sensor, reference rig, ground truth): the default source of the app,
+//!   the tests and the benchmarks.
 //! - [`source`]: the frame-source interface that the simulated rig, live
 //!   cameras and replay implement: frame sets, frame metadata, exposure
 //!   commands, stream health.
 //! - [`surround`]: the bird's-eye surround view: remap tables from the rig
 //!   calibration, blending, ground masks and overlap patches.
 //! - [`synth`]: small synthetic high-dynamic-range scenes seen by linear
-//!   cameras, for tests, benchmarks and the headless demo.
+//!   cameras, for the exposure core's own tests and benchmarks.
 
 pub mod error;
 pub mod exposure;

@@ -6,7 +6,7 @@
 //! scale and quantises to 8 bits. [`StripRig`] places several cameras side by
 //! side on one cyclic scene so that neighbours see the same surfaces in their
 //! overlaps. The full rig simulator (fisheye cameras, noise, latency,
-//! scenarios) builds on this.
+//! scenarios) is [`crate::sim`].
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
