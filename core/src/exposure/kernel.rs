@@ -30,8 +30,9 @@ use std::sync::OnceLock;
 
 use super::fastmath::{self, madd};
 
-/// The vector instruction set a kernel was compiled for.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+/// The vector instruction set a kernel was compiled for; narrower sets
+/// order first.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub enum Isa {
     /// Baseline x86-64 (SSE2) or a non-x86 target, without fused
     /// multiply-adds.
@@ -83,19 +84,6 @@ impl Isa {
             Self::Avx2 => "avx2",
             Self::Avx512 => "avx512",
         }
-    }
-}
-
-impl PartialOrd for Isa {
-    fn partial_cmp(&self, other: &Self) -> Option<std::cmp::Ordering> {
-        Some(self.cmp(other))
-    }
-}
-
-impl Ord for Isa {
-    /// Narrower sets order first.
-    fn cmp(&self, other: &Self) -> std::cmp::Ordering {
-        (*self as u8).cmp(&(*other as u8))
     }
 }
 

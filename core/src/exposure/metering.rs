@@ -316,19 +316,17 @@ impl Meter {
                 block_sums_8bit(frame, oy * k..(oy + 1) * k, c, k, &mut bytes, out);
             }
             for gy in oy * k..(oy + 1) * k {
-                if channels.is_some() {
-                    // Done above.
-                } else if bayer {
-                    bayer_luma_row(
-                        frame.format(),
-                        frame.row(2 * gy),
-                        frame.row(2 * gy + 1),
-                        &mut row,
-                    );
-                } else {
-                    luma_row(frame.format(), frame.row(gy), &mut row);
-                }
                 if channels.is_none() {
+                    if bayer {
+                        bayer_luma_row(
+                            frame.format(),
+                            frame.row(2 * gy),
+                            frame.row(2 * gy + 1),
+                            &mut row,
+                        );
+                    } else {
+                        luma_row(frame.format(), frame.row(gy), &mut row);
+                    }
                     add_block_sums(out, &row, k);
                 }
                 if let (Some(m), Some(cov)) = (mask, coverage.as_mut()) {

@@ -168,7 +168,6 @@ impl GradientMetric {
             );
             return (sum * self.inv_n, dot * self.inv_n);
         }
-        let scaled = map.is_some();
         let mut map = map;
         let (sum, sum_log2) = kernel::information(
             scratch.isa,
@@ -181,7 +180,7 @@ impl GradientMetric {
             &mut scratch.rows,
             map.as_deref_mut(),
         );
-        if let (true, Some(map)) = (scaled, map) {
+        if let Some(map) = map {
             let inv_n = self.inv_n as f32;
             for v in map.iter_mut() {
                 *v *= inv_n;
