@@ -85,12 +85,8 @@ impl Composer {
         out.data.clear();
         out.data.resize(w * h * ch, 0);
         self.acc.resize(w * h * ch, 0);
-        for layer in layers {
-            let [c0, r0, _, _] = layer.roi;
-            for span in layer.spans[mode.index()].iter().filter(|s| s.blend) {
-                let start = ((r0 + span.row as usize) * w + c0 + span.col as usize) * ch;
-                self.acc[start..start + span.len as usize * ch].fill(0);
-            }
+        for &(start, len) in view.blended(mode) {
+            self.acc[start * ch..(start + len) * ch].fill(0);
         }
         for (k, (layer, frame)) in layers.iter().zip(frames).enumerate() {
             let (bytes, src_ch) =
@@ -144,14 +140,10 @@ impl Composer {
             }
         }
         // The blended pixels, from their sums.
-        for layer in layers {
-            let [c0, r0, _, _] = layer.roi;
-            for span in layer.spans[mode.index()].iter().filter(|s| s.blend) {
-                let start = ((r0 + span.row as usize) * w + c0 + span.col as usize) * ch;
-                let end = start + span.len as usize * ch;
-                for (o, &v) in out.data[start..end].iter_mut().zip(&self.acc[start..end]) {
-                    *o = ((u32::from(v) + 128) >> 8).min(255) as u8;
-                }
+        for &(start, len) in view.blended(mode) {
+            let span = start * ch..(start + len) * ch;
+            for (o, &v) in out.data[span.clone()].iter_mut().zip(&self.acc[span]) {
+                *o = ((u32::from(v) + 128) >> 8).min(255) as u8;
             }
         }
         Ok(())

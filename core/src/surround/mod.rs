@@ -342,6 +342,9 @@ pub struct SurroundView {
     width: usize,
     height: usize,
     layers: Vec<CameraLayer>,
+    /// Per blend mode, the runs of canvas pixels blended from several
+    /// cameras (first pixel index, length).
+    blended: [Vec<(usize, usize)>; 3],
     masks: Vec<RoiMask>,
     overlaps: Vec<Overlap>,
 }
@@ -506,14 +509,21 @@ impl SurroundView {
             .iter()
             .map(|&(i, j)| overlap(spec, w, h, i, j, &source, &layers, options))
             .collect();
+        let blended = blended_runs(&layers, w, h);
         Ok(Self {
             spec: spec.clone(),
             width: w,
             height: h,
             layers,
+            blended,
             masks,
             overlaps,
         })
+    }
+
+    /// The runs of canvas pixels that `mode` blends from several cameras.
+    pub(crate) fn blended(&self, mode: BlendMode) -> &[(usize, usize)] {
+        &self.blended[mode.index()]
     }
 
     /// The canvas spec.
@@ -637,26 +647,53 @@ fn distance_to_zero(mask: &[u8], w: usize, h: usize) -> opencv::Result<Vec<f32>>
 /// The 1/256 weights of camera `k` at canvas pixel `i` for the three blend
 /// modes.
 fn blend_weights(k: usize, i: usize, source: &[Vec<[f32; 2]>], distance: &[Vec<f32>]) -> [u16; 3] {
-    let seeing: Vec<usize> = (0..source.len())
-        .filter(|&m| source[m][i][0] >= 0.0)
-        .collect();
-    if seeing.len() <= 1 {
+    let seeing = || (0..source.len()).filter(move |&m| source[m][i][0] >= 0.0);
+    let n = seeing().count();
+    if n <= 1 {
         return [256, 256, 256];
     }
     // w ∝ 1/d², with d floored at half a pixel.
     let inv = |m: usize| 1.0 / f64::from(distance[m][i].max(0.5)).powi(2);
-    let total: f64 = seeing.iter().map(|&m| inv(m)).sum();
-    let linear = inv(k) / total;
-    let best = seeing
-        .iter()
-        .copied()
+    let total: f64 = seeing().map(inv).sum();
+    let best = seeing()
         .max_by(|&a, &b| inv(a).total_cmp(&inv(b)))
         .unwrap_or(k);
     [
-        to_weight(linear),
-        to_weight(1.0 / seeing.len() as f64),
+        to_weight(inv(k) / total),
+        to_weight(1.0 / n as f64),
         if best == k { 256 } else { 0 },
     ]
+}
+
+/// Per blend mode, the runs of canvas pixels that more than one camera
+/// contributes to, as (first pixel index, length), each within one row.
+fn blended_runs(layers: &[CameraLayer], w: usize, h: usize) -> [Vec<(usize, usize)>; 3] {
+    std::array::from_fn(|m| {
+        let mut blended = vec![false; w * h];
+        for layer in layers {
+            let [c0, r0, _, _] = layer.roi;
+            for span in layer.spans[m].iter().filter(|s| s.blend) {
+                let start = (r0 + span.row as usize) * w + c0 + span.col as usize;
+                blended[start..start + span.len as usize].fill(true);
+            }
+        }
+        let mut runs = Vec::new();
+        for (r, row) in blended.chunks_exact(w.max(1)).enumerate() {
+            let mut c = 0;
+            while c < row.len() {
+                if !row[c] {
+                    c += 1;
+                    continue;
+                }
+                let start = c;
+                while c < row.len() && row[c] {
+                    c += 1;
+                }
+                runs.push((r * w + start, c - start));
+            }
+        }
+        runs
+    })
 }
 
 fn to_weight(f: f64) -> u16 {
