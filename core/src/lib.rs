@@ -5,6 +5,9 @@
 //!   2018): metering, the gradient-information metric, the γ̂ estimator, the
 //!   update laws, multi-camera balancing, the shutter/gain split, baselines and
 //!   the per-camera and per-rig controllers.
+//! - [`pipeline`]: the capture and processing threads of the app and its
+//!   headless mode: bounded drop-oldest queues, live control, telemetry and
+//!   stage times.
 //! - [`sim`]: the simulated HDR rig (scene, scripted light, EMVA 1288
 //!   sensor, reference rig, ground truth): the default source of the app,
 //!   the tests and the benchmarks.
@@ -18,6 +21,7 @@
 
 pub mod error;
 pub mod exposure;
+pub mod pipeline;
 pub mod sim;
 pub mod source;
 pub mod surround;

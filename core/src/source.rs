@@ -188,6 +188,32 @@ impl Default for StreamHealth {
     }
 }
 
+impl Frame {
+    /// What the controller needs to know of the frame: its id and the
+    /// setting it was taken with.
+    pub fn info(&self) -> crate::exposure::FrameInfo {
+        crate::exposure::FrameInfo {
+            frame_id: self.meta.frame_id,
+            taken: self.meta.taken,
+        }
+    }
+}
+
+impl crate::exposure::RigStep {
+    /// The step's commands, for [`FrameSource::apply`].
+    pub fn commands(&self) -> Vec<ExposureCommand> {
+        self.cameras
+            .iter()
+            .filter_map(|c| {
+                c.command.map(|setting| ExposureCommand {
+                    camera: c.camera,
+                    setting,
+                })
+            })
+            .collect()
+    }
+}
+
 /// A source of frame sets: the simulated rig, live cameras or a replay.
 ///
 /// Sources are driven from one thread; [`FrameSource::next_set`] blocks for
@@ -213,6 +239,54 @@ pub trait FrameSource: Send {
     /// simulated rig with a frame budget). Live sources never finish.
     fn is_finished(&self) -> bool {
         false
+    }
+
+    /// Whether the cameras have their own auto-exposure that rigview can
+    /// switch on ([`FrameSource::set_camera_auto`]).
+    fn has_camera_auto(&self) -> bool {
+        false
+    }
+
+    /// Switches the cameras' own auto-exposure on or off. Sources without
+    /// one refuse.
+    fn set_camera_auto(&mut self, on: bool) -> std::result::Result<(), SourceError> {
+        let _ = on;
+        Err(SourceError::Failed(
+            "this source's cameras have no built-in auto-exposure".into(),
+        ))
+    }
+}
+
+impl<S: FrameSource + ?Sized> FrameSource for Box<S> {
+    fn cameras(&self) -> &[CameraInfo] {
+        (**self).cameras()
+    }
+
+    fn next_set(
+        &mut self,
+        timeout: Duration,
+    ) -> std::result::Result<Option<FrameSet>, SourceError> {
+        (**self).next_set(timeout)
+    }
+
+    fn apply(&mut self, commands: &[ExposureCommand]) -> std::result::Result<(), SourceError> {
+        (**self).apply(commands)
+    }
+
+    fn health(&self) -> Vec<StreamHealth> {
+        (**self).health()
+    }
+
+    fn is_finished(&self) -> bool {
+        (**self).is_finished()
+    }
+
+    fn has_camera_auto(&self) -> bool {
+        (**self).has_camera_auto()
+    }
+
+    fn set_camera_auto(&mut self, on: bool) -> std::result::Result<(), SourceError> {
+        (**self).set_camera_auto(on)
     }
 }
 

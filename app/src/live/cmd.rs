@@ -100,6 +100,23 @@ pub struct LiveArgs {
     /// resolution (0.25: 322×241) [default: 1].
     #[arg(long, requires = "fake")]
     pub scale: Option<f64>,
+    /// Without the window: a status block per second on the terminal.
+    #[arg(long)]
+    pub headless: bool,
+}
+
+impl LiveArgs {
+    /// The options `args` give, as on the command line of `rigview live`.
+    pub fn parse_from<I: IntoIterator<Item = String>>(args: I) -> Result<Self> {
+        use clap::Parser;
+        #[derive(Parser)]
+        struct Wrap {
+            #[command(flatten)]
+            live: LiveArgs,
+        }
+        let argv = std::iter::once("live".to_owned()).chain(args);
+        Ok(Wrap::try_parse_from(argv)?.live)
+    }
 }
 
 fn parse_pixel_format(s: &str) -> std::result::Result<PixelFormat, String> {
@@ -335,9 +352,9 @@ fn run_cameras(_args: &LiveArgs, _config: CaptureConfig, _out: &mut dyn Write) -
     Err(super::LiveError::NoAravis.into())
 }
 
-/// The rig file's cameras.
+/// The rig file's cameras, and the rig.
 #[cfg(feature = "aravis")]
-fn rig_cameras(args: &LiveArgs) -> Result<Vec<super::CameraSpec>> {
+fn rig_cameras(args: &LiveArgs) -> Result<(Vec<super::CameraSpec>, rigview_calib::rig::Rig)> {
     let path = args
         .rig
         .as_ref()
@@ -345,7 +362,40 @@ fn rig_cameras(args: &LiveArgs) -> Result<Vec<super::CameraSpec>> {
     let rig = rigview_calib::formats::load(path, None, None)
         .with_context(|| format!("reading the rig file {}", path.display()))?
         .rig;
-    Ok(super::CameraSpec::from_rig(&rig)?)
+    Ok((super::CameraSpec::from_rig(&rig)?, rig))
+}
+
+/// Opens the cameras these options name (a rig file's, or the fake cameras
+/// of `--fake`): the source, the rig and where it came from, in words.
+/// What it reports on the way is added to `notes`.
+#[cfg(feature = "aravis")]
+pub fn open_source(
+    args: &LiveArgs,
+    notes: &mut Vec<String>,
+) -> Result<(super::LiveSource, Option<rigview_calib::rig::Rig>, String)> {
+    if !args.fake && (args.scenario.is_some() || args.scale.is_some()) {
+        anyhow::bail!("--scenario and --scale choose what the fake cameras show: they need --fake");
+    }
+    let config = args.capture_config()?;
+    let mut said = Vec::new();
+    let (specs, config, rig, what) = if args.fake {
+        let (specs, config, rig) = fake_cameras(args, config, &mut said)?;
+        let what = format!(
+            "Aravis fake cameras showing \"{}\"",
+            args.scenario.as_deref().unwrap_or("reference")
+        );
+        (specs, config, rig, what)
+    } else {
+        let (specs, rig) = rig_cameras(args)?;
+        let what = args
+            .rig
+            .as_ref()
+            .map_or_else(String::new, |p| p.display().to_string());
+        (specs, config, rig, what)
+    };
+    notes.extend(String::from_utf8_lossy(&said).lines().map(str::to_owned));
+    let source = super::LiveSource::open(specs, config)?;
+    Ok((source, Some(rig), what))
 }
 
 /// The in-process fake cameras of `--fake`, showing the simulated rig of
@@ -355,7 +405,11 @@ fn fake_cameras(
     args: &LiveArgs,
     mut config: CaptureConfig,
     out: &mut dyn Write,
-) -> Result<(Vec<super::CameraSpec>, CaptureConfig)> {
+) -> Result<(
+    Vec<super::CameraSpec>,
+    CaptureConfig,
+    rigview_calib::rig::Rig,
+)> {
     use std::sync::Arc;
     use std::time::Instant;
 
@@ -428,7 +482,7 @@ fn fake_cameras(
             }
         })
         .collect();
-    Ok((specs, config))
+    Ok((specs, config, render.rig().clone()))
 }
 
 #[cfg(feature = "aravis")]
@@ -438,9 +492,10 @@ fn run_cameras(args: &LiveArgs, config: CaptureConfig, out: &mut dyn Write) -> R
     use super::LiveSource;
 
     let (specs, config) = if args.fake {
-        fake_cameras(args, config, out)?
+        let (specs, config, _) = fake_cameras(args, config, out)?;
+        (specs, config)
     } else {
-        (rig_cameras(args)?, config)
+        (rig_cameras(args)?.0, config)
     };
     writeln!(
         out,

@@ -7,9 +7,9 @@ use std::time::Duration;
 
 use crate::error::{Error, Result};
 use crate::exposure::{
-    CameraInput, FrameInfo, Meter, Metered, PairObservation, RigController, RigStep, RoiMask,
+    CameraInput, Meter, Metered, PairObservation, RigController, RigStep, RoiMask,
 };
-use crate::source::{ExposureCommand, FrameSet, FrameSource, SourceError};
+use crate::source::{FrameSet, FrameSource, SourceError};
 use crate::surround::SurroundView;
 
 /// What one step did.
@@ -136,24 +136,12 @@ impl<S: FrameSource> ClosedLoop<S> {
             .iter()
             .zip(&metered)
             .map(|(f, m)| CameraInput {
-                info: FrameInfo {
-                    frame_id: f.meta.frame_id,
-                    taken: f.meta.taken,
-                },
+                info: f.info(),
                 metered: m,
             })
             .collect();
         let step = self.controller.step(&inputs, &pairs)?;
-        let commands: Vec<ExposureCommand> = step
-            .cameras
-            .iter()
-            .filter_map(|c| {
-                c.command.map(|setting| ExposureCommand {
-                    camera: c.camera,
-                    setting,
-                })
-            })
-            .collect();
+        let commands = step.commands();
         self.source.apply(&commands)?;
         Ok(Some(LoopStep {
             set,

@@ -1,0 +1,532 @@
+//! The desktop app (eframe/egui): the surround view, the cameras with
+//! their metering ROI, overlap patches, histograms and readouts, the
+//! controls, the live plots and the status bar.
+//!
+//! The window only shows what the pipeline's threads produce
+//! ([`rigview_core::pipeline`]): it takes the newest output when it paints,
+//! uploads it as textures, and sends every change the operator makes to the
+//! processing thread. A slow window skips outputs; it never slows capture or
+//! processing.
+
+pub mod panels;
+pub mod plots;
+
+use std::path::{Path, PathBuf};
+use std::sync::mpsc::{self, Receiver};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use anyhow::Result;
+use egui::{Color32, ColorImage, TextureHandle, TextureOptions};
+use rigview_core::exposure::NeighbourGraph;
+use rigview_core::pipeline::{Control, Output, PipelineOptions, ProcessingSettings};
+use rigview_core::surround::SurroundView;
+
+use crate::session::{self, Session, SourceSpec};
+use crate::settings::{Settings, SettingsStore};
+
+/// A message shown in the window.
+#[derive(Clone, Debug)]
+pub struct Message {
+    /// The text.
+    pub text: String,
+    /// An error (red) or a note.
+    pub error: bool,
+}
+
+type Loaded = Result<(SurroundView, NeighbourGraph)>;
+
+/// The app's state.
+pub struct RigviewApp {
+    session: Option<Session>,
+    settings: Settings,
+    store: SettingsStore,
+    dirty: Option<Instant>,
+    latest: Option<Arc<Output>>,
+    canvas_tex: Option<TextureHandle>,
+    thumb_tex: Vec<Option<TextureHandle>>,
+    messages: Vec<Message>,
+    loading: Option<(PathBuf, Receiver<Loaded>)>,
+    dialog: Option<Receiver<Option<PathBuf>>>,
+    open_path: String,
+    manual: Vec<(bool, f64)>,
+    calibration: String,
+    shown: u64,
+    displayed_trigger: Option<u64>,
+    quit_at: Option<Instant>,
+    want_close: bool,
+    screenshot: Option<(PathBuf, Instant)>,
+    screenshot_done: Option<Receiver<Result<()>>>,
+    cpu: crate::report::CpuMeter,
+}
+
+impl std::fmt::Debug for RigviewApp {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("RigviewApp")
+            .field("calibration", &self.calibration)
+            .field("shown", &self.shown)
+            .finish_non_exhaustive()
+    }
+}
+
+/// How the app starts.
+#[derive(Debug)]
+pub struct AppOptions {
+    /// The source.
+    pub source: SourceSpec,
+    /// The settings file (`None`: the user's configuration folder).
+    pub settings: Option<PathBuf>,
+    /// Close the window after this long (for scripted runs).
+    pub quit_after: Option<Duration>,
+    /// Save a screenshot to this PNG after this long, then close.
+    pub screenshot: Option<(PathBuf, Duration)>,
+    /// Pipeline options (lock step for repeatable tests).
+    pub pipeline: PipelineOptions,
+}
+
+impl RigviewApp {
+    /// Starts the session; a failure is shown in the window, which stays
+    /// open so that the operator can read it.
+    pub fn new(ctx: &egui::Context, options: AppOptions) -> Self {
+        let mut store = SettingsStore::new(options.settings);
+        let (settings, settings_error) = store.load();
+        let mut messages = Vec::new();
+        if let Some(e) = settings_error {
+            messages.push(Message {
+                text: format!("{e:#}"),
+                error: true,
+            });
+        }
+        let repaint = ctx.clone();
+        let notify = Arc::new(move || repaint.request_repaint());
+        let session = match session::start(
+            &options.source,
+            &settings.processing,
+            options.pipeline,
+            notify,
+        ) {
+            Ok(s) => {
+                for n in &s.notes {
+                    messages.push(Message {
+                        text: n.clone(),
+                        error: false,
+                    });
+                }
+                Some(s)
+            }
+            Err(e) => {
+                messages.push(Message {
+                    text: format!("cannot start the source: {e:#}"),
+                    error: true,
+                });
+                None
+            }
+        };
+        let n = session.as_ref().map_or(0, |s| s.pipeline.cameras().len());
+        let start_level = settings.processing.controller.fixed_exposure;
+        let calibration = session
+            .as_ref()
+            .map_or_else(|| "none".into(), |s| s.calibration.clone());
+        Self {
+            session,
+            settings,
+            store,
+            dirty: None,
+            latest: None,
+            canvas_tex: None,
+            thumb_tex: vec![None; n],
+            messages,
+            loading: None,
+            dialog: None,
+            open_path: String::new(),
+            manual: vec![(false, start_level); n],
+            calibration,
+            shown: 0,
+            displayed_trigger: None,
+            quit_at: options.quit_after.map(|d| Instant::now() + d),
+            want_close: false,
+            screenshot: options.screenshot.map(|(p, d)| (p, Instant::now() + d)),
+            screenshot_done: None,
+            cpu: crate::report::CpuMeter::start(),
+        }
+    }
+
+    /// The newest output shown.
+    pub fn latest(&self) -> Option<&Arc<Output>> {
+        self.latest.as_ref()
+    }
+
+    /// Outputs shown so far.
+    pub fn shown(&self) -> u64 {
+        self.shown
+    }
+
+    /// The messages in the window.
+    pub fn messages(&self) -> &[Message] {
+        &self.messages
+    }
+
+    /// The settings as the operator set them.
+    pub fn settings(&self) -> &Settings {
+        &self.settings
+    }
+
+    /// The session, if it started.
+    pub fn session(&self) -> Option<&Session> {
+        self.session.as_ref()
+    }
+
+    /// Where the calibration came from.
+    pub fn calibration(&self) -> &str {
+        &self.calibration
+    }
+
+    /// Whether a calibration is being loaded.
+    pub fn is_loading(&self) -> bool {
+        self.loading.is_some()
+    }
+
+    /// Whether the app asked to close (its time is up).
+    pub fn wants_close(&self) -> bool {
+        self.want_close
+    }
+
+    fn note(&mut self, text: String, error: bool) {
+        self.messages.push(Message { text, error });
+        if self.messages.len() > 20 {
+            self.messages.remove(0);
+        }
+    }
+
+    /// Sends the processing settings to the pipeline and marks them for
+    /// saving.
+    fn settings_changed(&mut self) {
+        let processing: ProcessingSettings = self.settings.processing.clone();
+        if let Err(e) = processing.validate() {
+            self.note(format!("setting refused: {e}"), true);
+            return;
+        }
+        if let Some(s) = &self.session {
+            if let Err(e) = s.pipeline.send(Control::Settings(Box::new(processing))) {
+                self.note(format!("{e}"), true);
+            }
+        }
+        self.dirty = Some(Instant::now());
+    }
+
+    fn window_changed(&mut self) {
+        self.dirty = Some(Instant::now());
+    }
+
+    fn set_manual(&mut self, camera: usize, exposure: Option<f64>) {
+        if let Some(s) = &self.session {
+            if let Err(e) = s.pipeline.send(Control::Manual { camera, exposure }) {
+                self.note(format!("{e}"), true);
+            }
+        }
+    }
+
+    /// Starts loading a calibration file in the background.
+    pub fn open_calibration(&mut self, path: &Path) {
+        let Some(s) = &self.session else {
+            self.note(
+                "no source is running: a calibration has nothing to apply to".into(),
+                true,
+            );
+            return;
+        };
+        let cameras = s.pipeline.cameras().to_vec();
+        let (tx, rx) = mpsc::channel();
+        let p = path.to_path_buf();
+        let spawned = std::thread::Builder::new()
+            .name("rigview-calibration".into())
+            .spawn(move || {
+                let _ = tx.send(session::load_calibration(&p, &cameras));
+            });
+        match spawned {
+            Ok(_) => self.loading = Some((path.to_path_buf(), rx)),
+            Err(e) => self.note(format!("cannot start loading: {e}"), true),
+        }
+    }
+
+    /// Opens the native file dialog in the background.
+    fn open_dialog(&mut self) {
+        let (tx, rx) = mpsc::channel();
+        let spawned = std::thread::Builder::new()
+            .name("rigview-dialog".into())
+            .spawn(move || {
+                let picked = rfd::FileDialog::new()
+                    .set_title("Open a rig or calibration file")
+                    .add_filter("calibration", &["yaml", "yml", "xml", "json"])
+                    .pick_file();
+                let _ = tx.send(picked);
+            });
+        match spawned {
+            Ok(_) => self.dialog = Some(rx),
+            Err(e) => self.note(format!("cannot open the file dialog: {e}"), true),
+        }
+    }
+
+    fn poll_background(&mut self) {
+        if let Some(rx) = &self.dialog {
+            match rx.try_recv() {
+                Ok(Some(path)) => {
+                    self.dialog = None;
+                    self.open_calibration(&path);
+                }
+                Ok(None) => self.dialog = None,
+                Err(mpsc::TryRecvError::Empty) => {}
+                Err(mpsc::TryRecvError::Disconnected) => {
+                    self.dialog = None;
+                    self.note(
+                        "the file dialog failed (no desktop portal?): type the path under File instead".into(),
+                        true,
+                    );
+                }
+            }
+        }
+        let done = match &self.loading {
+            Some((path, rx)) => match rx.try_recv() {
+                Ok(r) => Some((path.clone(), Some(r))),
+                Err(mpsc::TryRecvError::Empty) => None,
+                Err(mpsc::TryRecvError::Disconnected) => Some((path.clone(), None)),
+            },
+            None => None,
+        };
+        if let Some((path, result)) = done {
+            self.loading = None;
+            match result {
+                Some(Ok((view, graph))) => {
+                    let sent = self.session.as_ref().map(|s| {
+                        s.pipeline.send(Control::Calibration {
+                            view: Some(Box::new(view)),
+                            graph,
+                        })
+                    });
+                    match sent {
+                        Some(Ok(())) => {
+                            self.calibration = path.display().to_string();
+                            self.note(format!("calibration {} in use", path.display()), false);
+                            let recent = &mut self.settings.window.recent;
+                            recent.retain(|p| p != &path);
+                            recent.insert(0, path);
+                            recent.truncate(8);
+                            self.window_changed();
+                        }
+                        Some(Err(e)) => self.note(format!("{e}"), true),
+                        None => {}
+                    }
+                }
+                Some(Err(e)) => self.note(format!("{e:#}"), true),
+                None => self.note(
+                    format!("loading {} stopped without a result", path.display()),
+                    true,
+                ),
+            }
+        }
+    }
+
+    /// Takes the newest output and uploads its images.
+    fn take_output(&mut self, ctx: &egui::Context) {
+        let Some(out) = self.session.as_ref().and_then(|s| s.pipeline.latest()) else {
+            return;
+        };
+        if let Some(c) = &out.canvas {
+            let image = if c.channels == 3 {
+                ColorImage::from_rgb([c.width, c.height], &c.data)
+            } else {
+                ColorImage::from_gray([c.width, c.height], &c.data)
+            };
+            match &mut self.canvas_tex {
+                Some(t) => t.set(image, TextureOptions::LINEAR),
+                None => {
+                    self.canvas_tex =
+                        Some(ctx.load_texture("surround", image, TextureOptions::LINEAR));
+                }
+            }
+        }
+        if self.thumb_tex.len() != out.cameras.len() {
+            self.thumb_tex = vec![None; out.cameras.len()];
+        }
+        for (k, cam) in out.cameras.iter().enumerate() {
+            let image = panels::thumbnail_image(cam, self.settings.window.show_roi);
+            match &mut self.thumb_tex[k] {
+                Some(t) => t.set(image, TextureOptions::LINEAR),
+                slot @ None => {
+                    *slot =
+                        Some(ctx.load_texture(format!("camera{k}"), image, TextureOptions::LINEAR));
+                }
+            }
+        }
+        self.latest = Some(out);
+    }
+
+    /// Draws the whole window into `ui`.
+    pub fn show(&mut self, ui: &mut egui::Ui) {
+        let ctx = ui.ctx().clone();
+        self.poll_background();
+        self.take_output(&ctx);
+        panels::menu_bar(self, ui);
+        panels::status_bar(self, ui);
+        panels::controls(self, ui);
+        plots::plot_panel(self, ui);
+        panels::cameras_panel(self, ui);
+        panels::central(self, ui);
+        // An output counts as displayed once, in the first frame laid out
+        // with it (the paint follows at once).
+        if let (Some(out), Some(s)) = (&self.latest, &self.session) {
+            if self.displayed_trigger != Some(out.trigger) {
+                s.pipeline.displayed(out);
+                self.displayed_trigger = Some(out.trigger);
+                self.shown += 1;
+            }
+        }
+        if self
+            .dirty
+            .is_some_and(|t| t.elapsed() > Duration::from_millis(500))
+        {
+            self.save_settings();
+        }
+        if self.quit_at.is_some_and(|t| Instant::now() >= t) {
+            self.want_close = true;
+        }
+        self.poll_screenshot(&ctx);
+        if self.loading.is_some() || self.dialog.is_some() {
+            ctx.request_repaint_after(Duration::from_millis(50));
+        }
+    }
+
+    fn poll_screenshot(&mut self, ctx: &egui::Context) {
+        if let Some(rx) = &self.screenshot_done {
+            match rx.try_recv() {
+                Ok(r) => {
+                    self.screenshot_done = None;
+                    if let Err(e) = r {
+                        eprintln!("{e:#}");
+                    }
+                    self.want_close = true;
+                }
+                Err(mpsc::TryRecvError::Empty) => {
+                    ctx.request_repaint_after(Duration::from_millis(50));
+                }
+                Err(mpsc::TryRecvError::Disconnected) => {
+                    self.screenshot_done = None;
+                    self.want_close = true;
+                }
+            }
+            return;
+        }
+        let due = self
+            .screenshot
+            .as_ref()
+            .is_some_and(|(_, t)| Instant::now() >= *t);
+        if !due {
+            if self.screenshot.is_some() {
+                ctx.request_repaint_after(Duration::from_millis(100));
+            }
+            return;
+        }
+        let Some((path, _)) = self.screenshot.take() else {
+            return;
+        };
+        let (tx, rx) = mpsc::channel();
+        let repaint = ctx.clone();
+        ctx.send_viewport_cmd(egui::ViewportCommand::Screenshot(
+            egui::ScreenshotCallback::new(move |img| {
+                let [w, h] = img.size;
+                let rgba: Vec<u8> = img.pixels.iter().flat_map(|c| c.to_array()).collect();
+                let r = match (u32::try_from(w), u32::try_from(h)) {
+                    (Ok(w), Ok(h)) => image::RgbaImage::from_raw(w, h, rgba)
+                        .ok_or_else(|| anyhow::anyhow!("the screenshot has the wrong size"))
+                        .and_then(|i| {
+                            i.save(&path).map_err(|e| {
+                                anyhow::anyhow!("writing the screenshot {}: {e}", path.display())
+                            })
+                        }),
+                    _ => Err(anyhow::anyhow!("the screenshot is too large")),
+                };
+                let _ = tx.send(r);
+                repaint.request_repaint();
+            }),
+        ));
+        self.screenshot_done = Some(rx);
+    }
+
+    fn save_settings(&mut self) {
+        self.dirty = None;
+        if let Err(e) = self.store.save(&self.settings) {
+            self.note(format!("{e:#}"), true);
+        }
+    }
+
+    /// Saves the settings and stops the pipeline; returns a summary of the
+    /// run (sets, drops, latency, CPU).
+    pub fn finish(&mut self) -> String {
+        self.save_settings();
+        let Some(s) = self.session.as_mut() else {
+            return "no source ran".into();
+        };
+        s.pipeline.stop();
+        let status = s.pipeline.status();
+        let mut summary = format!(
+            "source: {}\n{}",
+            s.source_name,
+            crate::report::summary(&status, &s.pipeline.telemetry())
+        );
+        if let Some(c) = self.cpu.cores() {
+            summary += &format!("\nCPU use of the whole app: {c:.2} cores");
+        }
+        summary
+    }
+}
+
+impl eframe::App for RigviewApp {
+    fn ui(&mut self, ui: &mut egui::Ui, _frame: &mut eframe::Frame) {
+        self.show(ui);
+        if self.want_close {
+            ui.ctx().send_viewport_cmd(egui::ViewportCommand::Close);
+        }
+    }
+
+    fn on_exit(&mut self, _gl: Option<&eframe::glow::Context>) {
+        let summary = self.finish();
+        eprintln!("{summary}");
+    }
+}
+
+/// The colour of camera `k` in plots and overlays.
+pub fn camera_colour(k: usize) -> Color32 {
+    const C: [Color32; 6] = [
+        Color32::from_rgb(230, 85, 60),
+        Color32::from_rgb(70, 160, 230),
+        Color32::from_rgb(120, 200, 90),
+        Color32::from_rgb(235, 180, 50),
+        Color32::from_rgb(190, 110, 220),
+        Color32::from_rgb(90, 210, 200),
+    ];
+    C[k % C.len()]
+}
+
+/// Runs the window until it is closed.
+pub fn run(options: AppOptions) -> Result<()> {
+    if std::env::var_os("DISPLAY").is_none() && std::env::var_os("WAYLAND_DISPLAY").is_none() {
+        anyhow::bail!(
+            "no display (neither DISPLAY nor WAYLAND_DISPLAY is set): the window needs one. \
+             Without a display, run `rigview run --headless …` (views, telemetry and plots to files) \
+             or `rigview demo` (printed)"
+        );
+    }
+    let native = eframe::NativeOptions {
+        viewport: egui::ViewportBuilder::default()
+            .with_title("rigview")
+            .with_inner_size([1600.0, 1000.0]),
+        renderer: eframe::Renderer::Glow,
+        ..Default::default()
+    };
+    eframe::run_native(
+        "rigview",
+        native,
+        Box::new(move |cc| Ok(Box::new(RigviewApp::new(&cc.egui_ctx, options)))),
+    )
+    .map_err(|e| anyhow::anyhow!("the window failed: {e}"))
+}

@@ -1,0 +1,543 @@
+//! The window's panels: menu, controls, cameras, the big view, status bar.
+
+use egui::{
+    Align2, Color32, ColorImage, FontId, Rect, RichText, Sense, Stroke, StrokeKind, Ui, Vec2,
+};
+use rigview_core::exposure::{LawKind, Simulation};
+use rigview_core::pipeline::{CameraOutput, MeterRoi, Strategy};
+use rigview_core::source::StreamState;
+use rigview_core::surround::BlendMode;
+
+use super::{camera_colour, RigviewApp};
+use crate::settings::ViewMode;
+
+/// The thumbnail of one camera: its metered image, with the pixels that
+/// are not metered dimmed and tinted blue when `show_roi`.
+pub fn thumbnail_image(cam: &CameraOutput, show_roi: bool) -> ColorImage {
+    let (w, h) = (cam.thumb_width, cam.thumb_height);
+    let mut rgb = Vec::with_capacity(w * h * 3);
+    match (&cam.metered_mask, show_roi) {
+        (Some(mask), true) => {
+            for (&v, &m) in cam.thumb.iter().zip(mask) {
+                if m {
+                    rgb.extend_from_slice(&[v, v, v]);
+                } else {
+                    let d = v / 3;
+                    rgb.extend_from_slice(&[d, d, d.saturating_add(60)]);
+                }
+            }
+        }
+        _ => {
+            for &v in &cam.thumb {
+                rgb.extend_from_slice(&[v, v, v]);
+            }
+        }
+    }
+    ColorImage::from_rgb([w, h], &rgb)
+}
+
+pub(super) fn menu_bar(app: &mut RigviewApp, ui: &mut Ui) {
+    egui::Panel::top("menu").show(ui, |ui| {
+        egui::MenuBar::new().ui(ui, |ui| {
+            ui.menu_button("File", |ui| {
+                if ui.button("Open calibration…").clicked() {
+                    app.open_dialog();
+                    ui.close();
+                }
+                ui.separator();
+                ui.label("Open a calibration by path:");
+                ui.horizontal(|ui| {
+                    ui.add(
+                        egui::TextEdit::singleline(&mut app.open_path)
+                            .hint_text("rig or calibration file")
+                            .desired_width(280.0),
+                    );
+                    if ui.button("Open").clicked() && !app.open_path.trim().is_empty() {
+                        let p = std::path::PathBuf::from(app.open_path.trim());
+                        app.open_calibration(&p);
+                        ui.close();
+                    }
+                });
+                if !app.settings.window.recent.is_empty() {
+                    ui.separator();
+                    ui.label("Recent:");
+                    let recent = app.settings.window.recent.clone();
+                    for p in recent {
+                        if ui.button(p.display().to_string()).clicked() {
+                            app.open_calibration(&p);
+                            ui.close();
+                        }
+                    }
+                }
+                ui.separator();
+                if ui.button("Quit").clicked() {
+                    app.want_close = true;
+                    ui.close();
+                }
+            });
+            ui.menu_button("View", |ui| {
+                let w = &mut app.settings.window;
+                let mut changed = ui
+                    .radio_value(
+                        &mut w.view,
+                        ViewMode::Surround,
+                        "Surround view (bird's eye)",
+                    )
+                    .changed();
+                ui.add_enabled(
+                    false,
+                    egui::RadioButton::new(false, "Panorama (cylindrical)"),
+                )
+                .on_disabled_hover_text("the panorama view is not built yet");
+                ui.separator();
+                changed |= ui
+                    .checkbox(&mut w.show_roi, "Metering ROI on the cameras")
+                    .changed();
+                changed |= ui
+                    .checkbox(&mut w.show_patches, "Overlap patches on the cameras")
+                    .changed();
+                if changed {
+                    app.window_changed();
+                }
+            });
+            if app.is_loading() {
+                ui.spinner();
+                ui.label("loading the calibration…");
+            }
+        });
+    });
+}
+
+fn state_word(s: StreamState) -> (&'static str, Color32) {
+    match s {
+        StreamState::Streaming => ("streaming", Color32::from_rgb(110, 200, 110)),
+        StreamState::Lost => ("LOST", Color32::from_rgb(240, 80, 70)),
+        StreamState::Reconnecting => ("reconnecting", Color32::from_rgb(240, 180, 60)),
+    }
+}
+
+pub(super) fn status_bar(app: &mut RigviewApp, ui: &mut Ui) {
+    egui::Panel::bottom("status").show(ui, |ui| {
+        ui.horizontal_wrapped(|ui| {
+            let Some(s) = &app.session else {
+                ui.colored_label(Color32::from_rgb(240, 80, 70), "no source");
+                return;
+            };
+            let st = s.pipeline.status();
+            let names: Vec<String> = s
+                .pipeline
+                .cameras()
+                .iter()
+                .map(|c| c.name.clone())
+                .collect();
+            let mut lost = 0;
+            for (name, h) in names.iter().zip(&st.health) {
+                let (word, colour) = state_word(h.state);
+                lost += usize::from(h.state != StreamState::Streaming);
+                ui.label(format!("{name}:"));
+                ui.colored_label(colour, word);
+                ui.label(format!("{:.1} fps", h.fps));
+                ui.separator();
+            }
+            ui.label(format!("lost cameras: {lost}"));
+            ui.separator();
+            ui.label(format!("source: {}", s.source_name));
+            ui.separator();
+            ui.label(format!("{:.1} sets/s", st.set_rate_hz));
+            ui.separator();
+            ui.label(format!(
+                "processed {} · dropped before processing {} · incomplete {}",
+                st.processed, st.capture_queue.dropped, st.incomplete
+            ));
+            if let Some([_, l]) = st.display_latency.back() {
+                ui.separator();
+                ui.label(format!("latency {l:.0} ms"));
+            }
+            if st.stopped {
+                ui.separator();
+                ui.colored_label(Color32::from_rgb(240, 180, 60), "source ended");
+            }
+        });
+    });
+}
+
+fn law_name(k: LawKind) -> &'static str {
+    match k {
+        LawKind::Linear => "linear (Eq. 3)",
+        LawKind::Nonlinear => "nonlinear (Eq. 4)",
+        LawKind::Fast => "fast (rigview)",
+    }
+}
+
+/// A labelled number in a two-column grid; whether it changed.
+fn drag_row(
+    ui: &mut Ui,
+    label: &str,
+    value: &mut f64,
+    range: std::ops::RangeInclusive<f64>,
+    speed: f64,
+) -> bool {
+    let l = ui.label(label);
+    let changed = ui
+        .add(egui::DragValue::new(value).range(range).speed(speed))
+        .labelled_by(l.id)
+        .changed();
+    ui.end_row();
+    changed
+}
+
+pub(super) fn controls(app: &mut RigviewApp, ui: &mut Ui) {
+    egui::Panel::left("controls")
+        .resizable(true)
+        .default_size(270.0)
+        .show(ui, |ui| {
+            egui::ScrollArea::vertical().show(ui, |ui| controls_inner(app, ui));
+        });
+}
+
+fn controls_inner(app: &mut RigviewApp, ui: &mut Ui) {
+    ui.heading("Exposure control");
+    let camera_auto = app.session.as_ref().is_some_and(|s| s.camera_auto);
+    let mut changed = false;
+    {
+        let p = &mut app.settings.processing;
+        for s in Strategy::ALL {
+            let enabled = s != Strategy::CameraAuto || camera_auto;
+            let r = ui.add_enabled(enabled, egui::RadioButton::new(p.strategy == s, s.label()));
+            let r = r.on_disabled_hover_text("live cameras with their own auto-exposure only");
+            if r.clicked() && p.strategy != s {
+                p.strategy = s;
+                changed = true;
+            }
+        }
+        ui.separator();
+        let law_label = ui.label("Update law");
+        egui::ComboBox::from_id_salt("law")
+            .selected_text(law_name(p.controller.law.kind))
+            .show_ui(ui, |ui| {
+                for k in [LawKind::Linear, LawKind::Nonlinear, LawKind::Fast] {
+                    changed |= ui
+                        .selectable_value(&mut p.controller.law.kind, k, law_name(k))
+                        .changed();
+                }
+            })
+            .response
+            .labelled_by(law_label.id);
+        let sim_label = ui.label("Exposure simulation");
+        egui::ComboBox::from_id_salt("simulation")
+            .selected_text(match p.controller.estimator.simulation {
+                Simulation::Gamma => "γ-mapping (paper)",
+                Simulation::ScaleClip => "scale-and-clip",
+            })
+            .show_ui(ui, |ui| {
+                changed |= ui
+                    .selectable_value(
+                        &mut p.controller.estimator.simulation,
+                        Simulation::Gamma,
+                        "γ-mapping (paper)",
+                    )
+                    .changed();
+                changed |= ui
+                    .selectable_value(
+                        &mut p.controller.estimator.simulation,
+                        Simulation::ScaleClip,
+                        "scale-and-clip",
+                    )
+                    .changed();
+            })
+            .response
+            .labelled_by(sim_label.id);
+        egui::Grid::new("params").num_columns(2).show(ui, |ui| {
+            let m = &mut p.controller.estimator.metric;
+            changed |= drag_row(ui, "δ", &mut m.delta, 0.001..=0.5, 0.001);
+            changed |= drag_row(ui, "λ", &mut m.lambda, 1.0..=1e5, 10.0);
+            let law = &mut p.controller.law;
+            changed |= drag_row(ui, "Kp", &mut law.kp, 0.01..=20.0, 0.01);
+            changed |= drag_row(ui, "d", &mut law.d, 0.01..=100.0, 0.01);
+            let mut ms = p.controller.split.max_shutter_us / 1000.0;
+            if drag_row(ui, "max shutter (ms)", &mut ms, 0.01..=1000.0, 0.1) {
+                p.controller.split.max_shutter_us = ms * 1000.0;
+                changed = true;
+            }
+            ui.label("metering size");
+            ui.horizontal(|ui| {
+                let w = ui.label("w");
+                changed |= ui
+                    .add(egui::DragValue::new(&mut p.metering.target_width).range(16..=1288))
+                    .labelled_by(w.id)
+                    .changed();
+                let l = ui.label("h");
+                changed |= ui
+                    .add(egui::DragValue::new(&mut p.metering.target_height).range(12..=964))
+                    .labelled_by(l.id)
+                    .changed();
+            });
+            ui.end_row();
+            let l = ui.label("metering");
+            egui::ComboBox::from_id_salt("roi")
+                .selected_text(match p.roi {
+                    MeterRoi::Ground => "ground only",
+                    MeterRoi::Full => "whole frames",
+                })
+                .show_ui(ui, |ui| {
+                    changed |= ui
+                        .selectable_value(&mut p.roi, MeterRoi::Ground, "ground only")
+                        .changed();
+                    changed |= ui
+                        .selectable_value(&mut p.roi, MeterRoi::Full, "whole frames")
+                        .changed();
+                })
+                .response
+                .labelled_by(l.id);
+            ui.end_row();
+            let l = ui.label("blending");
+            egui::ComboBox::from_id_salt("blend")
+                .selected_text(p.blend.name())
+                .show_ui(ui, |ui| {
+                    for b in BlendMode::ALL {
+                        changed |= ui.selectable_value(&mut p.blend, b, b.name()).changed();
+                    }
+                })
+                .response
+                .labelled_by(l.id);
+            ui.end_row();
+            if p.strategy == Strategy::Manual {
+                changed |= drag_row(
+                    ui,
+                    "manual E (µs at 0 dB)",
+                    &mut p.controller.fixed_exposure,
+                    1.0..=1e7,
+                    10.0,
+                );
+            }
+        });
+        if ui.button("Reset to defaults").clicked() {
+            *p = Default::default();
+            changed = true;
+        }
+    }
+    if changed {
+        app.settings_changed();
+    }
+    ui.separator();
+    ui.heading("Per-camera override");
+    let names: Vec<String> = app
+        .session
+        .as_ref()
+        .map(|s| {
+            s.pipeline
+                .cameras()
+                .iter()
+                .map(|c| c.name.clone())
+                .collect()
+        })
+        .unwrap_or_default();
+    let mut sends = Vec::new();
+    egui::Grid::new("manual").num_columns(2).show(ui, |ui| {
+        for (k, name) in names.iter().enumerate() {
+            let Some((on, level)) = app.manual.get_mut(k) else {
+                continue;
+            };
+            let check = ui.checkbox(on, name.as_str());
+            let toggled = check.changed();
+            let moved = ui
+                .add_enabled(
+                    *on,
+                    egui::DragValue::new(level)
+                        .range(1.0..=1e7)
+                        .speed(10.0)
+                        .suffix(" E"),
+                )
+                .labelled_by(check.id)
+                .changed();
+            if toggled || (moved && *on) {
+                sends.push((k, on.then_some(*level)));
+            }
+            ui.end_row();
+        }
+    });
+    for (k, e) in sends {
+        app.set_manual(k, e);
+    }
+    ui.separator();
+    ui.heading("Calibration");
+    ui.label(&app.calibration);
+    ui.separator();
+    ui.heading("Messages");
+    let mut dismiss = None;
+    for (k, m) in app.messages.iter().enumerate().rev() {
+        ui.horizontal_wrapped(|ui| {
+            if m.error {
+                ui.colored_label(Color32::from_rgb(240, 90, 80), &m.text);
+            } else {
+                ui.label(&m.text);
+            }
+            if ui.small_button("×").clicked() {
+                dismiss = Some(k);
+            }
+        });
+    }
+    if let Some(k) = dismiss {
+        app.messages.remove(k);
+    }
+}
+
+/// One camera: thumbnail with ROI and patches, histogram, readout.
+#[allow(clippy::too_many_arguments)]
+pub fn camera_card(
+    ui: &mut Ui,
+    name: &str,
+    k: usize,
+    cam: &CameraOutput,
+    texture: Option<&egui::TextureHandle>,
+    overlay: Option<&rigview_core::pipeline::Overlay>,
+    show_patches: bool,
+    width: f32,
+) {
+    ui.vertical(|ui| {
+        ui.label(RichText::new(name).strong().color(camera_colour(k)));
+        let aspect = cam.thumb_height as f32 / cam.thumb_width.max(1) as f32;
+        let size = Vec2::new(width, width * aspect);
+        let (rect, _) = ui.allocate_exact_size(size, Sense::hover());
+        if let Some(t) = texture {
+            egui::Image::new(egui::load::SizedTexture::new(t.id(), size)).paint_at(ui, rect);
+        }
+        if let (Some(o), true) = (overlay, show_patches) {
+            let painter = ui.painter_at(rect);
+            for p in o.patches.get(k).into_iter().flatten() {
+                let other = o
+                    .pairs
+                    .get(p.pair)
+                    .map_or(k, |&(i, j)| if i == k { j } else { i });
+                let r = Rect::from_min_max(
+                    rect.lerp_inside(Vec2::new(p.rect[0], p.rect[1])),
+                    rect.lerp_inside(Vec2::new(p.rect[2], p.rect[3])),
+                );
+                painter.rect_stroke(
+                    r,
+                    0.0,
+                    Stroke::new(1.0, camera_colour(other)),
+                    StrokeKind::Inside,
+                );
+            }
+        }
+        histogram(ui, &cam.histogram, width);
+        let (g, m) = cam
+            .estimate
+            .as_ref()
+            .map_or((f64::NAN, f64::NAN), |e| (e.gamma_hat, e.m_current));
+        ui.label(format!(
+            "t {:.0} µs · gain {:.1} dB\nγ est. {g:.2} · M {m:.0} · mean {:.2}{}",
+            cam.taken.shutter_us,
+            cam.taken.gain_db,
+            cam.mean,
+            if cam.manual.is_some() {
+                " · manual"
+            } else {
+                ""
+            }
+        ));
+    });
+}
+
+fn histogram(ui: &mut Ui, bins: &[u32], width: f32) {
+    let (rect, _) = ui.allocate_exact_size(Vec2::new(width, 40.0), Sense::hover());
+    let painter = ui.painter_at(rect);
+    painter.rect_filled(rect, 2.0, Color32::from_gray(25));
+    let max = bins.iter().copied().max().unwrap_or(0).max(1) as f32;
+    let n = bins.len().max(1) as f32;
+    let bw = rect.width() / n;
+    for (i, &c) in bins.iter().enumerate() {
+        // Square-root scale, so that small bins stay visible.
+        let hgt = (c as f32 / max).sqrt() * rect.height();
+        let x = rect.left() + i as f32 * bw;
+        let bar = Rect::from_min_max(
+            egui::pos2(x, rect.bottom() - hgt),
+            egui::pos2(x + bw.max(1.0), rect.bottom()),
+        );
+        painter.rect_filled(bar, 0.0, Color32::from_gray(200));
+    }
+}
+
+pub(super) fn cameras_panel(app: &mut RigviewApp, ui: &mut Ui) {
+    egui::Panel::bottom("cameras")
+        .resizable(true)
+        .default_size(300.0)
+        .show(ui, |ui| {
+            let Some(out) = app.latest.clone() else {
+                ui.label("waiting for the first frame set…");
+                return;
+            };
+            let names: Vec<String> = app
+                .session
+                .as_ref()
+                .map(|s| {
+                    s.pipeline
+                        .cameras()
+                        .iter()
+                        .map(|c| c.name.clone())
+                        .collect()
+                })
+                .unwrap_or_default();
+            let n = out.cameras.len().max(1) as f32;
+            let width = ((ui.available_width() - 12.0 * n) / n).clamp(80.0, 360.0);
+            egui::ScrollArea::horizontal().show(ui, |ui| {
+                ui.horizontal_top(|ui| {
+                    for (k, cam) in out.cameras.iter().enumerate() {
+                        let name = names.get(k).map_or("camera", String::as_str);
+                        camera_card(
+                            ui,
+                            name,
+                            k,
+                            cam,
+                            app.thumb_tex.get(k).and_then(Option::as_ref),
+                            Some(&out.overlay),
+                            app.settings.window.show_patches,
+                            width,
+                        );
+                    }
+                });
+            });
+        });
+}
+
+pub(super) fn central(app: &mut RigviewApp, ui: &mut Ui) {
+    egui::CentralPanel::default_margins().show(ui, |ui| match app.settings.window.view {
+        ViewMode::Surround => {
+            let Some(t) = &app.canvas_tex else {
+                let msg = if app.latest.is_some() {
+                    "no surround view: open a calibration whose poses are in the vehicle frame (File, Open calibration)"
+                } else {
+                    "waiting for the first frame set…"
+                };
+                ui.centered_and_justified(|ui| ui.label(msg));
+                return;
+            };
+            let avail = ui.available_size();
+            let [w, h] = t.size();
+            let scale = (avail.x / w as f32).min(avail.y / h as f32).max(0.05);
+            let size = Vec2::new(w as f32 * scale, h as f32 * scale);
+            ui.centered_and_justified(|ui| {
+                let (rect, _) = ui.allocate_exact_size(size, Sense::hover());
+                egui::Image::new(egui::load::SizedTexture::new(t.id(), size)).paint_at(ui, rect);
+                if let Some(out) = &app.latest {
+                    ui.painter_at(rect).text(
+                        rect.left_top() + Vec2::new(6.0, 4.0),
+                        Align2::LEFT_TOP,
+                        format!(
+                            "set {} · {} · {}",
+                            out.trigger,
+                            out.settings.strategy.label(),
+                            out.settings.blend.name()
+                        ),
+                        FontId::proportional(13.0),
+                        Color32::WHITE,
+                    );
+                }
+            });
+        }
+        ViewMode::Panorama => {
+            ui.centered_and_justified(|ui| ui.label("the panorama view is not built yet"));
+        }
+    });
+}

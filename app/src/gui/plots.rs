@@ -1,0 +1,238 @@
+//! The live plots: per camera exposure time, gain, E, γ̂ and M; per
+//! overlap log2 r_ij; frame-set rate and end-to-end latency; the M(γ) curve
+//! of a selected camera with its anchors and fitted polynomial. Each plot
+//! scrolls over the last `plot_seconds` of the telemetry history.
+
+use egui::{Color32, Ui};
+use egui_plot::{Legend, Line, Plot, PlotPoints, Points, VLine};
+use rigview_core::pipeline::{Output, Telemetry, TelemetryRow};
+
+use super::{camera_colour, RigviewApp};
+
+/// The series of one plot: a name and its points.
+pub type Series = Vec<(String, Vec<[f64; 2]>)>;
+
+/// Per camera, `value(row, camera)` over the rows within `seconds` of the
+/// newest.
+pub fn camera_series(
+    t: &Telemetry,
+    seconds: f64,
+    value: impl Fn(&TelemetryRow, usize) -> Option<f64>,
+) -> Series {
+    let t_end = t.last().map_or(0.0, |r| r.time_s);
+    t.camera_names()
+        .iter()
+        .enumerate()
+        .map(|(k, name)| {
+            let pts = t
+                .rows()
+                .iter()
+                .filter(|r| r.time_s >= t_end - seconds)
+                .filter_map(|r| value(r, k).filter(|v| v.is_finite()).map(|v| [r.time_s, v]))
+                .collect();
+            (name.clone(), pts)
+        })
+        .collect()
+}
+
+/// Per overlap, its log2 r_ij.
+pub fn pair_series(t: &Telemetry, seconds: f64) -> Series {
+    let t_end = t.last().map_or(0.0, |r| r.time_s);
+    t.pair_names()
+        .iter()
+        .enumerate()
+        .map(|(k, name)| {
+            let pts = t
+                .rows()
+                .iter()
+                .filter(|r| r.time_s >= t_end - seconds)
+                .filter_map(|r| r.log2_r.get(k).copied().flatten().map(|v| [r.time_s, v]))
+                .collect();
+            (name.clone(), pts)
+        })
+        .collect()
+}
+
+fn pair_colour(k: usize) -> Color32 {
+    const C: [Color32; 4] = [
+        Color32::from_rgb(240, 120, 160),
+        Color32::from_rgb(120, 220, 230),
+        Color32::from_rgb(200, 200, 90),
+        Color32::from_rgb(170, 140, 250),
+    ];
+    C[k % C.len()]
+}
+
+fn plot(ui: &mut Ui, id: &str, title: &str, series: &Series, colour: impl Fn(usize) -> Color32) {
+    ui.label(title);
+    Plot::new(id)
+        .height(110.0)
+        .legend(Legend::default())
+        .allow_drag(false)
+        .allow_zoom(false)
+        .allow_scroll(false)
+        .show(ui, |p| {
+            for (k, (name, pts)) in series.iter().enumerate() {
+                p.line(
+                    Line::new(name.as_str(), PlotPoints::from(pts.clone()))
+                        .color(colour(k))
+                        .width(1.5),
+                );
+            }
+        });
+}
+
+/// The M(γ) curve of one camera's newest estimate: the anchors, the fitted
+/// polynomial and γ̂.
+pub fn curve_plot(ui: &mut Ui, out: Option<&Output>, camera: usize, name: &str) {
+    ui.label(format!("M(γ) of {name}: anchors, 5th-order fit, estimate"));
+    let est = out
+        .and_then(|o| o.cameras.get(camera))
+        .and_then(|c| c.estimate.as_ref());
+    Plot::new("curve")
+        .height(150.0)
+        .legend(Legend::default())
+        .allow_drag(false)
+        .allow_zoom(false)
+        .allow_scroll(false)
+        .show(ui, |p| {
+            let Some(e) = est else {
+                return;
+            };
+            let anchors: Vec<[f64; 2]> = e.anchors.iter().map(|a| [a.x, a.m]).collect();
+            p.points(
+                Points::new("anchors", PlotPoints::from(anchors))
+                    .radius(4.0)
+                    .color(Color32::from_rgb(250, 200, 80)),
+            );
+            p.line(
+                Line::new("fit", PlotPoints::from(e.poly.sample(100)))
+                    .color(Color32::from_rgb(90, 170, 240))
+                    .width(1.5),
+            );
+            p.vline(
+                VLine::new(format!("estimate {:.2}", e.x_hat), e.x_hat)
+                    .color(Color32::from_rgb(240, 90, 80)),
+            );
+        });
+}
+
+/// The exposure plots over the last `secs` of `t`: per camera exposure
+/// time, gain, log2 E, γ̂ and M, and per overlap log2 r_ij.
+pub fn exposure_plots(ui: &mut Ui, t: &Telemetry, secs: f64) {
+    let shutter = camera_series(t, secs, |r, k| r.cameras.get(k).map(|c| c.shutter_us));
+    let gain = camera_series(t, secs, |r, k| r.cameras.get(k).map(|c| c.gain_db));
+    let exposure = camera_series(t, secs, |r, k| {
+        r.cameras
+            .get(k)
+            .map(|c| c.exposure)
+            .filter(|e| *e > 0.0)
+            .map(f64::log2)
+    });
+    let gamma = camera_series(t, secs, |r, k| r.cameras.get(k).and_then(|c| c.gamma_hat));
+    let m = camera_series(t, secs, |r, k| r.cameras.get(k).and_then(|c| c.m));
+    let pairs = pair_series(t, secs);
+    plot(ui, "shutter", "exposure time (µs)", &shutter, camera_colour);
+    plot(ui, "gain", "gain (dB)", &gain, camera_colour);
+    plot(
+        ui,
+        "exposure",
+        "log2 E (E = t · 10^(gain/20))",
+        &exposure,
+        camera_colour,
+    );
+    plot(
+        ui,
+        "gamma",
+        "γ estimate (γ-equivalent)",
+        &gamma,
+        camera_colour,
+    );
+    plot(ui, "m", "gradient information M", &m, camera_colour);
+    plot(ui, "pairs", "log2 r_ij per overlap", &pairs, pair_colour);
+}
+
+pub(super) fn plot_panel(app: &mut RigviewApp, ui: &mut Ui) {
+    egui::Panel::right("plots")
+        .resizable(true)
+        .default_size(430.0)
+        .show(ui, |ui| {
+            egui::ScrollArea::vertical().show(ui, |ui| plots_inner(app, ui));
+        });
+}
+
+fn plots_inner(app: &mut RigviewApp, ui: &mut Ui) {
+    if app.session.is_none() {
+        ui.label("no source");
+        return;
+    }
+    ui.horizontal(|ui| {
+        let l = ui.label("history (s)");
+        if ui
+            .add(egui::DragValue::new(&mut app.settings.window.plot_seconds).range(1.0..=600.0))
+            .labelled_by(l.id)
+            .changed()
+        {
+            app.window_changed();
+        }
+    });
+    let secs = app.settings.window.plot_seconds;
+    let Some(s) = &app.session else {
+        return;
+    };
+    let rate: Series = {
+        let t = s.pipeline.telemetry();
+        exposure_plots(ui, &t, secs);
+        let t_end = t.last().map_or(0.0, |r| r.time_s);
+        vec![(
+            "sets/s".to_owned(),
+            t.rows()
+                .iter()
+                .filter(|r| r.time_s >= t_end - secs)
+                .map(|r| [r.time_s, r.set_rate_hz])
+                .collect(),
+        )]
+    };
+    let status = s.pipeline.status();
+    let latency: Series = vec![(
+        "set ready to displayed (ms)".to_owned(),
+        status.display_latency.iter().copied().collect(),
+    )];
+    plot(ui, "rate", "frame-set rate (sets/s)", &rate, |_| {
+        Color32::LIGHT_GREEN
+    });
+    plot(ui, "latency", "end-to-end latency (ms)", &latency, |_| {
+        Color32::LIGHT_RED
+    });
+    let names: Vec<String> = s
+        .pipeline
+        .cameras()
+        .iter()
+        .map(|c| c.name.clone())
+        .collect();
+    let sel = &mut app.settings.window.selected_camera;
+    if *sel >= names.len() {
+        *sel = 0;
+    }
+    let mut changed = false;
+    let l = ui.label("camera of the M(γ) curve");
+    egui::ComboBox::from_id_salt("curve_camera")
+        .selected_text(names.get(*sel).map_or("camera", String::as_str))
+        .show_ui(ui, |ui| {
+            for (k, n) in names.iter().enumerate() {
+                changed |= ui.selectable_value(sel, k, n.as_str()).changed();
+            }
+        })
+        .response
+        .labelled_by(l.id);
+    let sel = *sel;
+    if changed {
+        app.window_changed();
+    }
+    curve_plot(
+        ui,
+        app.latest.as_deref(),
+        sel,
+        names.get(sel).map_or("camera", String::as_str),
+    );
+}

@@ -1,0 +1,206 @@
+//! A running session: a source (the simulated rig or live cameras), its
+//! calibration's surround view, and the processing pipeline on them. The
+//! window and the headless mode both start one.
+
+use std::path::Path;
+use std::sync::Arc;
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use rigview_calib::rig::Rig;
+use rigview_core::exposure::NeighbourGraph;
+use rigview_core::pipeline::{
+    check_view, Notify, Pipeline, PipelineOptions, ProcessingSettings, Processor,
+};
+use rigview_core::sim::{Pacing, SimConfig, SimRender, SimRig, SimRigOptions};
+use rigview_core::source::{CameraInfo, FrameSource};
+use rigview_core::surround::{CanvasSpec, SurroundOptions, SurroundView};
+
+/// The simulated rig to run.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SimSpec {
+    /// A preset or a simulation file.
+    pub scenario: String,
+    /// Render scale (1: 1288×964).
+    pub scale: f64,
+    /// At the trigger rate of the wall clock (otherwise as fast as
+    /// processing takes the sets).
+    pub realtime: bool,
+    /// Sets before the source ends (`None`: never).
+    pub frames: Option<u64>,
+}
+
+impl Default for SimSpec {
+    fn default() -> Self {
+        Self {
+            scenario: "reference".into(),
+            scale: 1.0,
+            realtime: true,
+            frames: None,
+        }
+    }
+}
+
+/// Where the frame sets come from.
+#[derive(Debug)]
+pub enum SourceSpec {
+    /// The simulated rig.
+    Sim(SimSpec),
+    /// Live cameras (the options of `rigview live`).
+    Live(Box<crate::live::cmd::LiveArgs>),
+}
+
+/// A running session.
+#[derive(Debug)]
+pub struct Session {
+    /// The pipeline.
+    pub pipeline: Pipeline,
+    /// What the source is, in words.
+    pub source_name: String,
+    /// Where the calibration came from, in words.
+    pub calibration: String,
+    /// Whether the cameras have their own auto-exposure.
+    pub camera_auto: bool,
+    /// Messages from starting up (tracing time, cameras opened, why there is
+    /// no view).
+    pub notes: Vec<String>,
+}
+
+/// The canvas every session composes on: 10 m × 10 m at 100 px/m.
+pub fn canvas_spec() -> CanvasSpec {
+    CanvasSpec::default()
+}
+
+/// The surround view and neighbour graph of `rig` for `cameras`.
+pub fn view_of(rig: &Rig, cameras: &[CameraInfo]) -> Result<(SurroundView, NeighbourGraph)> {
+    let view = SurroundView::build(rig, &canvas_spec(), &SurroundOptions::default())?;
+    check_view(&view, cameras)?;
+    let graph = NeighbourGraph::new(cameras.len(), &rig.neighbours)?;
+    Ok((view, graph))
+}
+
+/// Loads a calibration file (any supported format) and builds its view for
+/// `cameras`; errors name the file.
+pub fn load_calibration(
+    path: &Path,
+    cameras: &[CameraInfo],
+) -> Result<(SurroundView, NeighbourGraph)> {
+    let loaded = rigview_calib::formats::load(path, None, None)
+        .with_context(|| format!("cannot load the calibration {}", path.display()))?;
+    view_of(&loaded.rig, cameras)
+        .with_context(|| format!("cannot use the calibration {}", path.display()))
+}
+
+/// Starts a session.
+pub fn start(
+    spec: &SourceSpec,
+    processing: &ProcessingSettings,
+    options: PipelineOptions,
+    notify: Notify,
+) -> Result<Session> {
+    match spec {
+        SourceSpec::Sim(s) => start_sim(s, processing, options, notify),
+        SourceSpec::Live(args) => start_live(args, processing, options, notify),
+    }
+}
+
+fn start_sim(
+    spec: &SimSpec,
+    processing: &ProcessingSettings,
+    options: PipelineOptions,
+    notify: Notify,
+) -> Result<Session> {
+    let mut config = SimConfig::named(&spec.scenario)
+        .with_context(|| format!("loading the simulation \"{}\"", spec.scenario))?;
+    config.scale = spec.scale;
+    config
+        .validate()
+        .with_context(|| format!("the simulation \"{}\"", spec.scenario))?;
+    let t = Instant::now();
+    let render = Arc::new(SimRender::new(&config).context("building the simulated rig")?);
+    let traced = t.elapsed().as_secs_f64();
+    let cameras = render.cameras().to_vec();
+    let (view, graph) =
+        view_of(render.rig(), &cameras).context("the surround view of the simulated rig")?;
+    let source = SimRig::new(
+        render.clone(),
+        SimRigOptions {
+            pacing: if spec.realtime {
+                Pacing::Realtime
+            } else {
+                Pacing::AsFastAsAsked
+            },
+            frames: spec.frames,
+            latency: None,
+        },
+    )?;
+    let processor = Processor::new(cameras.clone(), Some(view), graph, processing.clone())?;
+    let camera_auto = source.has_camera_auto();
+    let pipeline = Pipeline::start(source, processor, options, notify)?;
+    let first = cameras.first();
+    Ok(Session {
+        pipeline,
+        source_name: format!(
+            "simulated rig \"{}\" ({} × {}×{} at {} Hz)",
+            spec.scenario,
+            cameras.len(),
+            first.map_or(0, |c| c.width),
+            first.map_or(0, |c| c.height),
+            config.trigger_hz
+        ),
+        calibration: "the simulated rig's exact calibration".into(),
+        camera_auto,
+        notes: vec![format!("scene traced in {traced:.1} s")],
+    })
+}
+
+#[cfg(not(feature = "aravis"))]
+fn start_live(
+    _args: &crate::live::cmd::LiveArgs,
+    _processing: &ProcessingSettings,
+    _options: PipelineOptions,
+    _notify: Notify,
+) -> Result<Session> {
+    Err(crate::live::LiveError::NoAravis.into())
+}
+
+#[cfg(feature = "aravis")]
+fn start_live(
+    args: &crate::live::cmd::LiveArgs,
+    processing: &ProcessingSettings,
+    options: PipelineOptions,
+    notify: Notify,
+) -> Result<Session> {
+    let mut notes = Vec::new();
+    let (mut source, rig, what) = crate::live::cmd::open_source(args, &mut notes)?;
+    notes.extend(source.take_messages());
+    let cameras = source.cameras().to_vec();
+    let (view, graph, calibration) = match rig.as_ref().map(|r| view_of(r, &cameras)) {
+        Some(Ok((v, g))) => (Some(v), g, what.clone()),
+        Some(Err(e)) => {
+            notes.push(format!(
+                "no surround view: {e:#}; whole frames are metered (File, Open calibration)"
+            ));
+            (
+                None,
+                NeighbourGraph::new(cameras.len(), &[])?,
+                "none".into(),
+            )
+        }
+        None => (
+            None,
+            NeighbourGraph::new(cameras.len(), &[])?,
+            "none".into(),
+        ),
+    };
+    let processor = Processor::new(cameras.clone(), view, graph, processing.clone())?;
+    let camera_auto = source.has_camera_auto();
+    let pipeline = Pipeline::start(source, processor, options, notify)?;
+    Ok(Session {
+        pipeline,
+        source_name: format!("live: {} cameras ({what})", cameras.len()),
+        calibration,
+        camera_auto,
+        notes,
+    })
+}

@@ -1,0 +1,363 @@
+//! UI tests of the desktop app with egui_kittest, on the simulated rig (at
+//! quarter resolution, in lock step), rendered through wgpu on Mesa's
+//! software rasteriser: no display needed.
+//!
+//! Snapshots live in `app/tests/snapshots/`; `UPDATE_SNAPSHOTS=1 cargo test
+//! -p rigview --test gui` rewrites them after a deliberate change.
+
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
+use std::path::Path;
+use std::sync::Arc;
+use std::time::Duration;
+
+use egui_kittest::kittest::Queryable;
+use egui_kittest::{Harness, SnapshotOptions, SnapshotResults};
+use rigview::gui::{panels, plots, AppOptions, RigviewApp};
+use rigview::session::{self, SimSpec, SourceSpec};
+use rigview_core::exposure::{LawKind, NeighbourGraph};
+use rigview_core::pipeline::{
+    Output, PipelineOptions, ProcessingSettings, Processor, StageTimes, Strategy, Telemetry,
+    TelemetryRow,
+};
+use rigview_core::sim::{SimConfig, SimRender, SimRig, SimRigOptions};
+use rigview_core::source::FrameSource;
+
+fn sim(frames: Option<u64>) -> SourceSpec {
+    SourceSpec::Sim(SimSpec {
+        scenario: "reference".into(),
+        scale: 0.25,
+        realtime: false,
+        frames,
+    })
+}
+
+fn app(dir: &Path, frames: Option<u64>) -> RigviewApp {
+    let ctx = egui::Context::default();
+    RigviewApp::new(
+        &ctx,
+        AppOptions {
+            source: sim(frames),
+            settings: Some(dir.join("settings.yaml")),
+            quit_after: None,
+            screenshot: None,
+            pipeline: PipelineOptions {
+                lockstep: true,
+                ..Default::default()
+            },
+        },
+    )
+}
+
+fn harness(app: RigviewApp) -> Harness<'static, RigviewApp> {
+    Harness::builder()
+        .with_size([1600.0, 1000.0])
+        .build_ui_state(|ui, app: &mut RigviewApp| app.show(ui), app)
+}
+
+/// Steps the window until `done` holds (or panics after `secs`).
+fn step_until(
+    h: &mut Harness<'_, RigviewApp>,
+    secs: f64,
+    what: &str,
+    done: impl Fn(&RigviewApp) -> bool,
+) {
+    let t = std::time::Instant::now();
+    while !done(h.state()) {
+        assert!(
+            t.elapsed().as_secs_f64() < secs,
+            "{what}: not within {secs} s; messages: {:?}",
+            h.state().messages()
+        );
+        h.step();
+        std::thread::sleep(Duration::from_millis(10));
+    }
+}
+
+#[test]
+fn the_main_view_cameras_and_plots_show_data() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut h = harness(app(dir.path(), None));
+    step_until(&mut h, 120.0, "ten frame sets shown", |a| a.shown() >= 10);
+    h.step();
+    let app = h.state();
+    let out = app.latest().unwrap();
+    // The big view: a composed canvas that is not black.
+    let canvas = out.canvas.as_ref().expect("no surround canvas");
+    let mean = canvas.data.iter().map(|&v| f64::from(v)).sum::<f64>() / canvas.data.len() as f64;
+    assert!(mean > 10.0, "the surround view is black (mean {mean:.1})");
+    // Every camera has a thumbnail, a histogram with pixels and an estimate.
+    assert_eq!(out.cameras.len(), 4);
+    for c in &out.cameras {
+        assert!(c.histogram.iter().sum::<u32>() > 1000);
+        assert!(c.estimate.is_some());
+    }
+    // The plots have points for every camera and overlap.
+    {
+        let t = app.session().unwrap().pipeline.telemetry();
+        for s in plots::camera_series(&t, 60.0, |r, k| r.cameras.get(k).map(|c| c.exposure)) {
+            assert!(s.1.len() >= 5, "{}: {} points", s.0, s.1.len());
+        }
+        let pairs = plots::pair_series(&t, 60.0);
+        assert_eq!(pairs.len(), 4);
+        assert!(
+            pairs.iter().all(|p| !p.1.is_empty()),
+            "an overlap has no ratio"
+        );
+    }
+    // What the window shows.
+    for label in [
+        "exposure time (µs)",
+        "gain (dB)",
+        "γ estimate (γ-equivalent)",
+        "gradient information M",
+        "log2 r_ij per overlap",
+        "frame-set rate (sets/s)",
+        "end-to-end latency (ms)",
+        "Exposure control",
+        "Per-camera override",
+    ] {
+        assert!(
+            h.query_by_label(label).is_some(),
+            "no \"{label}\" in the window"
+        );
+    }
+    assert!(h.query_by_label_contains("M(γ) of front").is_some());
+    assert_eq!(
+        h.query_all_by_label_contains(" · gain ").count(),
+        4,
+        "a camera readout is missing"
+    );
+    assert_eq!(
+        h.query_all_by_label("streaming").count(),
+        4,
+        "no stream health"
+    );
+    assert!(
+        h.query_by_label_contains("source: simulated rig").is_some(),
+        "no source in the status bar"
+    );
+}
+
+#[test]
+fn switching_the_strategy_and_parameters_changes_the_controller() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut h = harness(app(dir.path(), None));
+    step_until(&mut h, 120.0, "first set", |a| a.shown() >= 2);
+    // Fixed manual: every camera goes to the manual level.
+    h.get_by_label("fixed manual").click();
+    step_until(&mut h, 60.0, "strategy reaches processing", |a| {
+        a.latest()
+            .is_some_and(|o| o.settings.strategy == Strategy::Manual)
+    });
+    let level = h.state().settings().processing.controller.fixed_exposure;
+    step_until(&mut h, 60.0, "cameras at the manual level", |a| {
+        a.latest().is_some_and(|o| {
+            o.cameras
+                .iter()
+                .all(|c| (c.taken.exposure() / level - 1.0).abs() < 0.01)
+        })
+    });
+    // The update law, through its combo box.
+    h.get_by_label("gradient AE (single)").click();
+    h.step();
+    h.get_by_role_and_label(egui::accesskit::Role::ComboBox, "Update law")
+        .click();
+    for _ in 0..3 {
+        h.step();
+    }
+    h.get_by_label("fast (rigview)").click();
+    step_until(&mut h, 60.0, "law reaches processing", |a| {
+        a.latest().is_some_and(|o| {
+            o.settings.strategy == Strategy::Single
+                && o.settings.controller.law.kind == LawKind::Fast
+        })
+    });
+    // The gradient controller moves the cameras off the manual level.
+    step_until(&mut h, 60.0, "gradient control moves a camera", |a| {
+        a.latest().is_some_and(|o| {
+            o.cameras
+                .iter()
+                .any(|c| (c.taken.exposure() / level - 1.0).abs() > 0.05)
+        })
+    });
+    // The change persists.
+    let saved = h.state_mut().finish();
+    assert!(saved.contains("processed"), "{saved}");
+    let again = app(dir.path(), Some(1));
+    assert_eq!(again.settings().processing.strategy, Strategy::Single);
+    assert_eq!(
+        again.settings().processing.controller.law.kind,
+        LawKind::Fast
+    );
+}
+
+#[test]
+fn a_bad_calibration_file_shows_an_error_and_the_app_keeps_running() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut h = harness(app(dir.path(), None));
+    step_until(&mut h, 120.0, "first set", |a| a.shown() >= 2);
+    // A rig file with a broken field.
+    let bad = dir.path().join("broken.rig.yaml");
+    std::fs::write(
+        &bad,
+        "format: rigview-rig\nversion: 1\nframe: vehicle\ncameras:\n  - name: front\n    intrinsics: {model: kannala-brandt, width: -3}\n",
+    )
+    .unwrap();
+    h.state_mut().open_calibration(&bad);
+    step_until(&mut h, 30.0, "the error", |a| {
+        !a.is_loading() && a.messages().iter().any(|m| m.error)
+    });
+    let err = h
+        .state()
+        .messages()
+        .iter()
+        .rfind(|m| m.error)
+        .unwrap()
+        .text
+        .clone();
+    assert!(err.contains("broken.rig.yaml"), "{err}");
+    h.step();
+    assert!(
+        h.query_by_label_contains("broken.rig.yaml").is_some(),
+        "the error is not in the window"
+    );
+    // The reference rig is for 1288×964 images, the running cameras give
+    // 322×241: refused, naming both.
+    let reference = Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/reference.rig.yaml");
+    h.state_mut().open_calibration(&reference);
+    step_until(&mut h, 60.0, "the size error", |a| {
+        !a.is_loading()
+            && a.messages()
+                .iter()
+                .any(|m| m.error && m.text.contains("1288"))
+    });
+    // The app goes on showing new sets.
+    let before = h.state().shown();
+    step_until(&mut h, 60.0, "more sets after the errors", |a| {
+        a.shown() >= before + 3
+    });
+    assert_eq!(
+        h.state().calibration(),
+        "the simulated rig's exact calibration"
+    );
+    // A good calibration (the running rig's own, written as a rig file)
+    // takes effect without a restart.
+    let good = dir.path().join("quarter.rig.yaml");
+    let render = SimRender::new(&SimConfig {
+        scale: 0.25,
+        ..SimConfig::default()
+    })
+    .unwrap();
+    std::fs::write(
+        &good,
+        rigview_calib::formats::rig_yaml::to_string(render.rig()).unwrap(),
+    )
+    .unwrap();
+    h.state_mut().open_calibration(&good);
+    step_until(&mut h, 60.0, "the new calibration", |a| {
+        !a.is_loading() && a.calibration().ends_with("quarter.rig.yaml")
+    });
+    let before = h.state().shown();
+    step_until(&mut h, 60.0, "sets with the new calibration", |a| {
+        a.shown() >= before + 3
+    });
+    assert!(h.state().latest().unwrap().canvas.is_some());
+}
+
+/// Ten sets through a processor on one thread: repeatable to the bit.
+fn deterministic_run() -> (Vec<String>, Vec<Arc<Output>>, Telemetry) {
+    let config = SimConfig {
+        scale: 0.25,
+        ..SimConfig::default()
+    };
+    let render = Arc::new(SimRender::new(&config).unwrap());
+    let cams = render.cameras().to_vec();
+    let (view, graph): (_, NeighbourGraph) = session::view_of(render.rig(), &cams).unwrap();
+    let mut p = Processor::new(
+        cams.clone(),
+        Some(view),
+        graph,
+        ProcessingSettings::default(),
+    )
+    .unwrap();
+    let mut rig = SimRig::new(render, SimRigOptions::default()).unwrap();
+    let names: Vec<String> = cams.iter().map(|c| c.name.clone()).collect();
+    let mut t = Telemetry::new(names.clone(), &p.pairs(), 100);
+    let mut outs = Vec::new();
+    for k in 0..10 {
+        let set = rig.next_set(Duration::from_secs(1)).unwrap().unwrap();
+        let (out, commands) = p
+            .process(&set, std::time::Instant::now(), StageTimes::default())
+            .unwrap();
+        rig.apply(&commands).unwrap();
+        t.push(TelemetryRow::of(&out, f64::from(k) * 0.05, 20.0, 0));
+        outs.push(Arc::new(out));
+    }
+    (names, outs, t)
+}
+
+#[test]
+fn snapshots_of_the_cameras_and_plots() {
+    let (names, outs, telemetry) = deterministic_run();
+    let last = outs.last().unwrap().clone();
+    let opts = SnapshotOptions::new();
+    let mut results = SnapshotResults::new();
+
+    let cams = last.clone();
+    let mut textures: Vec<egui::TextureHandle> = Vec::new();
+    let mut h = Harness::builder()
+        .with_size([1300.0, 360.0])
+        .build_ui(move |ui| {
+            if textures.is_empty() {
+                textures = cams
+                    .cameras
+                    .iter()
+                    .enumerate()
+                    .map(|(k, c)| {
+                        ui.ctx().load_texture(
+                            format!("t{k}"),
+                            panels::thumbnail_image(c, true),
+                            egui::TextureOptions::LINEAR,
+                        )
+                    })
+                    .collect();
+            }
+            ui.horizontal_top(|ui| {
+                for (k, c) in cams.cameras.iter().enumerate() {
+                    panels::camera_card(
+                        ui,
+                        &names[k],
+                        k,
+                        c,
+                        Some(&textures[k]),
+                        Some(&cams.overlay),
+                        true,
+                        310.0,
+                    );
+                }
+            });
+        });
+    h.run();
+    h.snapshot_options("cameras", &opts);
+    results.extend_harness(&mut h);
+
+    let mut h = Harness::builder()
+        .with_size([450.0, 760.0])
+        .build_ui(move |ui| {
+            plots::exposure_plots(ui, &telemetry, 60.0);
+        });
+    h.run();
+    h.snapshot_options("exposure_plots", &opts);
+    results.extend_harness(&mut h);
+
+    let mut h = Harness::builder()
+        .with_size([450.0, 200.0])
+        .build_ui(move |ui| {
+            plots::curve_plot(ui, Some(&last), 0, "front");
+        });
+    h.run();
+    h.snapshot_options("curve", &opts);
+    results.extend_harness(&mut h);
+    results.unwrap();
+}

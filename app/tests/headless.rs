@@ -1,0 +1,190 @@
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+//! `rigview run --headless`: the pipeline without the window writes the
+//! composed views, the telemetry CSV, the exposure plot and a summary.
+
+use std::path::Path;
+use std::process::Command;
+
+fn run(args: &[&str], dir: &Path) -> String {
+    let out = Command::new(env!("CARGO_BIN_EXE_rigview"))
+        .args(["run", "--headless", "--settings"])
+        .arg(dir.join("settings.yaml"))
+        .arg("--out")
+        .arg(dir.join("out"))
+        .args(args)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+    assert!(
+        out.status.success(),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    stdout
+}
+
+/// The CSV as a header and rows of fields.
+fn csv(path: &Path) -> (Vec<String>, Vec<Vec<String>>) {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut lines = text.lines();
+    let header = lines
+        .next()
+        .unwrap()
+        .split(',')
+        .map(str::to_owned)
+        .collect();
+    let rows = lines
+        .map(|l| l.split(',').map(str::to_owned).collect())
+        .collect();
+    (header, rows)
+}
+
+#[test]
+fn a_headless_run_on_the_simulated_rig_writes_all_its_outputs() {
+    let dir = tempfile::tempdir().unwrap();
+    let stdout = run(
+        &[
+            "--scale",
+            "0.25",
+            "--frames",
+            "30",
+            "--every",
+            "10",
+            "--strategy",
+            "multi",
+        ],
+        dir.path(),
+    );
+    let out = dir.path().join("out");
+    assert!(stdout.contains("30 of 30 sets processed"), "{stdout}");
+    assert!(stdout.contains("0 dropped before processing"), "{stdout}");
+
+    // Views of sets 0, 10, 20 and the last, 29: 1000×1000 grey, not black,
+    // with the vehicle's rectangle black in the middle.
+    let mut views: Vec<_> = std::fs::read_dir(out.join("views"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .collect();
+    views.sort();
+    assert_eq!(
+        views,
+        [
+            "view_000000.png",
+            "view_000010.png",
+            "view_000020.png",
+            "view_000029.png"
+        ]
+    );
+    let img = image::open(out.join("views/view_000029.png"))
+        .unwrap()
+        .to_luma8();
+    assert_eq!(img.dimensions(), (1000, 1000));
+    let mean = img.pixels().map(|p| f64::from(p.0[0])).sum::<f64>() / 1e6;
+    assert!(mean > 20.0, "the view is black (mean {mean:.1})");
+    assert_eq!(img.get_pixel(500, 500).0[0], 0, "the vehicle is not black");
+
+    // The telemetry: a row per set, every camera's exposure, and a ratio per
+    // overlap.
+    let (header, rows) = csv(&out.join("telemetry.csv"));
+    assert_eq!(rows.len(), 30);
+    assert!(rows.iter().all(|r| r.len() == header.len()));
+    let col = |name: &str| header.iter().position(|h| h == name).unwrap();
+    let triggers: Vec<u64> = rows.iter().map(|r| r[0].parse().unwrap()).collect();
+    assert_eq!(triggers, (0..30).collect::<Vec<_>>());
+    for cam in ["front", "left", "back", "right"] {
+        let e: Vec<f64> = rows
+            .iter()
+            .map(|r| r[col(&format!("{cam}.exposure"))].parse().unwrap())
+            .collect();
+        assert!(e.iter().all(|&v| v > 0.0), "{cam}: {e:?}");
+        let g: f64 = rows[29][col(&format!("{cam}.gamma_hat"))].parse().unwrap();
+        assert!((0.5..=2.0).contains(&g), "{cam}: γ̂ {g}");
+    }
+    // The controller acted: some camera's exposure changed from the start.
+    let front: Vec<f64> = rows
+        .iter()
+        .map(|r| r[col("front.exposure")].parse().unwrap())
+        .collect();
+    assert!(
+        front.iter().any(|&e| (e / front[0] - 1.0).abs() > 0.05),
+        "{front:?}"
+    );
+    for pair in ["front-left", "front-right", "left-back", "back-right"] {
+        let k = col(&format!("log2_r.{pair}"));
+        assert!(
+            rows[29][k].parse::<f64>().is_ok(),
+            "{pair}: {:?}",
+            rows[29][k]
+        );
+    }
+    let dropped: Vec<u64> = rows
+        .iter()
+        .map(|r| r[col("dropped")].parse().unwrap())
+        .collect();
+    assert!(dropped.iter().all(|&d| d == 0));
+
+    // The plot: a 1400×1500 PNG with the cameras' line colours in it.
+    let plot = image::open(out.join("exposure.png")).unwrap().to_rgb8();
+    assert_eq!(plot.dimensions(), (1400, 1500));
+    for colour in [
+        [220u8, 70, 50],
+        [40, 120, 200],
+        [60, 160, 60],
+        [210, 150, 20],
+    ] {
+        let n = plot.pixels().filter(|p| p.0 == colour).count();
+        assert!(n > 200, "colour {colour:?}: {n} pixels");
+    }
+    let summary = std::fs::read_to_string(out.join("summary.txt")).unwrap();
+    assert!(
+        summary.contains("set ready → processed: median"),
+        "{summary}"
+    );
+}
+
+#[test]
+fn a_headless_run_is_repeatable_in_lock_step() {
+    let a = tempfile::tempdir().unwrap();
+    let b = tempfile::tempdir().unwrap();
+    let args = ["--scale", "0.25", "--frames", "12", "--law", "fast"];
+    run(&args, a.path());
+    run(&args, b.path());
+    let strip = |p: &Path| {
+        // Everything but the wall-clock columns.
+        let (header, rows) = csv(&p.join("out/telemetry.csv"));
+        let keep: Vec<usize> = (0..header.len())
+            .filter(|&k| !header[k].ends_with("_ms") && header[k] != "set_rate_hz")
+            .collect();
+        rows.into_iter()
+            .map(|r| keep.iter().map(|&k| r[k].clone()).collect::<Vec<_>>())
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(strip(a.path()), strip(b.path()));
+}
+
+#[test]
+fn a_headless_run_on_fake_live_cameras_goes_through_aravis() {
+    let dir = tempfile::tempdir().unwrap();
+    let stdout = run(
+        &[
+            "--source", "live", "--fake", "--scale", "0.25", "--frames", "15",
+        ],
+        dir.path(),
+    );
+    assert!(stdout.contains("Aravis fake cameras"), "{stdout}");
+    let (_, rows) = csv(&dir.path().join("out/telemetry.csv"));
+    assert!(rows.len() >= 15, "{stdout}");
+}
+
+#[test]
+fn bad_options_are_refused_with_what_to_give() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_rigview"))
+        .args(["run", "--headless", "--source", "live", "--out"])
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("--rig FILE or --fake"), "{err}");
+}
