@@ -81,6 +81,9 @@ pub fn summary(status: &PipelineStatus, telemetry: &Telemetry) -> String {
             display.len()
         );
     }
+    for n in &status.notes {
+        s += &format!("\nsource: {n}");
+    }
     for e in &status.errors {
         s += &format!("\nproblem: {e}");
     }

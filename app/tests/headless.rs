@@ -188,3 +188,33 @@ fn bad_options_are_refused_with_what_to_give() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("--rig FILE or --fake"), "{err}");
 }
+
+#[test]
+fn the_cameras_own_auto_exposure_is_switched_on_and_rigview_sends_no_commands() {
+    let dir = tempfile::tempdir().unwrap();
+    let stdout = run(
+        &[
+            "--source",
+            "live",
+            "--fake",
+            "--scale",
+            "0.25",
+            "--frames",
+            "15",
+            "--strategy",
+            "camera-auto",
+        ],
+        dir.path(),
+    );
+    for cam in ["front", "left", "back", "right"] {
+        assert!(
+            stdout.contains(&format!("{cam}: its own auto-exposure is on")),
+            "{stdout}"
+        );
+    }
+    let (header, rows) = csv(&dir.path().join("out/telemetry.csv"));
+    let k = header.iter().position(|h| h == "front.command").unwrap();
+    assert!(rows.iter().all(|r| r[k].is_empty()), "a command was sent");
+    let g = header.iter().position(|h| h == "front.gamma_hat").unwrap();
+    assert!(rows.iter().all(|r| !r[g].is_empty()), "no estimate to show");
+}

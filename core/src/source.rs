@@ -241,6 +241,12 @@ pub trait FrameSource: Send {
         false
     }
 
+    /// Messages for the operator since the last call (cameras lost and
+    /// back, what a camera could not do).
+    fn take_messages(&mut self) -> Vec<String> {
+        Vec::new()
+    }
+
     /// Whether the cameras have their own auto-exposure that rigview can
     /// switch on ([`FrameSource::set_camera_auto`]).
     fn has_camera_auto(&self) -> bool {
@@ -279,6 +285,10 @@ impl<S: FrameSource + ?Sized> FrameSource for Box<S> {
 
     fn is_finished(&self) -> bool {
         (**self).is_finished()
+    }
+
+    fn take_messages(&mut self) -> Vec<String> {
+        (**self).take_messages()
     }
 
     fn has_camera_auto(&self) -> bool {

@@ -52,6 +52,7 @@ pub struct RigviewApp {
     manual: Vec<(bool, f64)>,
     calibration: String,
     shown: u64,
+    notes_seen: u64,
     displayed_trigger: Option<u64>,
     quit_at: Option<Instant>,
     want_close: bool,
@@ -142,6 +143,7 @@ impl RigviewApp {
             manual: vec![(false, start_level); n],
             calibration,
             shown: 0,
+            notes_seen: 0,
             displayed_trigger: None,
             quit_at: options.quit_after.map(|d| Instant::now() + d),
             want_close: false,
@@ -326,6 +328,24 @@ impl RigviewApp {
         }
     }
 
+    /// Shows the source's new messages.
+    fn take_notes(&mut self) {
+        let Some(s) = &self.session else {
+            return;
+        };
+        let st = s.pipeline.status();
+        let new = st.notes_total.saturating_sub(self.notes_seen);
+        self.notes_seen = st.notes_total;
+        let skip = st
+            .notes
+            .len()
+            .saturating_sub(usize::try_from(new).unwrap_or(usize::MAX));
+        let fresh: Vec<String> = st.notes.iter().skip(skip).cloned().collect();
+        for n in fresh {
+            self.note(n, false);
+        }
+    }
+
     /// Takes the newest output and uploads its images.
     fn take_output(&mut self, ctx: &egui::Context) {
         let Some(out) = self.session.as_ref().and_then(|s| s.pipeline.latest()) else {
@@ -365,6 +385,7 @@ impl RigviewApp {
     pub fn show(&mut self, ui: &mut egui::Ui) {
         let ctx = ui.ctx().clone();
         self.poll_background();
+        self.take_notes();
         self.take_output(&ctx);
         panels::menu_bar(self, ui);
         panels::status_bar(self, ui);

@@ -75,6 +75,17 @@ pub(crate) enum Event {
         state: StreamState,
         message: String,
     },
+    /// Something worth telling the operator that changes no state.
+    Note { camera: usize, message: String },
+}
+
+/// What the source asks of a camera's thread.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) enum CameraCommand {
+    /// Take this exposure setting.
+    Set(ExposureSetting),
+    /// Switch the camera's own auto-exposure (and auto-gain) on or off.
+    Auto(bool),
 }
 
 /// When software triggers fire: every camera fires at the same ticks, so a
@@ -516,7 +527,7 @@ pub(crate) struct Worker {
     pub config: CaptureConfig,
     pub schedule: Option<Schedule>,
     pub events: Sender<Event>,
-    pub commands: Receiver<ExposureSetting>,
+    pub commands: Receiver<CameraCommand>,
     pub health: HealthCell,
     pub stop: Arc<AtomicBool>,
 }
@@ -546,6 +557,13 @@ impl Worker {
         let _ = self.events.send(Event::State {
             camera: self.index,
             state,
+            message,
+        });
+    }
+
+    fn note(&self, message: String) {
+        let _ = self.events.send(Event::Note {
+            camera: self.index,
             message,
         });
     }
@@ -671,6 +689,11 @@ impl Worker {
         let mut last_id: Option<u64> = None;
         let mut ids = IdUnwrapper::default();
         let mut pending: Option<ExposureSetting> = None;
+        let mut auto_request: Option<bool> = None;
+        // The camera's own auto-exposure runs (asked for by the operator):
+        // commands are ignored and the setting is read back instead.
+        let mut camera_auto = false;
+        let mut read_back_at = Instant::now();
         let mut counts_at = Instant::now();
         let mut missing_seen = 0u64;
         loop {
@@ -684,7 +707,8 @@ impl Worker {
             }
             loop {
                 match self.commands.try_recv() {
-                    Ok(s) => pending = Some(s),
+                    Ok(CameraCommand::Set(s)) => pending = Some(s),
+                    Ok(CameraCommand::Auto(on)) => auto_request = Some(on),
                     Err(TryRecvError::Empty) => break,
                     Err(TryRecvError::Disconnected) => return Ok(Ended::Stop),
                 }
@@ -696,7 +720,40 @@ impl Worker {
                 let s = conn.read_setting()?;
                 self.ready(conn, s, &mut tracker, current, true);
             }
-            if settle_until.is_none() {
+            if let (Some(on), None) = (auto_request, settle_until) {
+                auto_request = None;
+                let first = last_id.map_or(0, |l| l + 1) + outstanding.len() as u64;
+                if !(conn.auto_exposure || conn.auto_gain) {
+                    self.note(
+                        "it has no ExposureAuto or GainAuto: its exposure stays as set".into(),
+                    );
+                } else if let Err(e) = conn.set_auto(on) {
+                    self.note(format!("its own auto-exposure cannot be switched: {e}"));
+                } else {
+                    camera_auto = on;
+                    pending = None;
+                    let s = conn.read_setting()?;
+                    tracker.commanded(first, s);
+                    *current = Some(s);
+                    self.health.setting(s, self.setting_source(conn));
+                    self.note(format!(
+                        "its own auto-exposure is {}",
+                        if on { "on" } else { "off" }
+                    ));
+                }
+            }
+            if camera_auto && read_back_at.elapsed() >= Duration::from_millis(100) {
+                // Without chunk data the frames carry the setting read back
+                // here, up to one frame late.
+                read_back_at = Instant::now();
+                let s = conn.read_setting()?;
+                if *current != Some(s) {
+                    tracker.commanded(last_id.map_or(0, |l| l + 1), s);
+                    *current = Some(s);
+                    self.health.setting(s, self.setting_source(conn));
+                }
+            }
+            if settle_until.is_none() && !camera_auto {
                 if let Some(s) = pending.take() {
                     let actual = conn.apply(s)?;
                     // Frames of software triggers already sent keep the old

@@ -16,7 +16,7 @@ use rigview_core::source::{
 };
 
 use super::assemble::{Assembler, SetCounters};
-use super::camera::{DeviceSpec, Event, Schedule, Worker};
+use super::camera::{CameraCommand, DeviceSpec, Event, Schedule, Worker};
 use super::config::{CaptureConfig, TriggerMode};
 use super::health::{CameraStatus, HealthCell};
 use super::LiveError;
@@ -66,7 +66,7 @@ pub struct LiveStatus {
 
 struct Handle {
     thread: Option<JoinHandle<()>>,
-    commands: Sender<ExposureSetting>,
+    commands: Sender<CameraCommand>,
     health: HealthCell,
 }
 
@@ -214,7 +214,10 @@ impl LiveSource {
                 Ok(Event::Frame(_)) => {}
                 Ok(Event::State {
                     camera, message, ..
-                }) => source.note(format!("camera {camera}: {message}")),
+                })
+                | Ok(Event::Note { camera, message }) => {
+                    source.note(format!("camera {camera}: {message}"));
+                }
                 Err(RecvTimeoutError::Timeout) => {
                     let missing: Vec<&str> = infos
                         .iter()
@@ -308,6 +311,13 @@ impl LiveSource {
                 };
                 self.note(format!("{name}: {word}: {message}"));
             }
+            Event::Note { camera, message } => {
+                let name = self
+                    .infos
+                    .get(camera)
+                    .map_or_else(|| format!("camera {camera}"), |i| i.name.clone());
+                self.note(format!("{name}: {message}"));
+            }
             Event::Ready { .. } | Event::OpenFailed { .. } => {}
         }
     }
@@ -364,10 +374,26 @@ impl FrameSource for LiveSource {
             check_command(c, self.handles.len())?;
             if let Some(h) = self.handles.get(c.camera) {
                 // A camera whose thread ended is reported by its health.
-                let _ = h.commands.send(c.setting);
+                let _ = h.commands.send(CameraCommand::Set(c.setting));
             }
         }
         Ok(())
+    }
+
+    fn has_camera_auto(&self) -> bool {
+        true
+    }
+
+    fn set_camera_auto(&mut self, on: bool) -> Result<(), SourceError> {
+        // Each camera reports (in the messages) whether it could.
+        for h in &self.handles {
+            let _ = h.commands.send(CameraCommand::Auto(on));
+        }
+        Ok(())
+    }
+
+    fn take_messages(&mut self) -> Vec<String> {
+        LiveSource::take_messages(self)
     }
 
     fn health(&self) -> Vec<StreamHealth> {

@@ -4,7 +4,7 @@
 //!
 //! ```text
 //!  capture thread            processing thread                        display (the app)
-//!  source.next_set() ──► [DropOldest, 2] ──► meter ─► controller ─► compose ──► [DropOldest, 1] ──► texture
+//!  source.next_set() ──► [DropOldest, 4] ──► meter ─► controller ─► compose ──► [DropOldest, 1] ──► texture
 //!        ▲  (per-camera threads and                     │                 │
 //!        │   frame-set sync live inside                 │ commands        └──► telemetry (history)
 //!        └── the source: LiveSource, SimRig) ◄──────────┘
@@ -707,7 +707,8 @@ fn ms(d: Duration) -> f64 {
 /// How the pipeline runs.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PipelineOptions {
-    /// Sets waiting between capture and processing (default 2).
+    /// Sets waiting between capture and processing (default 4: 200 ms at
+    /// 20 Hz, enough for the first sets, which take longer).
     pub queue: usize,
     /// Outputs waiting for the display (1 for a window, which only wants the
     /// newest; more for a consumer that wants every output).
@@ -725,7 +726,7 @@ pub struct PipelineOptions {
 impl Default for PipelineOptions {
     fn default() -> Self {
         Self {
-            queue: 2,
+            queue: 4,
             output_queue: 1,
             lockstep: false,
             history: 2400,
@@ -754,6 +755,10 @@ pub struct PipelineStatus {
     pub set_rate_hz: f64,
     /// The most recent problems, newest last.
     pub errors: VecDeque<String>,
+    /// The source's messages for the operator, newest last (the last 50).
+    pub notes: VecDeque<String>,
+    /// Messages so far, including those forgotten.
+    pub notes_total: u64,
     /// Whether the source has ended (a replay or a bounded simulation).
     pub finished: bool,
     /// Whether both threads have stopped.
@@ -843,6 +848,9 @@ impl Pipeline {
         let (capture_tx, capture_rx) = mpsc::channel();
         let mut processor = processor;
         processor.set_compose(options.compose);
+        if processor.settings.strategy == Strategy::CameraAuto {
+            let _ = capture_tx.send(CaptureMsg::CameraAuto(true));
+        }
         let capture = {
             let (shared, captured) = (shared.clone(), captured.clone());
             let lockstep = options.lockstep;
@@ -1005,7 +1013,14 @@ fn capture_loop<S: FrameSource>(
         let got = source.next_set(Duration::from_millis(100));
         let ready = Instant::now();
         if last_health.elapsed() >= Duration::from_millis(250) {
-            lock(&shared.status).health = source.health();
+            let notes = source.take_messages();
+            let mut s = lock(&shared.status);
+            s.health = source.health();
+            s.notes_total += notes.len() as u64;
+            s.notes.extend(notes);
+            while s.notes.len() > 50 {
+                s.notes.pop_front();
+            }
             last_health = Instant::now();
         }
         match got {
@@ -1049,9 +1064,12 @@ fn capture_loop<S: FrameSource>(
         }
     }
     {
+        let notes = source.take_messages();
         let mut s = lock(&shared.status);
         s.health = source.health();
         s.finished = source.is_finished();
+        s.notes_total += notes.len() as u64;
+        s.notes.extend(notes);
     }
     captured.close();
 }
