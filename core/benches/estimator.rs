@@ -31,7 +31,8 @@ use rigview_core::synth::{HdrScene, Illumination, LinearCamera};
 
 const SEED: u64 = 7;
 /// Bright, with about 3 % of the metered pixels saturated (the lane lines and
-/// the brightest patches), so scale-and-clip's recovery term is exercised;
+/// the brightest patches), so scale-and-clip's treatment of saturated pixels
+/// (held, and the assumed texture) is exercised;
 /// γ̂ lies inside the anchors' span (≈ 1.49), so the γ̂ cross-check is not
 /// trivially met at a bound.
 const EXPOSURE: f64 = 11_000.0;

@@ -10,8 +10,9 @@
 
 use rigview_core::exposure::balance::{self, NeighbourGraph, PatchPair};
 use rigview_core::exposure::baselines::{MeanIntensityParams, PidParams, PidState};
-use rigview_core::exposure::estimator::{fit, AnchorScore};
+use rigview_core::exposure::estimator::{fit, fit_in, AnchorScore, FitVariable};
 use rigview_core::exposure::laws::{linear_ratio, nonlinear_r, nonlinear_ratio};
+use rigview_core::exposure::metering::SATURATED_LEVEL;
 use rigview_core::exposure::split::{Clamped, ExposureRange, SplitParams, Splitter};
 use rigview_core::exposure::*;
 use rigview_core::synth::{HdrScene, Illumination, LinearCamera};
@@ -94,6 +95,179 @@ fn polynomial_fit_recovers_a_known_maximum_and_checks_the_ends() {
     let c = p.sample(64);
     assert_eq!(c.len(), 64);
     assert!((c[0][0] - 1.0 / 1.9).abs() < 1e-12 && (c[63][0] - 1.9).abs() < 1e-12);
+}
+
+#[test]
+fn the_log_fit_recovers_a_maximum_in_ln_x_and_reports_anchor_values() {
+    let anchors: Vec<AnchorScore> = DEFAULT_ANCHORS
+        .iter()
+        .map(|&x| AnchorScore {
+            x,
+            m: 5.0 - (x.ln() - 0.2).powi(2),
+        })
+        .collect();
+    let p = fit_in(&anchors, 5, FitVariable::Log).unwrap();
+    assert_eq!(p.variable, FitVariable::Log);
+    assert!((p.argmax() - 0.2f64.exp()).abs() < 1e-9, "{}", p.argmax());
+    let (lo, hi) = p.range();
+    assert!((lo - 1.0 / 1.9).abs() < 1e-12 && (hi - 1.9).abs() < 1e-12);
+    for a in &anchors {
+        assert!(close(p.eval(a.x), a.m, 1e-9), "{} vs {}", p.eval(a.x), a.m);
+    }
+    // In x, the same scores are no polynomial: the linear fit misses.
+    let q = fit(&anchors, 5).unwrap();
+    assert!(anchors.iter().any(|a| !close(q.eval(a.x), a.m, 1e-6)));
+    // A fit in ln x needs positive anchors.
+    let bad = [AnchorScore { x: 0.0, m: 1.0 }; 7];
+    assert!(fit_in(&bad, 5, FitVariable::Log).is_err());
+    assert_eq!(Simulation::ScaleClip.fit_variable(), FitVariable::Log);
+    assert_eq!(Simulation::Gamma.fit_variable(), FitVariable::Linear);
+}
+
+fn scale_clip_estimator() -> Estimator {
+    Estimator::new(EstimatorConfig {
+        simulation: Simulation::ScaleClip,
+        ..Default::default()
+    })
+    .unwrap()
+}
+
+/// `M_sim(s)` of scale-and-clip below 1 (estimator.rs), straight from its
+/// definition in double precision: the held image scored on the pixels that
+/// carry information now, plus the assumed texture recovery.
+/// Returns the held part and the assumed part.
+fn scale_clip_reference(image: &Metered, s: f64) -> (f64, f64) {
+    let (w, h) = (image.width(), image.height());
+    let weight = |i: usize| image.weight().map_or(1.0, |wt| f64::from(wt[i]));
+    let luma = image.luma();
+    let metric = GradientMetric::new(MetricParams::default()).unwrap();
+    let at = |img: &[f64], x: usize, y: usize| img[y * w + x];
+    let m_of = |img: &[f64], x: usize, y: usize| {
+        let gx = at(img, x + 1, y - 1) + 2.0 * at(img, x + 1, y) + at(img, x + 1, y + 1)
+            - at(img, x - 1, y - 1)
+            - 2.0 * at(img, x - 1, y)
+            - at(img, x - 1, y + 1);
+        let gy = at(img, x - 1, y + 1) + 2.0 * at(img, x, y + 1) + at(img, x + 1, y + 1)
+            - at(img, x - 1, y - 1)
+            - 2.0 * at(img, x, y - 1)
+            - at(img, x + 1, y - 1);
+        (gx * gx + gy * gy).sqrt() / (4.0 * 2f64.sqrt())
+    };
+    let sat = f64::from(SATURATED_LEVEL);
+    let now: Vec<f64> = luma.iter().map(|&v| f64::from(v)).collect();
+    let held: Vec<f64> = now
+        .iter()
+        .map(|&v| if v >= sat { v } else { s * v })
+        .collect();
+    let widest = 1.0 / 1.9;
+    let (mut known, mut saturated, mut band, mut tw, mut ti) = (0.0, 0.0, 0.0, 0.0, 0.0);
+    for y in 1..h - 1 {
+        for x in 1..w - 1 {
+            let wt = weight(y * w + x);
+            let info_now = metric.information(m_of(&now, x, y));
+            if info_now > 0.0 {
+                known += wt * metric.information(m_of(&held, x, y));
+            }
+            let v = now[y * w + x];
+            if v >= sat {
+                saturated += wt;
+                continue;
+            }
+            if v >= s {
+                band += wt;
+            }
+            let mut hood = (0..9).map(|k| now[(y + k / 3 - 1) * w + x + k % 3 - 1]);
+            if hood.all(|n| n >= widest && n < sat) {
+                tw += wt;
+                ti += wt * info_now;
+            }
+        }
+    }
+    let texture = if tw > 0.0 { ti / tw } else { 0.0 };
+    (known, f64::min(saturated, band) * texture)
+}
+
+#[test]
+fn scale_clip_darkening_matches_its_definition() {
+    let mut est = scale_clip_estimator();
+    // A bright exposure of the synthetic scene: textured patches saturate.
+    let image = metered_scene(30_000.0);
+    let saturated = image.stats().saturated_fraction;
+    assert!(
+        saturated > 0.05 && saturated < 0.6,
+        "precondition: partly saturated ({saturated})"
+    );
+    // And with a metering mask (the lower two thirds).
+    let (w, h) = (image.width(), image.height());
+    let mask: Vec<f32> = (0..w * h).map(|i| f32::from(i / w >= h / 3)).collect();
+    let masked = Metered::from_luma(w, h, image.luma().to_vec(), Some(mask)).unwrap();
+    for image in [&image, &masked] {
+        for s in [1.0 / 1.9, 1.0 / 1.5, 1.0 / 1.2] {
+            let (known, assumed) = scale_clip_reference(image, s);
+            assert!(
+                assumed > 0.02 * known,
+                "precondition: texture is assumed to come back ({assumed} of {known})"
+            );
+            let got = est.score_at(image, s);
+            let want = known + assumed;
+            assert!(close(got, want, 2e-4), "s={s}: {got} vs {want}");
+        }
+    }
+    // Brightening stays the plain min(1, s·I).
+    let bright: Vec<f32> = image.luma().iter().map(|&v| (v * 1.5).min(1.0)).collect();
+    let bright = Metered::from_luma(image.width(), image.height(), bright, None).unwrap();
+    let plain = Estimator::new(EstimatorConfig::default())
+        .unwrap()
+        .score(&bright);
+    assert!(close(est.score_at(&image, 1.5), plain, 1e-5));
+}
+
+#[test]
+fn scale_clip_holds_saturated_edges_and_invents_none_at_smooth_contours() {
+    let mut est = scale_clip_estimator();
+    let (w, h) = (40, 30);
+    // A saturated square (far above saturation, say) on a flat grey 0.3:
+    // its edges carry information now, and darkening keeps its bright side
+    // while the grey darkens, so the edges keep (more than) their
+    // information. The plain min(1, s·I) would darken the square too.
+    let square: Vec<f32> = (0..w * h)
+        .map(|i| {
+            let (x, y) = (i % w, i / w);
+            if (10..30).contains(&x) && (8..22).contains(&y) {
+                1.0
+            } else {
+                0.3
+            }
+        })
+        .collect();
+    let image = Metered::from_luma(w, h, square.clone(), None).unwrap();
+    let now = est.score(&image);
+    assert!(now > 0.0);
+    let held = est.score_at(&image, 0.6);
+    assert!(held >= now, "held {held} vs now {now}");
+    let darkened: Vec<f32> = square.iter().map(|&v| v * 0.6).collect();
+    let plain = est.score(&Metered::from_luma(w, h, darkened, None).unwrap());
+    assert!(
+        plain < now,
+        "the plain darkening loses contrast: {plain} vs {now}"
+    );
+    // No texture anywhere below saturation: nothing is assumed to come back.
+    let estimate = est.estimate(&image).unwrap();
+    assert!(estimate.anchors.iter().all(|a| a.m > 0.0));
+    // A smooth ramp that crosses saturation (gradient far below δ): no
+    // information now, and none after darkening, although holding the
+    // saturated side alone would put a step at the contour.
+    let ramp: Vec<f32> = (0..w * h)
+        .map(|i| (0.9 + 0.004 * (i % w) as f32).min(1.0))
+        .collect();
+    let image = Metered::from_luma(w, h, ramp.clone(), None).unwrap();
+    assert_eq!(est.score(&image), 0.0);
+    assert_eq!(est.score_at(&image, 0.6), 0.0);
+    let stepped: Vec<f32> = ramp
+        .iter()
+        .map(|&v| if v >= SATURATED_LEVEL { v } else { 0.6 * v })
+        .collect();
+    assert!(est.score(&Metered::from_luma(w, h, stepped, None).unwrap()) > 0.0);
 }
 
 fn metered_scene(exposure: f64) -> Metered {

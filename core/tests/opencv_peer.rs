@@ -13,7 +13,7 @@
 
 use opencv::core::{self, Mat, MatTraitConst, Rect};
 use opencv::imgproc;
-use rigview_core::exposure::estimator::{fit, AnchorScore};
+use rigview_core::exposure::estimator::{fit_in, AnchorScore};
 use rigview_core::exposure::metering::SATURATED_LEVEL;
 use rigview_core::exposure::{
     Estimator, EstimatorConfig, FrameView, Meter, Metered, MeteringConfig, MetricParams,
@@ -131,8 +131,9 @@ fn assert_no_saturation(image: &Metered) {
     let max = image.luma().iter().copied().fold(0.0f32, f32::max);
     assert!(
         max < SATURATED_LEVEL,
-        "precondition: no metered pixel may be saturated (max {max}); the \
-         scale-and-clip recovery term would make the comparison impure"
+        "precondition: no metered pixel may be saturated (max {max}); \
+         scale-and-clip's darkening holds saturated pixels, which the plain \
+         OpenCV composition does not"
     );
     // And the image is not trivially dark either.
     assert!(
@@ -192,7 +193,7 @@ fn check_estimate(simulation: Simulation, exposure: f64) -> TestResult {
         .iter()
         .map(|&x| opencv_score(&image, simulation, x, params).map(|m| AnchorScore { x, m }))
         .collect::<opencv::Result<Vec<_>>>()?;
-    let x_peer = fit(&peer_scores, degree)?.argmax();
+    let x_peer = fit_in(&peer_scores, degree, simulation.fit_variable())?.argmax();
     let gamma_peer = simulation.gamma_equivalent(x_peer);
     eprintln!(
         "{} at E = {exposure}: rigview x̂ = {} (γ̂ = {}), OpenCV-fitted x̂ = {x_peer} (γ̂ = {gamma_peer})",

@@ -13,19 +13,40 @@
 //! | [`Simulation::Gamma`] (the paper's, default) | `I^γ` | darker is better |
 //! | [`Simulation::ScaleClip`] | `min(1, s·I)` | brighter is better |
 //!
-//! Scale-and-clip cannot see what darkening would *recover*: pixels that are
-//! saturated now stay flat at `s` in `min(1, s·I)`. Left alone, its fixed
-//! point would be every over-exposed setting. So for `s < 1` rigview adds
-//! the information that darkening brings back, under the assumption that the
-//! scene's intensities and textures continue smoothly across the saturation
-//! level: darkening by `s` brings pixels from `[1, 1/s)` into `[s, 1)`, and
-//! there are about as many of them as there are pixels now in `[s, 1)` (but
-//! no more than are saturated), carrying about the information those pixels
-//! carry now:
+//! Scale-and-clip is exact for brightening (`s ≥ 1`) on a linear sensor,
+//! and for darkening the pixels that are not saturated. How far above
+//! saturation a saturated pixel lies cannot be known from the frame, so for
+//! `s < 1` rigview keeps what is known apart from what is assumed:
+//!
+//! - **Known:** saturated pixels (at or above [`SATURATED_LEVEL`]) are held
+//!   saturated, as under the γ-mapping (`1^γ = 1`): an edge into a
+//!   saturated area keeps its bright side while its dark side darkens. Only
+//!   pixels that carry information now (`m ≥ δ`) are counted: where a
+//!   saturation contour is smooth, holding the saturated side would invent
+//!   an edge that darkening does not make.
+//! - **Assumed:** darkening by `s` brings back about as many saturated
+//!   pixels as now lie in `[s, 1)` (the histogram continues past saturation;
+//!   at most all saturated ones), and they carry the *texture* of the
+//!   surfaces now just below saturation: the mean information of the pixels
+//!   whose whole 3×3 neighbourhood lies in `[s_min, 1)` (`s_min` the
+//!   smallest anchor, so the texture is the same for every anchor). Edges (a
+//!   neighbourhood that reaches below `s_min` or into saturation) do not
+//!   count as texture, so a textureless bright surface (a white marking, a
+//!   wall in the sun) that saturates is not credited with information it
+//!   does not have.
 //!
 //! ```text
-//! M_sim(s) = M(min(1, s·I)) + min(1, N_sat / N_[s,1)) · Σ_{I ∈ [s,1)} m̄
+//! M_sim(s) = Σ_{m̄ > 0 now} m̄ of (I ≥ 0.98 ? I : s·I)
+//!            + min(N_sat, N_[s,1)) · mean{ m̄ : 3×3 ⊂ [s_min, 0.98) }  (s < 1)
+//! M_sim(s) = M(min(1, s·I))                                             (s ≥ 1)
 //! ```
+//!
+//! Without saturated pixels both lines equal `M(min(1, s·I))`. The
+//! scale-and-clip polynomial is fitted in `ln s` ([`FitVariable::Log`]): the
+//! anchors are geometric and exposure acts multiplicatively, and in `s` the
+//! wide gap between the upper anchors lets a 5th-order fit overshoot there
+//! and its maximum jump between two bumps. The γ-mapping keeps the paper's
+//! fit in γ.
 //!
 //! Every estimate is also expressed as the γ-equivalent `γ̂`
 //! ([`Estimate::gamma_hat`]): `γ̂ = γ` for the γ-mapping and `γ̂ = 1/ŝ` for
@@ -69,6 +90,41 @@ impl Simulation {
         match self {
             Self::Gamma => x,
             Self::ScaleClip => 1.0 / x,
+        }
+    }
+
+    /// The variable its polynomial is fitted in (module documentation).
+    pub fn fit_variable(self) -> FitVariable {
+        match self {
+            Self::Gamma => FitVariable::Linear,
+            Self::ScaleClip => FitVariable::Log,
+        }
+    }
+}
+
+/// The variable a [`Polynomial`] is fitted in.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum FitVariable {
+    /// The anchor value `x` itself (the paper's fit in γ).
+    #[default]
+    Linear,
+    /// `ln x` (for positive anchors).
+    Log,
+}
+
+impl FitVariable {
+    fn forward(self, x: f64) -> f64 {
+        match self {
+            Self::Linear => x,
+            Self::Log => x.ln(),
+        }
+    }
+
+    fn inverse(self, u: f64) -> f64 {
+        match self {
+            Self::Linear => u,
+            Self::Log => u.exp(),
         }
     }
 }
@@ -141,15 +197,19 @@ pub struct AnchorScore {
     pub m: f64,
 }
 
-/// A polynomial in the normalised variable `t = (x − centre) / half_width`.
+/// A polynomial in the normalised variable `t = (u − centre) / half_width`,
+/// where `u` is the anchor value `x` or `ln x` ([`Polynomial::variable`]).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Polynomial {
     /// Coefficients of `t^0, t^1, …`.
     pub coefficients: Vec<f64>,
-    /// Centre of the fitted range.
+    /// Centre of the fitted range, in `u`.
     pub centre: f64,
-    /// Half the width of the fitted range.
+    /// Half the width of the fitted range, in `u`.
     pub half_width: f64,
+    /// What `u` is.
+    #[serde(default)]
+    pub variable: FitVariable,
 }
 
 impl Polynomial {
@@ -169,18 +229,21 @@ impl Polynomial {
             .fold(0.0, |acc, (i, &c)| acc * t + i as f64 * c)
     }
 
-    /// The polynomial at `x`.
+    /// The polynomial at the anchor value `x`.
     pub fn eval(&self, x: f64) -> f64 {
-        self.eval_t((x - self.centre) / self.half_width)
+        self.eval_t((self.variable.forward(x) - self.centre) / self.half_width)
     }
 
-    /// The lower and upper end of the fitted range.
+    /// The lower and upper end of the fitted range, as anchor values.
     pub fn range(&self) -> (f64, f64) {
-        (self.centre - self.half_width, self.centre + self.half_width)
+        (
+            self.variable.inverse(self.centre - self.half_width),
+            self.variable.inverse(self.centre + self.half_width),
+        )
     }
 
-    /// Where the polynomial is largest on its range: the ends and every
-    /// interior critical point are compared.
+    /// Where the polynomial is largest on its range (as an anchor value):
+    /// the ends and every interior critical point are compared.
     pub fn argmax(&self) -> f64 {
         const SAMPLES: usize = 256;
         let mut best_t = -1.0;
@@ -214,10 +277,12 @@ impl Polynomial {
             prev_t = t;
             prev_d = d;
         }
-        self.centre + best_t * self.half_width
+        self.variable
+            .inverse(self.centre + best_t * self.half_width)
     }
 
-    /// `n ≥ 2` evenly spaced samples `[x, p(x)]` over the range, for plots.
+    /// `n ≥ 2` samples `[x, p(x)]` over the range, evenly spaced in `x`, for
+    /// plots.
     pub fn sample(&self, n: usize) -> Vec<[f64; 2]> {
         let n = n.max(2);
         let (lo, hi) = self.range();
@@ -335,12 +400,18 @@ impl Estimator {
         )
     }
 
-    /// `M` of the image after the simulated exposure change `x`.
+    /// `M` of the image after the simulated exposure change `x` (for
+    /// scale-and-clip below 1, `M_sim` of the module documentation).
     pub fn score_at(&mut self, image: &Metered, x: f64) -> f64 {
         self.prepare(image);
         self.current_information(image);
-        let recovery = self.recovery(image, &[x]);
-        self.score_mapped(image, x) + recovery.map_or(0.0, |r| r.at(x))
+        let held = self.held_weights(image);
+        let recovered = if held {
+            self.texture_recovery(image, &[x])
+        } else {
+            Vec::new()
+        };
+        self.score_mapped(image, x, held) + recovered.first().copied().unwrap_or(0.0)
     }
 
     /// `M` of the image as it is and the information-weighted geometric
@@ -361,47 +432,31 @@ impl Estimator {
         (m, intensity)
     }
 
-    /// The saturation-recovery term of scale-and-clip (module docs) at the
-    /// anchors `xs` (those below 1 matter).
-    fn recovery(&mut self, image: &Metered, xs: &[f64]) -> Option<Recovery> {
+    /// For scale-and-clip on an image with a saturated pixel: the weights of
+    /// the darkening anchors (the image's weights where a pixel carries
+    /// information now, 0 elsewhere) into `self.mapped`. `false` when there
+    /// is nothing saturated (then `min(1, s·I)` is exact) or for the
+    /// γ-mapping. Needs the information map of [`Self::current_information`].
+    fn held_weights(&mut self, image: &Metered) -> bool {
         if self.config.simulation != Simulation::ScaleClip {
-            return None;
+            return false;
         }
-        let (w, h) = (image.width(), image.height());
-        // The intensities that count: the interior pixels with weight; the
-        // others are set to −1, below every band.
-        let counted = &mut self.mapped;
-        counted.clear();
-        counted.extend_from_slice(image.luma());
-        if let Some(weight) = image.weight() {
-            for (v, &wt) in counted.iter_mut().zip(weight) {
-                *v = if wt > 0.0 { *v } else { -1.0 };
-            }
-        }
-        for y in 0..h {
-            for x in [0, w - 1] {
-                counted[y * w + x] = -1.0;
-            }
-        }
-        for x in 0..w {
-            counted[x] = -1.0;
-            counted[(h - 1) * w + x] = -1.0;
-        }
-        let isa = self.scratch.isa();
-        let (saturated, _) = kernel::band_sums(isa, counted, &self.info, SATURATED_LEVEL, 2.0);
-        if saturated == 0 {
-            return None;
-        }
-        let bands = xs
+        let saturated = image
+            .luma()
             .iter()
-            .filter(|&&s| s < 1.0)
-            .map(|&s| {
-                let (count, info) =
-                    kernel::band_sums(isa, counted, &self.info, s as f32, SATURATED_LEVEL);
-                (s, count, info)
-            })
-            .collect();
-        Some(Recovery { saturated, bands })
+            .fold(false, |any, &v| any | (v >= SATURATED_LEVEL));
+        if !saturated {
+            return false;
+        }
+        self.mapped.clear();
+        self.mapped
+            .extend(self.info.iter().map(|&i| f32::from(i > 0.0)));
+        if let Some(weight) = image.weight() {
+            for (m, &w) in self.mapped.iter_mut().zip(weight) {
+                *m *= w;
+            }
+        }
+        true
     }
 
     /// `log₂ I` of every pixel, floored where the largest γ anchor maps
@@ -416,25 +471,109 @@ impl Estimator {
         );
     }
 
-    fn score_mapped(&mut self, image: &Metered, x: f64) -> f64 {
+    /// The assumed part of `M_sim` (module documentation) at each of `xs`
+    /// (0 for `x ≥ 1`), for an image with a saturated pixel. The texture is
+    /// measured once, on the widest band (down to the smallest anchor), so
+    /// that it does not depend on `x`. Needs the information map of
+    /// [`Self::current_information`].
+    fn texture_recovery(&self, image: &Metered, xs: &[f64]) -> Vec<f64> {
+        let (w, h) = (image.width(), image.height());
+        let luma = image.luma();
+        let weight = |i: usize| image.weight().map_or(1.0, |wt| f64::from(wt[i]));
+        let levels: Vec<f32> = xs.iter().map(|&x| x as f32).collect();
+        let widest = self.anchors.iter().chain(xs).copied().fold(1.0, f64::min) as f32;
+        // Weight of the saturated pixels and of each anchor's band, and the
+        // weight and information of the pixels whose 3×3 neighbourhood lies
+        // in the widest band.
+        let mut saturated = 0.0f64;
+        let mut band = vec![0.0f64; xs.len()];
+        let (mut texture_weight, mut texture_info) = (0.0f64, 0.0f64);
+        // The 3×3 minimum and maximum, from the minima and maxima of three
+        // columns in each of the last three rows.
+        let row_extremes = |y: usize, lo: &mut Vec<f32>, hi: &mut Vec<f32>| {
+            lo.clear();
+            hi.clear();
+            for win in luma[y * w..(y + 1) * w].windows(3) {
+                lo.push(win[0].min(win[1]).min(win[2]));
+                hi.push(win[0].max(win[1]).max(win[2]));
+            }
+        };
+        let mut lo: [Vec<f32>; 3] = Default::default();
+        let mut hi: [Vec<f32>; 3] = Default::default();
+        for y in 0..h {
+            row_extremes(y, &mut lo[y % 3], &mut hi[y % 3]);
+            if y < 2 {
+                continue;
+            }
+            // Row `y − 1` now has all three of its neighbourhood rows.
+            let yc = y - 1;
+            for x in 1..w - 1 {
+                let i = yc * w + x;
+                let wt = weight(i);
+                let v = luma[i];
+                if wt <= 0.0 {
+                    continue;
+                }
+                if v >= SATURATED_LEVEL {
+                    saturated += wt;
+                    continue;
+                }
+                for (n, &s) in band.iter_mut().zip(&levels) {
+                    if s < 1.0 && v >= s {
+                        *n += wt;
+                    }
+                }
+                let nmin = lo[0][x - 1].min(lo[1][x - 1]).min(lo[2][x - 1]);
+                let nmax = hi[0][x - 1].max(hi[1][x - 1]).max(hi[2][x - 1]);
+                if nmin >= widest && nmax < SATURATED_LEVEL {
+                    texture_weight += wt;
+                    texture_info += f64::from(self.info[i]);
+                }
+            }
+        }
+        let texture = if texture_weight > 0.0 {
+            texture_info / texture_weight
+        } else {
+            0.0
+        };
+        band.iter().map(|&n| saturated.min(n) * texture).collect()
+    }
+
+    /// `M` of the simulated image at `x`; `held`: the weights of
+    /// [`Self::held_weights`] are in `self.mapped`.
+    fn score_mapped(&mut self, image: &Metered, x: f64, held: bool) -> f64 {
         if (x - 1.0).abs() < 1e-12 {
             return self.score(image);
         }
-        let source = match self.config.simulation {
-            Simulation::Gamma => Source::Gamma {
-                log2: &self.logs,
-                gamma: x as f32,
-            },
-            Simulation::ScaleClip => Source::Scale {
-                luma: image.luma(),
-                s: x as f32,
-            },
+        let (source, weight) = match self.config.simulation {
+            Simulation::Gamma => (
+                Source::Gamma {
+                    log2: &self.logs,
+                    gamma: x as f32,
+                },
+                image.weight(),
+            ),
+            Simulation::ScaleClip if held && x < 1.0 => (
+                Source::Hold {
+                    luma: image.luma(),
+                    s: x as f32,
+                    level: SATURATED_LEVEL,
+                },
+                Some(self.mapped.as_slice()),
+            ),
+            Simulation::ScaleClip => (
+                Source::Scale {
+                    luma: image.luma(),
+                    s: x as f32,
+                },
+                image.weight(),
+            ),
         };
         self.metric.score_source(
             source,
             image.width(),
             image.height(),
-            image.weight(),
+            weight,
             &mut self.scratch,
         )
     }
@@ -443,30 +582,30 @@ impl Estimator {
     pub fn estimate(&mut self, image: &Metered) -> Result<Estimate> {
         self.prepare(image);
         let (m_current, info_intensity) = self.current_information(image);
-        let anchors = std::mem::take(&mut self.anchors);
-        let recovery = self.recovery(image, &anchors);
-        self.anchors = anchors;
-        let anchors: Vec<AnchorScore> = self
-            .anchors
-            .clone()
+        let held = self.held_weights(image);
+        let xs = self.anchors.clone();
+        let recovered = if held {
+            self.texture_recovery(image, &xs)
+        } else {
+            vec![0.0; xs.len()]
+        };
+        let anchors: Vec<AnchorScore> = xs
             .into_iter()
-            .map(|x| {
+            .zip(recovered)
+            .map(|(x, r)| {
                 let m = if (x - 1.0).abs() < 1e-12 {
                     m_current
                 } else {
-                    self.score_mapped(image, x)
+                    self.score_mapped(image, x, held) + r
                 };
-                AnchorScore {
-                    x,
-                    m: m + recovery.as_ref().map_or(0.0, |r| r.at(x)),
-                }
+                AnchorScore { x, m }
             })
             .collect();
-        let poly = fit(&anchors, self.config.degree)?;
+        let simulation = self.config.simulation;
+        let poly = fit_in(&anchors, self.config.degree, simulation.fit_variable())?;
         let m_max = anchors.iter().map(|a| a.m).fold(f64::MIN, f64::max);
         let m_min = anchors.iter().map(|a| a.m).fold(f64::MAX, f64::min);
         let flat = m_max <= 0.0 || m_max - m_min <= 1e-9 * m_max.max(1.0);
-        let simulation = self.config.simulation;
         let (x_hat, at_bound) = if flat {
             (1.0, None)
         } else {
@@ -531,35 +670,28 @@ impl Estimator {
     }
 }
 
-/// The count of saturated pixels and, per anchor `s < 1`, how many pixels
-/// lie in the band `[s, 1)` below saturation and the information they carry.
-#[derive(Debug)]
-struct Recovery {
-    saturated: usize,
-    bands: Vec<(f64, usize, f64)>,
-}
-
-impl Recovery {
-    /// The information darkening by `s < 1` brings back (0 for `s ≥ 1` or
-    /// an `s` that was not counted).
-    fn at(&self, s: f64) -> f64 {
-        if s >= 1.0 {
-            return 0.0;
-        }
-        let Some(&(_, band, info)) = self.bands.iter().find(|b| b.0.total_cmp(&s).is_eq()) else {
-            return 0.0;
-        };
-        if band == 0 {
-            return 0.0;
-        }
-        (self.saturated as f64 / band as f64).min(1.0) * info
-    }
-}
-
-/// Least-squares polynomial of order `degree` through the anchor scores.
+/// Least-squares polynomial of order `degree` through the anchor scores, in
+/// the anchor value itself ([`FitVariable::Linear`]).
 pub fn fit(anchors: &[AnchorScore], degree: usize) -> Result<Polynomial> {
-    let lo = anchors.iter().map(|a| a.x).fold(f64::MAX, f64::min);
-    let hi = anchors.iter().map(|a| a.x).fold(f64::MIN, f64::max);
+    fit_in(anchors, degree, FitVariable::Linear)
+}
+
+/// Least-squares polynomial of order `degree` through the anchor scores, in
+/// `variable` (for [`FitVariable::Log`] every anchor must be positive).
+pub fn fit_in(anchors: &[AnchorScore], degree: usize, variable: FitVariable) -> Result<Polynomial> {
+    if let Some(bad) = anchors
+        .iter()
+        .find(|a| variable == FitVariable::Log && (a.x <= 0.0 || a.x.is_nan()))
+    {
+        return Err(Error::InvalidParameter {
+            name: "anchor",
+            value: bad.x,
+            expected: "a positive anchor value for a fit in ln x",
+        });
+    }
+    let u = |a: &AnchorScore| variable.forward(a.x);
+    let lo = anchors.iter().map(u).fold(f64::MAX, f64::min);
+    let hi = anchors.iter().map(u).fold(f64::MIN, f64::max);
     if anchors.len() < degree + 1 || hi - lo <= 0.0 {
         return Err(Error::InvalidConfig(format!(
             "polynomial fit: {} anchors spanning [{lo}, {hi}] cannot determine order {degree}",
@@ -581,7 +713,7 @@ pub fn fit(anchors: &[AnchorScore], degree: usize) -> Result<Polynomial> {
         .fold(0.0, f64::max)
         .max(1e-300);
     let v = DMatrix::from_fn(anchors.len(), degree + 1, |r, c| {
-        ((anchors[r].x - centre) / half_width).powi(c as i32)
+        ((u(&anchors[r]) - centre) / half_width).powi(c as i32)
     });
     let y = DVector::from_iterator(anchors.len(), anchors.iter().map(|a| a.m / scale));
     let coefficients = v
@@ -592,5 +724,6 @@ pub fn fit(anchors: &[AnchorScore], degree: usize) -> Result<Polynomial> {
         coefficients: coefficients.iter().map(|c| c * scale).collect(),
         centre,
         half_width,
+        variable,
     })
 }

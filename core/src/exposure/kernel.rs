@@ -97,6 +97,9 @@ pub(crate) enum Source<'a> {
     Gamma { log2: &'a [f32], gamma: f32 },
     /// Scale-and-clip `min(1, s·I)`.
     Scale { luma: &'a [f32], s: f32 },
+    /// Scale-and-hold: `s·I` below `level`, `I` (held) at or above it: a
+    /// darkening `s < 1` that leaves saturated pixels saturated.
+    Hold { luma: &'a [f32], s: f32, level: f32 },
 }
 
 /// The per-pixel constants of Eq. 1: `q = max(|∇'| + offset, 1)`, where the
@@ -299,74 +302,12 @@ pub(crate) fn log2_map(isa: Isa, luma: &[f32], floor: f32, out: &mut Vec<f32>) {
     dispatch(isa, Log2Map { luma, floor, out });
 }
 
-/// How many of `values` lie in `[lo, hi)`, and the sum of their `weights`.
-pub(crate) fn band_sums(
-    isa: Isa,
-    values: &[f32],
-    weights: &[f32],
-    lo: f32,
-    hi: f32,
-) -> (usize, f64) {
-    dispatch(
-        isa,
-        BandSums {
-            values,
-            weights,
-            lo,
-            hi,
-        },
-    )
-}
-
-struct BandSums<'a> {
-    values: &'a [f32],
-    weights: &'a [f32],
-    lo: f32,
-    hi: f32,
-}
-
-impl Kernel for BandSums<'_> {
-    type Output = (usize, f64);
-
-    #[inline(always)]
-    fn run<const L: usize, const FMA: bool>(self) -> (usize, f64) {
-        let (mut count, mut sum) = (0usize, 0.0f64);
-        // Blocks short enough that the f32 lane sums and counts stay exact
-        // enough (counts below 2^24).
-        for (v, m) in self
-            .values
-            .chunks(L * 1024)
-            .zip(self.weights.chunks(L * 1024))
-        {
-            let (vc, v_rest) = v.as_chunks::<L>();
-            let (mc, m_rest) = m.as_chunks::<L>();
-            let mut n = [0.0f32; L];
-            let mut acc = [0.0f32; L];
-            for (v, m) in vc.iter().zip(mc) {
-                for l in 0..L {
-                    let inside = v[l] >= self.lo && v[l] < self.hi;
-                    n[l] += if inside { 1.0 } else { 0.0 };
-                    acc[l] += if inside { m[l] } else { 0.0 };
-                }
-            }
-            for (&v, &m) in v_rest.iter().zip(m_rest) {
-                let inside = v >= self.lo && v < self.hi;
-                n[0] += if inside { 1.0 } else { 0.0 };
-                acc[0] += if inside { m } else { 0.0 };
-            }
-            count += n.iter().sum::<f32>() as usize;
-            sum += f64::from(acc.iter().sum::<f32>());
-        }
-        (count, sum)
-    }
-}
-
 impl Source<'_> {
     fn covers(&self, len: usize) -> bool {
         match self {
             Source::Plain(v) => v.len() >= len,
             Source::Gamma { log2, .. } => log2.len() >= len,
-            Source::Scale { luma, .. } => luma.len() >= len,
+            Source::Scale { luma, .. } | Source::Hold { luma, .. } => luma.len() >= len,
         }
     }
 
@@ -391,6 +332,13 @@ impl Source<'_> {
                 let s = s * scale;
                 for (o, &v) in out.iter_mut().zip(&luma[span]) {
                     *o = (s * v).clamp(0.0, scale);
+                }
+            }
+            Source::Hold { luma, s, level } => {
+                let s = s * scale;
+                for (o, &v) in out.iter_mut().zip(&luma[span]) {
+                    let k = if v >= level { scale } else { s };
+                    *o = (k * v).clamp(0.0, scale);
                 }
             }
         }
@@ -884,6 +832,34 @@ mod tests {
                 assert!(
                     (got - want).abs() <= 1e-5 * want,
                     "{isa:?} s={s}: {got} vs {want}"
+                );
+            }
+            // Scale-and-hold, on an image with saturated patches, weighted.
+            let level = 0.9f32;
+            let held: Vec<f32> = img.iter().map(|&v| (v * 1.3).min(1.0)).collect();
+            let weight: Vec<f32> = (0..w * h).map(|i| (i % 5) as f32 / 4.0).collect();
+            for s in [0.6f32, 0.9] {
+                let mapped: Vec<f32> = held
+                    .iter()
+                    .map(|&v| if v >= level { v } else { v * s })
+                    .collect();
+                let want = reference(&mapped, w, h, Some(&weight), 1000.0);
+                let got = sum_ln_q(
+                    isa,
+                    Source::Hold {
+                        luma: &held,
+                        s,
+                        level,
+                    },
+                    w,
+                    h,
+                    Some(&weight),
+                    p,
+                    &mut Rows::default(),
+                );
+                assert!(
+                    (got - want).abs() <= 1e-5 * want,
+                    "{isa:?} hold s={s}: {got} vs {want}"
                 );
             }
         }

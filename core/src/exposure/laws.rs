@@ -169,8 +169,9 @@ pub fn fast_ratio(damping: f64, estimate: &Estimate, stats: &ImageStats) -> f64 
     };
     let predicted = match (estimate.at_bound.is_some(), estimate.simulation) {
         // ŝ at its upper bound: brightening is simulated exactly, so the
-        // optimum lies at least one span further. (Darkening relies on the
-        // approximate recovery term, so ŝ at its lower bound stands.)
+        // optimum lies at least one span further. (Darkening rests on what
+        // is assumed about the saturated pixels, so ŝ at its lower bound
+        // stands.)
         (true, Simulation::ScaleClip) if estimate.at_bound == Some(Bound::Upper) => {
             predicted * predicted
         }
