@@ -114,6 +114,7 @@ fn the_main_view_cameras_and_plots_show_data() {
         "log2 r_ij per overlap",
         "frame-set rate (sets/s)",
         "end-to-end latency (ms)",
+        "time per stage (ms)",
         "Exposure control",
         "Per-camera override",
     ] {
@@ -197,13 +198,12 @@ fn a_bad_calibration_file_shows_an_error_and_the_app_keeps_running() {
     let dir = tempfile::tempdir().unwrap();
     let mut h = harness(app(dir.path(), None));
     step_until(&mut h, 120.0, "first set", |a| a.shown() >= 2);
-    // A rig file with a broken field.
+    // A rig file with a broken field: the reference rig with a word for a
+    // focal length.
+    let reference = Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/reference.rig.yaml");
+    let text = std::fs::read_to_string(&reference).unwrap();
     let bad = dir.path().join("broken.rig.yaml");
-    std::fs::write(
-        &bad,
-        "format: rigview-rig\nversion: 1\nframe: vehicle\ncameras:\n  - name: front\n    intrinsics: {model: kannala-brandt, width: -3}\n",
-    )
-    .unwrap();
+    std::fs::write(&bad, text.replacen("  - 380.0", "  - wide", 1)).unwrap();
     h.state_mut().open_calibration(&bad);
     step_until(&mut h, 30.0, "the error", |a| {
         !a.is_loading() && a.messages().iter().any(|m| m.error)
@@ -217,6 +217,7 @@ fn a_bad_calibration_file_shows_an_error_and_the_app_keeps_running() {
         .text
         .clone();
     assert!(err.contains("broken.rig.yaml"), "{err}");
+    assert!(err.contains("focal_px"), "the error does not name the field: {err}");
     h.step();
     assert!(
         h.query_by_label_contains("broken.rig.yaml").is_some(),
@@ -224,7 +225,6 @@ fn a_bad_calibration_file_shows_an_error_and_the_app_keeps_running() {
     );
     // The reference rig is for 1288×964 images, the running cameras give
     // 322×241: refused, naming both.
-    let reference = Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/reference.rig.yaml");
     h.state_mut().open_calibration(&reference);
     step_until(&mut h, 60.0, "the size error", |a| {
         !a.is_loading()

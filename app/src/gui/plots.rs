@@ -5,7 +5,7 @@
 
 use egui::{Color32, Ui};
 use egui_plot::{Legend, Line, Plot, PlotPoints, Points, VLine};
-use rigview_core::pipeline::{Output, Telemetry, TelemetryRow};
+use rigview_core::pipeline::{Output, StageTimes, Telemetry, TelemetryRow};
 
 use super::{camera_colour, RigviewApp};
 
@@ -180,18 +180,37 @@ fn plots_inner(app: &mut RigviewApp, ui: &mut Ui) {
     let Some(s) = &app.session else {
         return;
     };
-    let rate: Series = {
+    let (rate, stages): (Series, Series) = {
         let t = s.pipeline.telemetry();
         exposure_plots(ui, &t, secs);
         let t_end = t.last().map_or(0.0, |r| r.time_s);
-        vec![(
+        let recent: Vec<_> = t
+            .rows()
+            .iter()
+            .filter(|r| r.time_s >= t_end - secs)
+            .collect();
+        let stages = StageTimes::NAMES
+            .iter()
+            .enumerate()
+            .map(|(k, name)| {
+                (
+                    (*name).to_owned(),
+                    recent
+                        .iter()
+                        .map(|r| [r.time_s, r.times.values()[k]])
+                        .collect(),
+                )
+            })
+            .collect();
+        let rate = vec![(
             "sets/s".to_owned(),
             t.rows()
                 .iter()
                 .filter(|r| r.time_s >= t_end - secs)
                 .map(|r| [r.time_s, r.set_rate_hz])
                 .collect(),
-        )]
+        )];
+        (rate, stages)
     };
     let status = s.pipeline.status();
     let latency: Series = vec![(
@@ -204,6 +223,7 @@ fn plots_inner(app: &mut RigviewApp, ui: &mut Ui) {
     plot(ui, "latency", "end-to-end latency (ms)", &latency, |_| {
         Color32::LIGHT_RED
     });
+    plot(ui, "stages", "time per stage (ms)", &stages, camera_colour);
     let names: Vec<String> = s
         .pipeline
         .cameras()
