@@ -271,35 +271,107 @@ impl Meter {
     /// pixel counts if at least half of its block is inside the mask, and the
     /// gradient metric uses only pixels whose 3×3 neighbourhood counts.
     pub fn meter(&self, frame: &FrameView<'_>, mask: Option<&RoiMask>) -> Result<Metered> {
-        if let Some(m) = mask {
-            if m.width() != frame.width() || m.height() != frame.height() {
-                return Err(Error::SizeMismatch {
-                    what: "ROI mask against its frame",
-                    expected_width: frame.width(),
-                    expected_height: frame.height(),
-                    width: m.width(),
-                    height: m.height(),
-                });
-            }
-        }
-        let bayer = frame.format().is_bayer();
-        // The source grid: pixels, or Bayer quads.
-        let (gw, gh) = if bayer {
-            (frame.width() / 2, frame.height() / 2)
-        } else {
-            (frame.width(), frame.height())
+        let grid = self.grid(frame)?;
+        let prepared = match mask {
+            Some(m) => Some(self.prepare_for(m, &grid, frame.width(), frame.height())?),
+            None => None,
         };
-        let k = self.config.factor(gw, gh);
-        let (ow, oh) = (gw / k, gh / k);
-        if ow < 3 || oh < 3 {
-            return Err(Error::EmptyImage {
-                what: "metered image (the frame is too small to meter: needs at least 3×3 metered pixels)",
-                width: ow,
-                height: oh,
+        Ok(self.finish(frame, &grid, prepared.as_ref()))
+    }
+
+    /// Prepares `mask` for frames of `format` at its size: which metered
+    /// pixels it covers. A mask is fixed per calibration, so a caller that
+    /// meters many frames prepares it once ([`Meter::meter_prepared`]).
+    pub fn prepare(&self, mask: &RoiMask, format: PixelFormat) -> Result<PreparedMask> {
+        let grid = Grid::of(&self.config, format, mask.width(), mask.height())?;
+        self.prepare_for(mask, &grid, mask.width(), mask.height())
+    }
+
+    /// [`Meter::meter`] with a prepared mask; the same result.
+    pub fn meter_prepared(&self, frame: &FrameView<'_>, mask: &PreparedMask) -> Result<Metered> {
+        let grid = self.grid(frame)?;
+        if (mask.frame_width, mask.frame_height, mask.bayer, mask.k)
+            != (frame.width(), frame.height(), grid.bayer, grid.k)
+        {
+            return Err(Error::SizeMismatch {
+                what: "prepared ROI mask against its frame (size, Bayer layout or metering size)",
+                expected_width: frame.width(),
+                expected_height: frame.height(),
+                width: mask.frame_width,
+                height: mask.frame_height,
             });
         }
+        Ok(self.finish(frame, &grid, Some(mask)))
+    }
+
+    fn grid(&self, frame: &FrameView<'_>) -> Result<Grid> {
+        Grid::of(&self.config, frame.format(), frame.width(), frame.height())
+    }
+
+    fn prepare_for(
+        &self,
+        m: &RoiMask,
+        grid: &Grid,
+        width: usize,
+        height: usize,
+    ) -> Result<PreparedMask> {
+        if m.width() != width || m.height() != height {
+            return Err(Error::SizeMismatch {
+                what: "ROI mask against its frame",
+                expected_width: width,
+                expected_height: height,
+                width: m.width(),
+                height: m.height(),
+            });
+        }
+        let Grid { k, ow, oh, bayer } = *grid;
+        let mut cov = vec![0u32; ow * oh];
+        for oy in 0..oh {
+            let cov = &mut cov[oy * ow..(oy + 1) * ow];
+            for gy in oy * k..(oy + 1) * k {
+                // For Bayer quads the top-left pixel of the quad decides.
+                let (mrow, step) = if bayer {
+                    (m.row(2 * gy), 2)
+                } else {
+                    (m.row(gy), 1)
+                };
+                for (ox, c) in cov.iter_mut().enumerate() {
+                    let start = ox * k * step;
+                    *c += (0..k).filter(|i| mrow[start + i * step] != 0).count() as u32;
+                }
+            }
+        }
+        let half = (k * k).div_ceil(2) as u32;
+        let valid: Vec<bool> = cov.iter().map(|&c| c >= half).collect();
+        let mut weight = vec![0.0f32; ow * oh];
+        for y in 1..oh - 1 {
+            for x in 1..ow - 1 {
+                let all = (y - 1..=y + 1).all(|yy| (x - 1..=x + 1).all(|xx| valid[yy * ow + xx]));
+                if all {
+                    weight[y * ow + x] = 1.0;
+                }
+            }
+        }
+        // Statistics use the valid pixels, the metric the eroded ones.
+        Ok(PreparedMask {
+            frame_width: width,
+            frame_height: height,
+            bayer,
+            k,
+            weight,
+            valid,
+        })
+    }
+
+    /// The metered image of `frame` on `grid`, with the mask's weights.
+    fn finish(&self, frame: &FrameView<'_>, grid: &Grid, mask: Option<&PreparedMask>) -> Metered {
+        let Grid { k, ow, oh, bayer } = *grid;
+        let gw = if bayer {
+            frame.width() / 2
+        } else {
+            frame.width()
+        };
         let mut luma = vec![0.0f32; ow * oh];
-        let mut coverage = mask.map(|_| vec![0u32; ow * oh]);
         let mut row = vec![0.0f32; gw];
         let inv_block = 1.0 / (k * k) as f32;
         // 8-bit mono and RGB: the block sums are taken on the bytes, in
@@ -314,9 +386,8 @@ impl Meter {
             let out = &mut luma[oy * ow..(oy + 1) * ow];
             if let Some(c) = channels {
                 block_sums_8bit(frame, oy * k..(oy + 1) * k, c, k, &mut bytes, out);
-            }
-            for gy in oy * k..(oy + 1) * k {
-                if channels.is_none() {
+            } else {
+                for gy in oy * k..(oy + 1) * k {
                     if bayer {
                         bayer_luma_row(
                             frame.format(),
@@ -329,58 +400,85 @@ impl Meter {
                     }
                     add_block_sums(out, &row, k);
                 }
-                if let (Some(m), Some(cov)) = (mask, coverage.as_mut()) {
-                    // For Bayer quads the top-left pixel of the quad decides.
-                    let (mrow, step) = if bayer {
-                        (m.row(2 * gy), 2)
-                    } else {
-                        (m.row(gy), 1)
-                    };
-                    let cov = &mut cov[oy * ow..(oy + 1) * ow];
-                    for (ox, c) in cov.iter_mut().enumerate() {
-                        let start = ox * k * step;
-                        *c += (0..k).filter(|i| mrow[start + i * step] != 0).count() as u32;
-                    }
-                }
             }
             for o in out.iter_mut() {
                 *o = (*o * inv_block).clamp(0.0, 1.0);
             }
         }
-        let weight = coverage.map(|cov| {
-            let half = (k * k).div_ceil(2) as u32;
-            let valid: Vec<bool> = cov.iter().map(|&c| c >= half).collect();
-            let mut w = vec![0.0f32; ow * oh];
-            for y in 1..oh - 1 {
-                for x in 1..ow - 1 {
-                    let all =
-                        (y - 1..=y + 1).all(|yy| (x - 1..=x + 1).all(|xx| valid[yy * ow + xx]));
-                    if all {
-                        w[y * ow + x] = 1.0;
-                    }
-                }
-            }
-            // Statistics use the valid pixels, the metric the eroded ones.
-            (w, valid)
-        });
-        let (weight, stats) = match weight {
-            Some((w, valid)) => {
-                let stats = ImageStats::from_pixels(
-                    luma.iter().zip(&valid).filter(|(_, &v)| v).map(|(l, _)| l),
-                );
-                (Some(w), stats)
-            }
+        let (weight, stats) = match mask {
+            Some(m) => (
+                Some(m.weight.clone()),
+                ImageStats::from_pixels(
+                    luma.iter()
+                        .zip(&m.valid)
+                        .filter(|(_, &v)| v)
+                        .map(|(l, _)| l),
+                ),
+            ),
             None => (None, ImageStats::from_pixels(luma.iter())),
         };
-        Ok(Metered {
+        Metered {
             width: ow,
             height: oh,
             luma,
             weight,
             scale: if bayer { 2 * k } else { k },
             stats,
-        })
+        }
     }
+}
+
+/// The metering grid of a frame: the block side `k`, the metered size and
+/// whether the source grid is Bayer quads.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Grid {
+    k: usize,
+    ow: usize,
+    oh: usize,
+    bayer: bool,
+}
+
+impl Grid {
+    fn of(
+        config: &MeteringConfig,
+        format: PixelFormat,
+        width: usize,
+        height: usize,
+    ) -> Result<Self> {
+        let bayer = format.is_bayer();
+        // The source grid: pixels, or Bayer quads.
+        let (gw, gh) = if bayer {
+            (width / 2, height / 2)
+        } else {
+            (width, height)
+        };
+        let k = config.factor(gw, gh);
+        let (ow, oh) = (gw / k, gh / k);
+        if ow < 3 || oh < 3 {
+            return Err(Error::EmptyImage {
+                what: "metered image (the frame is too small to meter: needs at least 3×3 metered pixels)",
+                width: ow,
+                height: oh,
+            });
+        }
+        Ok(Self { k, ow, oh, bayer })
+    }
+}
+
+/// A ground mask prepared for one frame size, pixel layout and metering
+/// size ([`Meter::prepare`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct PreparedMask {
+    frame_width: usize,
+    frame_height: usize,
+    bayer: bool,
+    k: usize,
+    /// Per metered pixel, 1 where the metric counts it (the mask eroded by
+    /// one metered pixel).
+    weight: Vec<f32>,
+    /// Per metered pixel, whether at least half of its block is masked in
+    /// (the statistics count these).
+    valid: Vec<bool>,
 }
 
 /// The luminance sums (in [0, 1] units) of `k×k` blocks of an 8-bit frame
@@ -502,5 +600,60 @@ fn bayer_luma_row(format: PixelFormat, top: &[u8], bottom: &[u8], dst: &mut [f32
             + w[1] * f32::from(t[1])
             + w[2] * f32::from(b[0])
             + w[3] * f32::from(b[1]);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn frame_and_mask(format: PixelFormat) -> (Vec<u8>, RoiMask, usize, usize) {
+        let (w, h) = (644, 482);
+        let bpp = format.bytes_per_pixel();
+        let data: Vec<u8> = (0..w * h * bpp).map(|i| ((i * 7919) % 251) as u8).collect();
+        // A disc of ground, as a fisheye's ground mask looks.
+        let mask: Vec<u8> = (0..w * h)
+            .map(|i| {
+                let (x, y) = ((i % w) as f64 - 300.0, (i / w) as f64 - 300.0);
+                u8::from(x * x + y * y < 200.0 * 200.0)
+            })
+            .collect();
+        (data, RoiMask::new(w, h, mask).unwrap(), w, h)
+    }
+
+    #[test]
+    fn a_prepared_mask_meters_exactly_as_the_mask_itself() {
+        let meter = Meter::new(MeteringConfig::default()).unwrap();
+        for format in [PixelFormat::Mono8, PixelFormat::Rgb8, PixelFormat::BayerRg8] {
+            let (data, mask, w, h) = frame_and_mask(format);
+            let frame = FrameView::new(format, w, h, &data).unwrap();
+            let direct = meter.meter(&frame, Some(&mask)).unwrap();
+            let prepared = meter.prepare(&mask, format).unwrap();
+            let via = meter.meter_prepared(&frame, &prepared).unwrap();
+            assert_eq!(direct.luma(), via.luma(), "{format:?}");
+            assert_eq!(direct.weight(), via.weight(), "{format:?}");
+            assert_eq!(direct.stats(), via.stats(), "{format:?}");
+            let covered = via.weight().unwrap().iter().filter(|&&v| v > 0.0).count();
+            assert!(
+                covered > 100 && covered < via.width() * via.height() / 2,
+                "{covered}"
+            );
+        }
+    }
+
+    #[test]
+    fn a_prepared_mask_refuses_another_frame_size() {
+        let meter = Meter::new(MeteringConfig::default()).unwrap();
+        let (data, mask, w, h) = frame_and_mask(PixelFormat::Mono8);
+        let prepared = meter.prepare(&mask, PixelFormat::Mono8).unwrap();
+        let smaller = FrameView::new(PixelFormat::Mono8, w - 4, h, &data[..(w - 4) * h]).unwrap();
+        assert!(matches!(
+            meter.meter_prepared(&smaller, &prepared),
+            Err(Error::SizeMismatch { .. })
+        ));
+        // A Bayer frame of the same size meters on quads: refused too.
+        let (bayer, _, _, _) = frame_and_mask(PixelFormat::BayerRg8);
+        let frame = FrameView::new(PixelFormat::BayerRg8, w, h, &bayer).unwrap();
+        assert!(meter.meter_prepared(&frame, &prepared).is_err());
     }
 }

@@ -46,7 +46,7 @@ use crate::error::{Error, Result};
 use crate::exposure::{
     BalanceParams, CameraInput, ControlMode, ControllerConfig, Estimate, Estimator,
     ExposureSetting, FrameView, Meter, Metered, MeteringConfig, NeighbourGraph, PixelFormat,
-    RigController, RoiMask,
+    PreparedMask, RigController, RoiMask,
 };
 use crate::source::{
     CameraInfo, ExposureCommand, FrameSet, FrameSource, SourceError, StreamHealth,
@@ -372,6 +372,9 @@ pub struct Processor {
     display_estimators: Vec<Estimator>,
     view: Option<SurroundView>,
     masks: Vec<Option<RoiMask>>,
+    /// The masks prepared for the cameras' frames (metering is then a
+    /// third as costly); `None` where a camera's frames do not fit.
+    prepared: Vec<Option<PreparedMask>>,
     overlay: Arc<Overlay>,
     composer: Composer,
     last_taken: Vec<Option<ExposureSetting>>,
@@ -406,6 +409,7 @@ impl Processor {
             overlay: Arc::new(Overlay::of(view.as_ref(), n)),
             view,
             masks: vec![None; n],
+            prepared: vec![None; n],
             composer: Composer::new(),
             last_taken: vec![None; n],
             compose: true,
@@ -423,6 +427,15 @@ impl Processor {
             (Some(v), MeterRoi::Ground) => v.ground_masks().iter().cloned().map(Some).collect(),
             _ => vec![None; self.cameras.len()],
         };
+        self.prepared = self
+            .masks
+            .iter()
+            .zip(&self.cameras)
+            .map(|(m, c)| {
+                m.as_ref()
+                    .and_then(|m| self.meter.prepare(m, c.format).ok())
+            })
+            .collect();
     }
 
     /// The settings in force.
@@ -452,7 +465,8 @@ impl Processor {
         let was_auto = self.settings.strategy == Strategy::CameraAuto;
         let is_auto = settings.strategy == Strategy::CameraAuto;
         self.controller.set_config(settings.controller_config())?;
-        if settings.metering != self.settings.metering {
+        let metering_changed = settings.metering != self.settings.metering;
+        if metering_changed {
             self.meter = Meter::new(settings.metering)?;
         }
         if settings.controller.estimator != self.settings.controller.estimator {
@@ -465,7 +479,7 @@ impl Processor {
         let roi_changed = settings.roi != self.settings.roi;
         self.shared_settings = Arc::new(settings.clone());
         self.settings = settings;
-        if roi_changed {
+        if roi_changed || metering_changed {
             self.update_masks();
         }
         if was_auto && !is_auto {
@@ -554,8 +568,14 @@ impl Processor {
             .collect::<Result<Vec<FrameView<'_>>>>()?;
         let metered = views
             .iter()
-            .zip(&self.masks)
-            .map(|(v, m)| self.meter.meter(v, m.as_ref()))
+            .zip(self.masks.iter().zip(&self.prepared))
+            .map(|(v, (m, p))| match p {
+                Some(p) => self
+                    .meter
+                    .meter_prepared(v, p)
+                    .or_else(|_| self.meter.meter(v, m.as_ref())),
+                None => self.meter.meter(v, m.as_ref()),
+            })
             .collect::<Result<Vec<_>>>()?;
         let observations = match &self.view {
             Some(v) => v.pair_observations(&views)?,
