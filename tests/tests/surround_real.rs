@@ -6,7 +6,7 @@
 
 use std::path::{Path, PathBuf};
 
-use opencv::core::{self, Mat, MatTraitConstManual};
+use opencv::core::{self, Mat, MatTraitConst, MatTraitConstManual};
 use opencv::imgproc;
 use rigview_calib::formats;
 use rigview_calib::pose::Pose;
@@ -294,5 +294,114 @@ fn the_real_rig_composes_and_measures_brightness_ratios() {
         );
         let r = r.unwrap();
         assert!(r > 0.25 && r < 4.0, "implausible ratio {r}");
+    }
+}
+
+/// How far our remap and OpenCV's differ: the largest difference, the mean
+/// and the fraction more than one level apart, over (ours, OpenCV's, the
+/// largest step between the 2×2 source pixels) triples; and the largest
+/// excess over what OpenCV's position rounding explains. OpenCV rounds
+/// positions to 1/32 px, which moves a value by up to 1/64 of each of the
+/// two steps (1/32 of the largest); both round the result (ours within
+/// 0.53 of the exact value, OpenCV's within about as much).
+fn differences(triples: &[(u8, u8, u8)]) -> (u8, f64, f64, f64) {
+    assert!(!triples.is_empty(), "no pixels compared");
+    let (mut worst, mut sum, mut over, mut excess) = (0u8, 0u64, 0usize, f64::NEG_INFINITY);
+    for &(a, b, step) in triples {
+        let d = a.abs_diff(b);
+        worst = worst.max(d);
+        sum += u64::from(d);
+        over += usize::from(d > 1);
+        excess = excess.max(f64::from(d) - (1.1 + f64::from(step) / 32.0));
+    }
+    let n = triples.len() as f64;
+    (worst, sum as f64 / n, over as f64 / n, excess)
+}
+
+/// The largest step between the 2×2 source pixels around (x, y) in channel
+/// `c` of a `w`-wide image of `ch` channels.
+fn step(bytes: &[u8], w: usize, ch: usize, [x, y]: [f32; 2], c: usize) -> u8 {
+    let (x0, y0) = (x as usize, y as usize);
+    let px = |xx: usize, yy: usize| bytes.get((yy * w + xx) * ch + c).copied().unwrap_or(0);
+    let v = [
+        px(x0, y0),
+        px(x0 + 1, y0),
+        px(x0, y0 + 1),
+        px(x0 + 1, y0 + 1),
+    ];
+    v.iter().max().unwrap() - v.iter().min().unwrap()
+}
+/// OpenCV's bilinear `remap` of `src` through a float map (x, y per pixel,
+/// −1 where nothing is seen) of `w×h` pixels.
+fn opencv_remap(src: &impl core::ToInputArray, map: &[[f32; 2]], w: usize, h: usize) -> Vec<u8> {
+    let flat: Vec<f32> = map.iter().flatten().copied().collect();
+    let xy = Mat::new_rows_cols_with_data(h as i32, 2 * w as i32, &flat).unwrap();
+    let xy = xy.reshape(2, h as i32).unwrap();
+    let mut out = Mat::default();
+    imgproc::remap(
+        src,
+        &mut out,
+        &xy,
+        &core::no_array(),
+        imgproc::INTER_LINEAR,
+        core::BORDER_CONSTANT,
+        core::Scalar::all(0.0),
+    )
+    .unwrap();
+    out.data_bytes().unwrap().to_vec()
+}
+
+#[test]
+fn the_remap_agrees_with_opencv_on_the_real_images() {
+    let rig = formats::load(&data(), None, None).unwrap().rig;
+    let imgs = images(&rig);
+    let view = SurroundView::build(&rig, &spec(), &SurroundOptions::default()).unwrap();
+    let frames = views(&imgs);
+    let mut composer = Composer::new();
+    // Seams mode takes each canvas pixel from one camera alone: a plain
+    // RGB remap there.
+    let mut seams = Canvas::new(0, 0, 3);
+    composer
+        .compose(&view, &frames, BlendMode::Seams, &mut seams)
+        .unwrap();
+    let w = view.size().0;
+    let (mut mono, mut rgb) = (Vec::new(), Vec::new());
+    for (k, layer) in view.layers().iter().enumerate() {
+        let [c0, r0, rw, rh] = layer.roi;
+        let (iw, ih, bytes) = &imgs[k];
+        let src = Mat::new_rows_cols_with_data(*ih as i32, 3 * *iw as i32, bytes).unwrap();
+        let src = src.reshape(3, *ih as i32).unwrap();
+        let mut gray = Mat::default();
+        imgproc::cvt_color(&src, &mut gray, imgproc::COLOR_RGB2GRAY, 0).unwrap();
+        let cv_mono = opencv_remap(&gray, &layer.map, rw, rh);
+        let cv_rgb = opencv_remap(&src, &layer.map, rw, rh);
+        let gray = gray.data_bytes().unwrap();
+        let ours = composer.warp_camera(&view, k, &frames[k]).unwrap();
+        for (j, &at) in layer.map.iter().enumerate() {
+            if at[0] < 0.0 {
+                continue;
+            }
+            let i = (r0 + j / rw) * w + c0 + j % rw;
+            mono.push((ours.data[i], cv_mono[j], step(gray, *iw, 1, at, 0)));
+            if layer.weights[2][j] == 256 {
+                rgb.extend((0..3).map(|c| {
+                    (
+                        seams.data[3 * i + c],
+                        cv_rgb[3 * j + c],
+                        step(bytes, *iw, 3, at, c),
+                    )
+                }));
+            }
+        }
+    }
+    for (what, triples) in [("mono", &mono), ("RGB", &rgb)] {
+        let (worst, mean, over, excess) = differences(triples);
+        eprintln!(
+            "{what} remap against OpenCV over {} values: largest difference {worst}, mean {mean:.3}, {:.2} % more than 1 apart; largest excess over 1.1 + step/32: {excess:.2}",
+            triples.len(),
+            100.0 * over
+        );
+        assert!(excess <= 0.0, "{what}: {excess}");
+        assert!(mean < 0.3, "{what}: mean {mean}");
     }
 }

@@ -1,10 +1,9 @@
 //! Per-frame composition of the surround view.
 
-use opencv::core::{
-    Mat, MatTraitConst, MatTraitConstManual, Scalar, ToInputArray, BORDER_CONSTANT,
-};
+use opencv::core::{Mat, MatTraitConst, MatTraitConstManual};
 use opencv::imgproc;
 
+use super::remap::Image;
 use super::{BlendMode, SurroundView};
 use crate::error::{Error, Result};
 use crate::exposure::{FrameView, PixelFormat};
@@ -38,14 +37,25 @@ impl Canvas {
 /// to frame.
 #[derive(Debug, Default)]
 pub struct Composer {
-    acc: Vec<u16>,
+    /// Per camera, frames converted to packed 8 bits.
     scratch: Vec<Vec<u8>>,
+    /// Per camera, frames converted between mono and RGB.
     converted: Vec<Mat>,
-    warped: Vec<Mat>,
 }
 
 fn cv(context: &str, e: opencv::Error) -> Error {
     Error::InvalidConfig(format!("surround view: {context}: {e}"))
+}
+
+/// Where a camera's 8-bit pixels with the canvas's channel count are.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Prepared {
+    /// The frame's own buffer.
+    Frame,
+    /// The composer's scratch buffer.
+    Scratch,
+    /// The composer's converted Mat.
+    Converted,
 }
 
 impl Composer {
@@ -56,7 +66,7 @@ impl Composer {
 
     /// Composes `frames` (one per camera, rig order; Mono8/12/16 or RGB8)
     /// into `out`, whose `channels` (1 or 3) say mono or RGB; `out` is
-    /// resized to the view's canvas.
+    /// resized to the view's canvas and every pixel is written.
     pub fn compose(
         &mut self,
         view: &SurroundView,
@@ -66,87 +76,75 @@ impl Composer {
     ) -> Result<()> {
         let (w, h) = view.size();
         let ch = out.channels;
-        if ch != 1 && ch != 3 {
-            return Err(Error::InvalidParameter {
-                name: "canvas.channels",
-                value: ch as f64,
-                expected: "1 (mono) or 3 (RGB)",
-            });
-        }
+        check_channels(ch)?;
         view.check_frames(frames)?;
-        let layers = view.layers();
-        self.scratch.resize_with(layers.len(), Vec::new);
-        self.converted.resize_with(layers.len(), Mat::default);
-        self.warped.resize_with(layers.len(), Mat::default);
-        // Pixels no camera covers stay black; blended pixels are summed in
-        // `acc`, which only they use (zeroed where they lie).
+        let images = self.images(frames, ch)?;
         out.width = w;
         out.height = h;
-        out.data.clear();
         out.data.resize(w * h * ch, 0);
-        self.acc.resize(w * h * ch, 0);
-        for &(start, len) in view.blended(mode) {
-            self.acc[start * ch..(start + len) * ch].fill(0);
-        }
-        for (k, (layer, frame)) in layers.iter().zip(frames).enumerate() {
-            let (bytes, src_ch) =
-                bytes_8bit(frame, &mut self.scratch[k]).map_err(Error::InvalidConfig)?;
-            let flat = flat_mat(frame, bytes, src_ch)?;
+        view.plan(mode).execute(&images, ch, &mut out.data)
+    }
+
+    /// Each frame as packed 8-bit pixels of `ch` channels, converted into
+    /// the composer's buffers where it is not that already.
+    fn images<'s>(&'s mut self, frames: &[FrameView<'s>], ch: usize) -> Result<Vec<Image<'s>>> {
+        let n = frames.len();
+        self.scratch.resize_with(n, Vec::new);
+        self.converted.resize_with(n, Mat::default);
+        let mut prepared = Vec::with_capacity(n);
+        for ((frame, scratch), converted) in frames
+            .iter()
+            .zip(&mut self.scratch)
+            .zip(&mut self.converted)
+        {
+            let (in_scratch, src_ch) = bytes_8bit(frame, scratch).map_err(Error::InvalidConfig)?;
+            if src_ch == ch {
+                prepared.push(if in_scratch {
+                    Prepared::Scratch
+                } else {
+                    Prepared::Frame
+                });
+                continue;
+            }
+            let bytes = if in_scratch {
+                scratch.as_slice()
+            } else {
+                frame.packed().unwrap_or_default()
+            };
+            let flat = Mat::new_rows_cols_with_data(
+                frame.height() as i32,
+                (frame.width() * src_ch) as i32,
+                bytes,
+            )
+            .map_err(|e| cv("frame", e))?;
             let shaped = flat
                 .reshape(src_ch as i32, frame.height() as i32)
                 .map_err(|e| cv("frame", e))?;
-            let layer_maps = (&layer.map1, &layer.map2);
-            match (src_ch, ch) {
-                (3, 1) | (1, 3) => {
-                    let code = if src_ch == 3 {
-                        imgproc::COLOR_RGB2GRAY
-                    } else {
-                        imgproc::COLOR_GRAY2RGB
-                    };
-                    imgproc::cvt_color(&shaped, &mut self.converted[k], code, 0)
-                        .map_err(|e| cv("colour conversion", e))?;
-                    remap(&self.converted[k], layer_maps, &mut self.warped[k])?;
-                }
-                _ => remap(&shaped, layer_maps, &mut self.warped[k])?,
-            }
-            let [c0, r0, rw, _] = layer.roi;
-            let warped = self.warped[k]
-                .data_bytes()
-                .map_err(|e| cv("remap output", e))?;
-            let weights = &layer.weights[mode.index()];
-            for span in &layer.spans[mode.index()] {
-                let (rr, cc, len) = (span.row as usize, span.col as usize, span.len as usize);
-                let src = &warped[(rr * rw + cc) * ch..(rr * rw + cc + len) * ch];
-                let start = ((r0 + rr) * w + c0 + cc) * ch;
-                if !span.blend {
-                    out.data[start..start + len * ch].copy_from_slice(src);
-                    continue;
-                }
-                let wrow = &weights[rr * rw + cc..rr * rw + cc + len];
-                let dst = &mut self.acc[start..start + len * ch];
-                if ch == 1 {
-                    for ((d, &s), &wt) in dst.iter_mut().zip(src).zip(wrow) {
-                        *d += wt * u16::from(s);
-                    }
-                } else {
-                    let (dst, _) = dst.as_chunks_mut::<3>();
-                    let (src, _) = src.as_chunks::<3>();
-                    for ((d, s), &wt) in dst.iter_mut().zip(src).zip(wrow) {
-                        for c in 0..3 {
-                            d[c] += wt * u16::from(s[c]);
-                        }
-                    }
-                }
-            }
+            let code = if src_ch == 3 {
+                imgproc::COLOR_RGB2GRAY
+            } else {
+                imgproc::COLOR_GRAY2RGB
+            };
+            imgproc::cvt_color(&shaped, converted, code, 0)
+                .map_err(|e| cv("colour conversion", e))?;
+            prepared.push(Prepared::Converted);
         }
-        // The blended pixels, from their sums.
-        for &(start, len) in view.blended(mode) {
-            let span = start * ch..(start + len) * ch;
-            for (o, &v) in out.data[span.clone()].iter_mut().zip(&self.acc[span]) {
-                *o = ((u32::from(v) + 128) >> 8).min(255) as u8;
-            }
+        let mut images = Vec::with_capacity(n);
+        for (k, (frame, how)) in frames.iter().zip(prepared).enumerate() {
+            let bytes = match how {
+                Prepared::Frame => frame.packed().unwrap_or_default(),
+                Prepared::Scratch => self.scratch[k].as_slice(),
+                Prepared::Converted => self.converted[k]
+                    .data_bytes()
+                    .map_err(|e| cv("colour conversion", e))?,
+            };
+            images.push(Image {
+                bytes,
+                width: frame.width(),
+                height: frame.height(),
+            });
         }
-        Ok(())
+        Ok(images)
     }
 }
 
@@ -160,71 +158,36 @@ impl Composer {
         k: usize,
         frame: &FrameView<'_>,
     ) -> Result<Canvas> {
-        let layer = view.layers().get(k).ok_or(Error::CameraIndex {
-            index: k,
-            count: view.layers().len(),
-        })?;
-        let mut scratch = Vec::new();
-        let (bytes, src_ch) = bytes_8bit(frame, &mut scratch).map_err(Error::InvalidConfig)?;
-        let flat = flat_mat(frame, bytes, src_ch)?;
-        let shaped = flat
-            .reshape(src_ch as i32, frame.height() as i32)
-            .map_err(|e| cv("frame", e))?;
-        let mut mono = Mat::default();
-        let mut warped = Mat::default();
-        if src_ch == 3 {
-            imgproc::cvt_color(&shaped, &mut mono, imgproc::COLOR_RGB2GRAY, 0)
-                .map_err(|e| cv("colour conversion", e))?;
-            remap(&mono, (&layer.map1, &layer.map2), &mut warped)?;
-        } else {
-            remap(&shaped, (&layer.map1, &layer.map2), &mut warped)?;
-        }
-        let bytes = warped.data_bytes().map_err(|e| cv("remap output", e))?;
+        let count = view.layers().len();
+        let plan = view
+            .camera_plan(k)
+            .ok_or(Error::CameraIndex { index: k, count })?;
+        view.layers()[k].check_frame(frame)?;
+        let images = self.images(std::slice::from_ref(frame), 1)?;
         let (w, h) = view.size();
         let mut out = Canvas::new(w, h, 1);
-        let [c0, r0, rw, rh] = layer.roi;
-        for rr in 0..rh {
-            for cc in 0..rw {
-                if layer.map[rr * rw + cc][0] >= 0.0 {
-                    out.data[(r0 + rr) * w + c0 + cc] = bytes[rr * rw + cc];
-                }
-            }
-        }
+        plan.execute(&images, 1, &mut out.data)?;
         Ok(out)
     }
 }
 
-/// `bytes` (a frame's 8-bit pixels, `ch` channels) as a one-channel Mat of
-/// `width·ch` columns, borrowed.
-fn flat_mat<'a>(
+fn check_channels(ch: usize) -> Result<()> {
+    if ch != 1 && ch != 3 {
+        return Err(Error::InvalidParameter {
+            name: "canvas.channels",
+            value: ch as f64,
+            expected: "1 (mono) or 3 (RGB)",
+        });
+    }
+    Ok(())
+}
+
+/// Where the 8-bit bytes of `frame` are (`true`: converted into `scratch`,
+/// `false`: the frame's own packed buffer) and their channel count.
+fn bytes_8bit(
     frame: &FrameView<'_>,
-    bytes: &'a [u8],
-    ch: usize,
-) -> Result<opencv::boxed_ref::BoxedRef<'a, Mat>> {
-    Mat::new_rows_cols_with_data(frame.height() as i32, (frame.width() * ch) as i32, bytes)
-        .map_err(|e| cv("frame", e))
-}
-
-/// Bilinear remap of `src` through fixed-point maps into `dst`.
-fn remap(src: &impl ToInputArray, maps: (&Mat, &Mat), dst: &mut Mat) -> Result<()> {
-    imgproc::remap(
-        src,
-        dst,
-        maps.0,
-        maps.1,
-        imgproc::INTER_LINEAR,
-        BORDER_CONSTANT,
-        Scalar::all(0.0),
-    )
-    .map_err(|e| cv("remap", e))
-}
-
-/// The 8-bit bytes of `frame` and their channel count: the frame's own
-/// buffer where it is packed Mono8 or RGB8, else a conversion in `scratch`.
-fn bytes_8bit<'a>(
-    frame: &FrameView<'a>,
-    scratch: &'a mut Vec<u8>,
-) -> std::result::Result<(&'a [u8], usize), String> {
+    scratch: &mut Vec<u8>,
+) -> std::result::Result<(bool, usize), String> {
     let rows = |scratch: &mut Vec<u8>| {
         scratch.clear();
         for y in 0..frame.height() {
@@ -234,12 +197,11 @@ fn bytes_8bit<'a>(
     match frame.format() {
         PixelFormat::Mono8 | PixelFormat::Rgb8 => {
             let ch = if frame.format() == PixelFormat::Rgb8 { 3 } else { 1 };
-            match frame.packed() {
-                Some(bytes) => Ok((bytes, ch)),
-                None => {
-                    rows(scratch);
-                    Ok((scratch.as_slice(), ch))
-                }
+            if frame.packed().is_some() {
+                Ok((false, ch))
+            } else {
+                rows(scratch);
+                Ok((true, ch))
             }
         }
         PixelFormat::Mono12 | PixelFormat::Mono16 => {
@@ -253,7 +215,7 @@ fn bytes_8bit<'a>(
                         .map(|b| (u16::from_le_bytes([b[0], b[1]]) >> shift).min(255) as u8),
                 );
             }
-            Ok((scratch.as_slice(), 1))
+            Ok((true, 1))
         }
         other => Err(format!(
             "pixel format {} is not supported by the surround view: expected Mono8, Mono12, Mono16 or RGB8",

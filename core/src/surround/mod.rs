@@ -32,10 +32,12 @@
 //! # Built once, used every frame
 //!
 //! [`SurroundView::build`] maps every canvas pixel directly to sub-pixel
-//! positions in the fisheye images (no intermediate undistorted image) and
-//! turns the maps into OpenCV's fixed-point form (`convertMaps`). Per frame,
-//! [`Composer::compose`] remaps each camera's part of the canvas (OpenCV
-//! `remap`, bilinear) and blends the parts with 8-bit weights.
+//! positions in the fisheye images (no intermediate undistorted image). On
+//! first use of a blend mode it turns the maps and weights into a plan of
+//! fixed-point bilinear taps with the blend weights folded in (`remap.rs`):
+//! per frame, [`Composer::compose`] then writes each canvas pixel once,
+//! from one gathered bilinear sample where one camera shows it and from the
+//! sum of the cameras' samples in the overlaps.
 //!
 //! It also derives the **ground masks** (the source pixels that reach the
 //! canvas: only these are metered) and the **overlap patches** (a grid of
@@ -44,9 +46,12 @@
 //! balancing its patch means.
 
 mod compose;
+mod remap;
+
+use std::sync::OnceLock;
 
 use nalgebra::{Point2, Vector3};
-use opencv::core::{Mat, MatTraitConst, MatTraitConstManual, CV_32F};
+use opencv::core::{Mat, MatTraitConstManual, CV_32F};
 use opencv::imgproc;
 use serde::{Deserialize, Serialize};
 
@@ -259,55 +264,25 @@ pub struct CameraLayer {
     /// camera contributes nothing.
     pub map: Vec<[f32; 2]>,
     /// Per blend mode ([`BlendMode::ALL`] order), per ROI pixel, the weight
-    /// in 1/256 (the weights of all cameras sum to 256 on a covered pixel).
+    /// in 1/256 (the weights of all cameras sum to exactly 256 on a covered
+    /// pixel).
     pub weights: [Vec<u16>; 3],
-    /// OpenCV's fixed-point maps of `map` (`CV_16SC2` and `CV_16UC1`).
-    map1: Mat,
-    map2: Mat,
-    /// Per blend mode, the runs of ROI pixels the camera contributes to.
-    spans: [Vec<Span>; 3],
 }
 
-/// A run of pixels along one ROI row that a camera contributes to: alone
-/// (weight 256, copied) or blended with others.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(crate) struct Span {
-    /// ROI row.
-    pub(crate) row: u32,
-    /// First ROI column.
-    pub(crate) col: u32,
-    /// Number of pixels.
-    pub(crate) len: u32,
-    /// Whether other cameras contribute too.
-    pub(crate) blend: bool,
-}
-
-/// The runs of non-zero weights of a `rw`-wide ROI, split where the weight
-/// changes between 256 (alone) and less (blended).
-fn spans_of(weights: &[u16], rw: usize) -> Vec<Span> {
-    let mut spans = Vec::new();
-    for (row, line) in weights.chunks_exact(rw.max(1)).enumerate() {
-        let mut col = 0;
-        while col < line.len() {
-            let wt = line[col];
-            if wt == 0 {
-                col += 1;
-                continue;
-            }
-            let blend = wt < 256;
-            let start = col;
-            while col < line.len() && line[col] != 0 && (line[col] < 256) == blend {
-                col += 1;
-            }
-            spans.push(Span {
-                row: row as u32,
-                col: start as u32,
-                len: (col - start) as u32,
-                blend,
+impl CameraLayer {
+    /// Checks that `frame` has the camera's calibrated size.
+    pub fn check_frame(&self, frame: &FrameView<'_>) -> Result<()> {
+        if (frame.width(), frame.height()) != self.source {
+            return Err(Error::SizeMismatch {
+                what: "frame against its camera's calibration",
+                expected_width: self.source.0,
+                expected_height: self.source.1,
+                width: frame.width(),
+                height: frame.height(),
             });
         }
+        Ok(())
     }
-    spans
 }
 
 /// One overlap patch: the source pixels (row-major indices) of one small
@@ -342,9 +317,8 @@ pub struct SurroundView {
     width: usize,
     height: usize,
     layers: Vec<CameraLayer>,
-    /// Per blend mode, the runs of canvas pixels blended from several
-    /// cameras (first pixel index, length).
-    blended: [Vec<(usize, usize)>; 3],
+    /// Per blend mode, the per-frame plan, built on first use.
+    plans: [OnceLock<remap::Plan>; 3],
     masks: Vec<RoiMask>,
     overlaps: Vec<Overlap>,
 }
@@ -406,6 +380,16 @@ impl SurroundView {
                     cam.name
                 )));
             };
+            let (iw, ih) = (
+                cam.intrinsics.width as usize,
+                cam.intrinsics.height as usize,
+            );
+            if iw < 2 || ih < 2 || iw.checked_mul(ih).is_none_or(|p| p > u32::MAX as usize) {
+                return Err(Error::InvalidConfig(format!(
+                    "surround view: camera `{}` has {iw}×{ih} images: expected at least 2×2 and at most 2³² pixels",
+                    cam.name
+                )));
+            }
             let axis = pose.optical_axis();
             sides.push(Side::of_yaw(axis.y.atan2(axis.x)));
         }
@@ -452,6 +436,7 @@ impl SurroundView {
             })?);
         }
         let mut layers = Vec::with_capacity(n);
+        let mut scratch = BlendScratch::default();
         for (k, cam) in rig.cameras.iter().enumerate() {
             let covered = |i: usize| source[k][i][0] >= 0.0;
             let Some(roi) = bounding_box(w, h, covered) else {
@@ -468,7 +453,7 @@ impl SurroundView {
                     let i = r * w + c;
                     map.push(source[k][i]);
                     let [lin, alpha, seam] = if covered(i) {
-                        blend_weights(k, i, &source, &distance)
+                        blend_weights(k, i, &source, &distance, &mut scratch)
                     } else {
                         [0, 0, 0]
                     };
@@ -477,25 +462,15 @@ impl SurroundView {
                     weights[2].push(seam);
                 }
             }
-            let (map1, map2) = fixed_point_maps(&map, rw, rh).map_err(|e| {
-                Error::InvalidConfig(format!(
-                    "surround view: camera `{}`: convertMaps: {e}",
-                    cam.name
-                ))
-            })?;
-            let spans = std::array::from_fn(|m| spans_of(&weights[m], rw));
             layers.push(CameraLayer {
                 camera: k,
                 roi,
-                spans,
                 source: (
                     cam.intrinsics.width as usize,
                     cam.intrinsics.height as usize,
                 ),
                 map,
                 weights,
-                map1,
-                map2,
             });
         }
         let masks = rig
@@ -509,21 +484,68 @@ impl SurroundView {
             .iter()
             .map(|&(i, j)| overlap(spec, w, h, i, j, &source, &layers, options))
             .collect();
-        let blended = blended_runs(&layers, w, h);
         Ok(Self {
             spec: spec.clone(),
             width: w,
             height: h,
             layers,
-            blended,
+            plans: Default::default(),
             masks,
             overlaps,
         })
     }
 
-    /// The runs of canvas pixels that `mode` blends from several cameras.
-    pub(crate) fn blended(&self, mode: BlendMode) -> &[(usize, usize)] {
-        &self.blended[mode.index()]
+    /// The per-frame plan of `mode` (built on its first use).
+    pub(crate) fn plan(&self, mode: BlendMode) -> &remap::Plan {
+        let m = mode.index();
+        self.plans[m].get_or_init(|| {
+            let (w, layers) = (self.width, &self.layers);
+            let sources = layers.iter().map(|l| l.source).collect();
+            remap::Plan::build(w, w * self.height, sources, |i, list| {
+                let (c, r) = (i % w, i / w);
+                for (k, layer) in layers.iter().enumerate() {
+                    let [c0, r0, rw, rh] = layer.roi;
+                    if c < c0 || r < r0 || c >= c0 + rw || r >= r0 + rh {
+                        continue;
+                    }
+                    let j = (r - r0) * rw + (c - c0);
+                    let weight = layer.weights[m][j];
+                    if weight > 0 {
+                        list.push(remap::Contribution {
+                            camera: k as u32,
+                            at: layer.map[j],
+                            weight: f64::from(weight),
+                        });
+                    }
+                }
+            })
+        })
+    }
+
+    /// The plan of camera `k` alone over the pixels it sees, unweighted.
+    pub(crate) fn camera_plan(&self, k: usize) -> Option<remap::Plan> {
+        let layer = self.layers.get(k)?;
+        let w = self.width;
+        let [c0, r0, rw, rh] = layer.roi;
+        Some(remap::Plan::build(
+            w,
+            w * self.height,
+            vec![layer.source],
+            |i, list| {
+                let (c, r) = (i % w, i / w);
+                if c < c0 || r < r0 || c >= c0 + rw || r >= r0 + rh {
+                    return;
+                }
+                let at = layer.map[(r - r0) * rw + (c - c0)];
+                if at[0] >= 0.0 {
+                    list.push(remap::Contribution {
+                        camera: 0,
+                        at,
+                        weight: 1.0,
+                    });
+                }
+            },
+        ))
     }
 
     /// The canvas spec.
@@ -561,18 +583,10 @@ impl SurroundView {
                 self.layers.len()
             )));
         }
-        for (layer, f) in self.layers.iter().zip(frames) {
-            if (f.width(), f.height()) != layer.source {
-                return Err(Error::SizeMismatch {
-                    what: "frame against its camera's calibration",
-                    expected_width: layer.source.0,
-                    expected_height: layer.source.1,
-                    width: f.width(),
-                    height: f.height(),
-                });
-            }
-        }
-        Ok(())
+        self.layers
+            .iter()
+            .zip(frames)
+            .try_for_each(|(layer, f)| layer.check_frame(f))
     }
 
     /// The patch means of every overlap in the current frames (rig order),
@@ -644,60 +658,66 @@ fn distance_to_zero(mask: &[u8], w: usize, h: usize) -> opencv::Result<Vec<f32>>
     Ok(dst.data_typed::<f32>()?.to_vec())
 }
 
+/// Buffers of [`blend_weights`], reused from pixel to pixel.
+#[derive(Debug, Default)]
+struct BlendScratch {
+    seeing: Vec<usize>,
+    inv: Vec<f64>,
+    exact: Vec<f64>,
+    rounded: Vec<u32>,
+}
+
 /// The 1/256 weights of camera `k` at canvas pixel `i` for the three blend
-/// modes.
-fn blend_weights(k: usize, i: usize, source: &[Vec<[f32; 2]>], distance: &[Vec<f32>]) -> [u16; 3] {
-    let seeing = || (0..source.len()).filter(move |&m| source[m][i][0] >= 0.0);
-    let n = seeing().count();
-    if n <= 1 {
+/// modes. The weights of all cameras seeing the pixel are rounded together
+/// ([`mode_weights`]), so that they sum to exactly 256 in every mode.
+fn blend_weights(
+    k: usize,
+    i: usize,
+    source: &[Vec<[f32; 2]>],
+    distance: &[Vec<f32>],
+    scratch: &mut BlendScratch,
+) -> [u16; 3] {
+    let s = scratch;
+    s.seeing.clear();
+    s.seeing
+        .extend((0..source.len()).filter(|&m| source[m][i][0] >= 0.0));
+    let Some(me) = s.seeing.iter().position(|&m| m == k) else {
+        return [0, 0, 0];
+    };
+    if s.seeing.len() == 1 {
         return [256, 256, 256];
     }
     // w ∝ 1/d², with d floored at half a pixel.
-    let inv = |m: usize| 1.0 / f64::from(distance[m][i].max(0.5)).powi(2);
-    let total: f64 = seeing().map(inv).sum();
-    let best = seeing()
-        .max_by(|&a, &b| inv(a).total_cmp(&inv(b)))
-        .unwrap_or(k);
-    [
-        to_weight(inv(k) / total),
-        to_weight(1.0 / n as f64),
-        if best == k { 256 } else { 0 },
-    ]
+    s.inv.clear();
+    s.inv.extend(
+        s.seeing
+            .iter()
+            .map(|&m| 1.0 / f64::from(distance[m][i].max(0.5)).powi(2)),
+    );
+    // The last camera of the largest weight takes the seam pixel.
+    let best = (0..s.inv.len())
+        .max_by(|&a, &b| s.inv[a].total_cmp(&s.inv[b]))
+        .unwrap_or(me);
+    let [linear, alpha] = mode_weights(&s.inv, me, &mut s.exact, &mut s.rounded);
+    [linear, alpha, if best == me { 256 } else { 0 }]
 }
 
-/// Per blend mode, the runs of canvas pixels that more than one camera
-/// contributes to, as (first pixel index, length), each within one row.
-fn blended_runs(layers: &[CameraLayer], w: usize, h: usize) -> [Vec<(usize, usize)>; 3] {
-    std::array::from_fn(|m| {
-        let mut blended = vec![false; w * h];
-        for layer in layers {
-            let [c0, r0, _, _] = layer.roi;
-            for span in layer.spans[m].iter().filter(|s| s.blend) {
-                let start = (r0 + span.row as usize) * w + c0 + span.col as usize;
-                blended[start..start + span.len as usize].fill(true);
-            }
-        }
-        let mut runs = Vec::new();
-        for (r, row) in blended.chunks_exact(w.max(1)).enumerate() {
-            let mut c = 0;
-            while c < row.len() {
-                if !row[c] {
-                    c += 1;
-                    continue;
-                }
-                let start = c;
-                while c < row.len() && row[c] {
-                    c += 1;
-                }
-                runs.push((r * w + start, c - start));
-            }
-        }
-        runs
-    })
-}
-
-fn to_weight(f: f64) -> u16 {
-    (f * 256.0).round().clamp(0.0, 256.0) as u16
+/// The linear and alpha weights (1/256) of camera `me` among the cameras
+/// seeing a pixel, from their `1/d²` (`inv`): each mode's weights of all
+/// the cameras are rounded together to sum to exactly 256 (rounding each on
+/// its own gives 257 when two fall on a half, 255 for three thirds).
+fn mode_weights(inv: &[f64], me: usize, exact: &mut Vec<f64>, rounded: &mut Vec<u32>) -> [u16; 2] {
+    let total: f64 = inv.iter().sum();
+    let n = inv.len() as f64;
+    rounded.resize(inv.len(), 0);
+    exact.clear();
+    exact.extend(inv.iter().map(|&v| 256.0 * v / total));
+    remap::round_to_total(exact, 256, rounded);
+    let linear = rounded[me] as u16;
+    exact.clear();
+    exact.resize(inv.len(), 256.0 / n);
+    remap::round_to_total(exact, 256, rounded);
+    [linear, rounded[me] as u16]
 }
 
 /// The smallest rectangle holding every pixel where `covered` holds.
@@ -714,35 +734,6 @@ fn bounding_box(w: usize, h: usize, covered: impl Fn(usize) -> bool) -> Option<[
         }
     }
     (c0 != usize::MAX).then(|| [c0, r0, c1 - c0 + 1, r1 - r0 + 1])
-}
-
-/// OpenCV's fixed-point maps (`CV_16SC2` + `CV_16UC1`) of a float map.
-/// Pixels without a source read the source's first pixel instead: their
-/// weight is 0 anyway, and an in-range position keeps `remap` on its fast
-/// path (out-of-range positions go through its slow border handling).
-fn fixed_point_maps(map: &[[f32; 2]], w: usize, h: usize) -> opencv::Result<(Mat, Mat)> {
-    let flat: Vec<f32> = map
-        .iter()
-        .flat_map(|p| {
-            if p[0] >= 0.0 {
-                [p[0], p[1]]
-            } else {
-                [0.0, 0.0]
-            }
-        })
-        .collect();
-    let xy = Mat::new_rows_cols_with_data(h as i32, (2 * w) as i32, &flat)?;
-    let xy = xy.reshape(2, h as i32)?;
-    let (mut map1, mut map2) = (Mat::default(), Mat::default());
-    imgproc::convert_maps(
-        &xy,
-        &Mat::default(),
-        &mut map1,
-        &mut map2,
-        opencv::core::CV_16SC2,
-        false,
-    )?;
-    Ok((map1, map2))
 }
 
 /// The source pixels of camera `cam` whose ground point lands on a canvas
@@ -917,5 +908,189 @@ mod tests {
         let [c0, r0, w, h] = s.vehicle_rect_px();
         assert_eq!((w, h), (190, 460));
         assert_eq!((c0, r0), (405, 270));
+    }
+
+    #[test]
+    fn linear_weights_sum_to_256_on_an_exact_tie() {
+        // 1/d² of 257 and 255: shares of exactly 128.5 and 127.5 of 256,
+        // which rounded one by one make 257.
+        let inv = [257.0, 255.0];
+        let total: f64 = inv.iter().sum();
+        let each: u32 = inv.iter().map(|v| (256.0 * v / total).round() as u32).sum();
+        assert_eq!(each, 257);
+        let (mut exact, mut rounded) = (Vec::new(), Vec::new());
+        let w: Vec<[u16; 2]> = (0..2)
+            .map(|me| mode_weights(&inv, me, &mut exact, &mut rounded))
+            .collect();
+        assert_eq!(w[0][0] + w[1][0], 256, "linear {w:?}");
+        assert_eq!(w[0][1] + w[1][1], 256, "alpha {w:?}");
+        assert_eq!((w[0][0], w[1][0]), (129, 127));
+        // Three cameras alike: thirds, which rounded one by one make 255.
+        let w: Vec<[u16; 2]> = (0..3)
+            .map(|me| mode_weights(&[1.0; 3], me, &mut exact, &mut rounded))
+            .collect();
+        assert_eq!(w.iter().map(|w| w[0]).sum::<u16>(), 256);
+        assert_eq!(w.iter().map(|w| w[1]).sum::<u16>(), 256);
+    }
+
+    /// A small four-fisheye rig like the benchmark's (185° equidistant
+    /// lenses, 1 m high, past the four sides of a 4.6 m × 1.9 m car), with
+    /// `w×h` images, and a 10 m × 10 m canvas at 10 px/m.
+    fn small_view(w: u32, h: u32) -> SurroundView {
+        use rigview_calib::model::{Distortion, Intrinsics};
+        use rigview_calib::pose::Pose;
+        use rigview_calib::rig::{Camera, Frame};
+        let f = (f64::from(w) / 2.0) / 92.5f64.to_radians();
+        let intrinsics = Intrinsics {
+            width: w,
+            height: h,
+            fx: f,
+            fy: f,
+            cx: f64::from(w) / 2.0 - 0.5,
+            cy: f64::from(h) / 2.0 - 0.5,
+            distortion: Distortion::Fisheye([0.0; 4]),
+        };
+        let cameras = [
+            ("front", [0.0, 30.0, 0.0], [2.3, 0.0, 1.0]),
+            ("left", [90.0, 45.0, 0.0], [0.0, 0.95, 1.0]),
+            ("back", [180.0, 30.0, 0.0], [-2.3, 0.0, 1.0]),
+            ("right", [-90.0, 45.0, 0.0], [0.0, -0.95, 1.0]),
+        ]
+        .iter()
+        .map(|(name, ypr, t)| {
+            let mut c = Camera::new(*name, intrinsics);
+            c.pose = Some(Pose::from_ypr_deg(*ypr, Vector3::from(*t)).unwrap());
+            c
+        })
+        .collect();
+        let rig = Rig::new(
+            Frame::Vehicle,
+            cameras,
+            vec![(0, 1), (1, 2), (2, 3), (0, 3)],
+        )
+        .unwrap();
+        let spec = CanvasSpec {
+            px_per_m: 10.0,
+            ..CanvasSpec::default()
+        };
+        SurroundView::build(&rig, &spec, &SurroundOptions::default()).unwrap()
+    }
+
+    #[test]
+    fn every_covered_pixel_has_weights_summing_to_256_in_every_mode() {
+        let view = small_view(160, 120);
+        let (w, h) = view.size();
+        for m in 0..3 {
+            let mut sum = vec![0u32; w * h];
+            for layer in view.layers() {
+                let [c0, r0, rw, rh] = layer.roi;
+                for r in 0..rh {
+                    for c in 0..rw {
+                        sum[(r0 + r) * w + c0 + c] += u32::from(layer.weights[m][r * rw + c]);
+                    }
+                }
+            }
+            let covered = sum.iter().filter(|&&s| s > 0).count();
+            assert!(covered > w * h / 2, "{covered}");
+            assert!(
+                sum.iter().all(|&s| s == 0 || s == 256),
+                "mode {}: sums {:?}",
+                BlendMode::ALL[m].name(),
+                sum.iter()
+                    .filter(|&&s| s != 0 && s != 256)
+                    .collect::<Vec<_>>()
+            );
+        }
+    }
+
+    #[test]
+    fn compositions_are_within_a_level_of_the_exact_blend_in_every_mode() {
+        use crate::exposure::PixelFormat;
+        use rand::{Rng, SeedableRng};
+        let (sw, sh) = (160usize, 120usize);
+        let view = small_view(sw as u32, sh as u32);
+        let (w, h) = view.size();
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        let rgb: Vec<Vec<u8>> = (0..4)
+            .map(|_| (0..sw * sh * 3).map(|_| rng.gen::<u8>()).collect())
+            .collect();
+        let gray: Vec<Vec<u8>> = (0..4)
+            .map(|_| (0..sw * sh).map(|_| rng.gen::<u8>()).collect())
+            .collect();
+        fn frames(data: &[Vec<u8>], f: PixelFormat, (w, h): (usize, usize)) -> Vec<FrameView<'_>> {
+            data.iter()
+                .map(|d| FrameView::new(f, w, h, d).unwrap())
+                .collect()
+        }
+        // The exact blend of channel `c` of canvas pixel (`col`, `row`).
+        let exact = |data: &[Vec<u8>], ch: usize, m: usize, col: usize, row: usize, c: usize| {
+            let mut v = 0.0;
+            for (k, layer) in view.layers().iter().enumerate() {
+                let [c0, r0, rw, rh] = layer.roi;
+                if col < c0 || row < r0 || col >= c0 + rw || row >= r0 + rh {
+                    continue;
+                }
+                let j = (row - r0) * rw + col - c0;
+                let wt = f64::from(layer.weights[m][j]) / 256.0;
+                if wt == 0.0 {
+                    continue;
+                }
+                let [x, y] = layer.map[j].map(f64::from);
+                let (x0, y0) = (x.floor() as usize, y.floor() as usize);
+                let (fx, fy) = (x - x0 as f64, y - y0 as f64);
+                let px = |xx: usize, yy: usize| {
+                    f64::from(data[k][(yy.min(sh - 1) * sw + xx.min(sw - 1)) * ch + c])
+                };
+                v += wt
+                    * ((1.0 - fy) * ((1.0 - fx) * px(x0, y0) + fx * px(x0 + 1, y0))
+                        + fy * ((1.0 - fx) * px(x0, y0 + 1) + fx * px(x0 + 1, y0 + 1)));
+            }
+            v
+        };
+        let mut composer = Composer::new();
+        for mode in BlendMode::ALL {
+            for (data, format, ch) in [(&rgb, PixelFormat::Rgb8, 3), (&gray, PixelFormat::Mono8, 1)]
+            {
+                // A canvas of another size and full of garbage: resized,
+                // and every pixel written.
+                let mut canvas = Canvas {
+                    width: 3,
+                    height: 3,
+                    channels: ch,
+                    data: vec![0x5a; 7 * w * h * ch],
+                };
+                composer
+                    .compose(&view, &frames(data, format, (sw, sh)), mode, &mut canvas)
+                    .unwrap();
+                assert_eq!(
+                    (canvas.width, canvas.height, canvas.data.len()),
+                    (w, h, w * h * ch)
+                );
+                let mut worst = 0.0f64;
+                for row in 0..h {
+                    for col in 0..w {
+                        for c in 0..ch {
+                            let got = f64::from(canvas.data[(row * w + col) * ch + c]);
+                            let err = (got - exact(data, ch, mode.index(), col, row, c)).abs();
+                            worst = worst.max(err);
+                        }
+                    }
+                }
+                eprintln!("{}, {ch} channels: worst error {worst:.3}", mode.name());
+                assert!(worst < 0.75, "{} {ch}: {worst}", mode.name());
+            }
+            // Mono frames on an RGB canvas: the mono composition in each
+            // channel.
+            let gray_frames = frames(&gray, PixelFormat::Mono8, (sw, sh));
+            let (mut mono, mut colour) = (Canvas::new(0, 0, 1), Canvas::new(0, 0, 3));
+            for canvas in [&mut mono, &mut colour] {
+                composer.compose(&view, &gray_frames, mode, canvas).unwrap();
+            }
+            assert!(colour
+                .data
+                .chunks_exact(3)
+                .zip(&mono.data)
+                .all(|(p, &v)| p == [v, v, v]));
+        }
     }
 }
