@@ -3,38 +3,48 @@
 //!
 //! # The plan
 //!
-//! A [`Plan`] is built once per view and blend mode. It cuts the canvas
-//! (row-major, as one line of pixels) into runs of pixels that the same
-//! cameras contribute to: a run of one camera is a plain remap written
-//! straight into the canvas, a run of several cameras sums their samples
-//! before it writes; the pixels no camera shows are runs of black. Every
-//! canvas pixel lies in exactly one run, so a composition writes each pixel
-//! once and needs no cleared canvas and no accumulator.
+//! A [`Plan`] is built once per view and blend mode. It walks the canvas in
+//! tiles and cuts each tile's rows into runs of pixels that the same cameras
+//! contribute to: a run of one camera is a plain remap written straight
+//! into the canvas, a run of several cameras sums their samples before it
+//! writes; the pixels no camera shows are runs of black. Every canvas pixel
+//! lies in exactly one run, so a composition writes each pixel once and
+//! needs no cleared canvas and no accumulator.
 //!
-//! Per pixel and contributing camera the plan holds one [`Tap`]: the index
-//! of the top-left source pixel of the bilinear neighbourhood and the four
-//! weights (top-left, top-right, bottom-left, bottom-right) in 1/4096. The
-//! blend weight is folded in: a camera with blend weight `b` (of 256)
-//! contributes `b/256` of the bilinear weights, and all of a pixel's weights
-//! are rounded together so that they sum to exactly 4096 (largest
-//! remainder). A pixel is then `(Σ w·p + 2048) >> 12`: against the exact
-//! value (double precision, at the map's position) the weights are off by
-//! less than 1/4096 each, which moves a pixel by less than `127.5·n/4096`
-//! for `n` weights (0.125 for one camera, 0.25 for two), and the last
-//! rounding adds at most ½: the remap is within 0.75 of the exact bilinear
-//! value for up to two cameras.
+//! Per pixel and contributing camera the plan holds one tap: the index of
+//! the top-left source pixel of the bilinear neighbourhood and the four
+//! weights (top-left, top-right, bottom-left, bottom-right) in 1/4096, the
+//! taps of a run stored camera by camera so that each camera's are
+//! contiguous. The blend weight is folded in: a camera with blend weight
+//! `b` (of 256) contributes `b/256` of the bilinear weights, and all of a
+//! pixel's weights are rounded together so that they sum to exactly 4096
+//! (largest remainder). A pixel is then `(Σ w·p + 2048) >> 12`: against the
+//! exact value (double precision, at the map's position) the weights are
+//! off by less than 1/4096 each, which moves a pixel by less than
+//! `127.5·n/4096` for `n` weights (0.125 for one camera, 0.25 for two), and
+//! the last rounding adds at most ½: the remap is within 0.75 of the exact
+//! bilinear value for up to two cameras.
 //!
-//! # RGB in one 64-bit word
+//! # The kernels
 //!
-//! An RGB sample is computed in one `u64` with three 21-bit lanes: each of
-//! the four neighbours is spread from its three bytes to the lanes, multiplied
-//! by its weight (at most 255 · 4096 + 2048 < 2²¹ per lane, so no lane
-//! carries into the next) and summed; the three bytes are then picked out of
-//! the lanes. The two top neighbours are one unaligned 8-byte load, and so are
-//! the bottom two (read 2 bytes early and shifted, so that the last pixel of
-//! the image never reads past its end). On x86-64 with BMI2 the spreading and
-//! picking are one `pdep`/`pext` each, in a copy of the kernels compiled for
-//! BMI2 and chosen at run time.
+//! With AVX2 (x86-64, detected at run time) a step is 4 RGB or 8 mono pixels
+//! of one camera: two gathers fetch each pixel's top and bottom bytes, a
+//! byte shuffle pairs each left neighbour with its right one, and one
+//! `vpmaddwd` per row applies the weight pairs; the cameras' sums are
+//! added, rounded and packed. The source lines a run will read are
+//! prefetched a few runs ahead: the lines a run needs are too far apart in
+//! the instruction stream for the out-of-order window to overlap their
+//! misses.
+//!
+//! Without AVX2 (and for the last pixels of a run) an RGB sample is computed
+//! in one `u64` with three 21-bit lanes: each of the four neighbours is
+//! spread from its three bytes to the lanes, multiplied by its weight (at
+//! most 255 · 4096 + 2048 < 2²¹ per lane, so no lane carries into the next)
+//! and summed; the three bytes are then picked out of the lanes. The two
+//! top neighbours are one unaligned 8-byte load, and so are the bottom two
+//! (read 2 bytes early and shifted, so that the last pixel of the image
+//! never reads past its end). With BMI2 the spreading and picking are one
+//! `pdep`/`pext` each. All kernels give the same bytes.
 
 use std::fmt;
 
@@ -45,10 +55,10 @@ const SHIFT: u32 = 12;
 /// The weights of one canvas pixel sum to this.
 pub(crate) const ONE: u32 = 1 << SHIFT;
 
-/// Side of the square tiles the canvas is walked in: the pixels of a tile
-/// come from a compact patch of each source image, which stays in the
-/// caches (walking whole canvas rows, a side camera's row runs down a
-/// source column, a new cache line and page per pixel).
+/// Height of the tiles the canvas is walked in: the pixels of a tile come
+/// from a compact patch of each source image, which stays in the caches
+/// (walking whole canvas rows, a side camera's row runs down a source
+/// column, a new cache line per pixel).
 const TILE: usize = 32;
 /// Width of the tiles: runs end at tile edges, so wide tiles mean few
 /// runs.
@@ -446,6 +456,7 @@ pub(crate) mod kernels {
 
     /// The instruction set a composition runs with; wider sets order later.
     #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+    #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
     pub(crate) enum Isa {
         /// Plain 64-bit integer code.
         Portable,
