@@ -248,7 +248,16 @@ impl Plan {
                         }
                         list.clear();
                         at(i, &mut list);
-                        list.retain(|c| c.weight > 0.0 && (c.camera as usize) < plan.sources.len());
+                        // Contributions of weight 0, of unknown cameras or
+                        // of sources too small for a 2×2 neighbourhood are
+                        // left out.
+                        list.retain(|c| {
+                            c.weight > 0.0
+                                && plan
+                                    .sources
+                                    .get(c.camera as usize)
+                                    .is_some_and(|&(w, h)| w >= 2 && h >= 2)
+                        });
                         plan.push_pixel(i, &list, &mut pending);
                         plan.push_taps(&list, &mut pending, &mut exact, &mut rounded);
                     }
@@ -332,11 +341,13 @@ impl Plan {
 
     /// Whether the plan's invariant holds (see [`Plan`]).
     fn check(&self) -> bool {
-        let sizes_ok = self
-            .sources
-            .iter()
-            .all(|&(w, h)| w >= 2 && h >= 2 && w * h * 3 < i32::MAX as usize);
-        let runs_ok = self.runs.iter().all(|run| {
+        let sizes_ok = self.sources.iter().all(|&(w, h)| {
+            w >= 2 && h >= 2 && w.checked_mul(h).is_some_and(|p| p < i32::MAX as usize / 3)
+        });
+        if !sizes_ok || self.index.len() != self.weights.len() {
+            return false;
+        }
+        self.runs.iter().all(|run| {
             let (len, n) = (run.len as usize, run.n as usize);
             let first = run.taps as usize;
             let Some(cams) = self
@@ -356,8 +367,7 @@ impl Plan {
                         .iter()
                         .all(|&i| i <= limit)
                 })
-        });
-        sizes_ok && runs_ok && self.index.len() == self.weights.len()
+        })
     }
 
     /// Canvas pixels seen by one camera, by several, and taps in all.
@@ -1330,6 +1340,42 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn a_source_too_small_for_a_neighbourhood_contributes_nothing() {
+        let one = Contribution {
+            camera: 0,
+            at: [0.0, 1.0],
+            weight: 1.0,
+        };
+        let other = Contribution { camera: 1, ..one };
+        let plan = Plan::build(2, 2, vec![(1, 5), (2, 2)], |i, list| {
+            list.push(one);
+            if i == 1 {
+                list.push(other);
+            }
+        });
+        // Such a plan runs the scalar kernels only.
+        assert!(!plan.gather_ok);
+        let (a, b) = (vec![200u8; 5], vec![10u8, 20, 30, 40]);
+        let images = [
+            Image {
+                bytes: &a,
+                width: 1,
+                height: 5,
+            },
+            Image {
+                bytes: &b,
+                width: 2,
+                height: 2,
+            },
+        ];
+        let mut out = vec![0xff; 2];
+        plan.execute(&images, 1, &mut out).unwrap();
+        // Pixel 0: only the 1-pixel-wide camera, so black; pixel 1: the
+        // other camera alone, at (0, 1).
+        assert_eq!(out, [0, 30]);
     }
 
     #[test]
