@@ -217,7 +217,10 @@ fn a_bad_calibration_file_shows_an_error_and_the_app_keeps_running() {
         .text
         .clone();
     assert!(err.contains("broken.rig.yaml"), "{err}");
-    assert!(err.contains("focal_px"), "the error does not name the field: {err}");
+    assert!(
+        err.contains("focal_px"),
+        "the error does not name the field: {err}"
+    );
     h.step();
     assert!(
         h.query_by_label_contains("broken.rig.yaml").is_some(),
