@@ -73,10 +73,12 @@ pub fn summary(status: &PipelineStatus, telemetry: &Telemetry) -> String {
         );
     }
     if !display.is_empty() {
+        let over = display.iter().filter(|&&l| l > 100.0).count();
         s += &format!(
-            "\nset ready → displayed: median {:.1} ms, 95 % {:.1} ms, max {:.1} ms ({} displayed)",
+            "\nset ready → displayed: median {:.1} ms, 95 % {:.1} ms, 99 % {:.1} ms, max {:.1} ms ({} displayed, {over} over 100 ms)",
             quantile(&mut display, 0.5),
             quantile(&mut display, 0.95),
+            quantile(&mut display, 0.99),
             quantile(&mut display, 1.0),
             display.len()
         );
