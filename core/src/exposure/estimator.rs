@@ -477,66 +477,28 @@ impl Estimator {
     /// that it does not depend on `x`. Needs the information map of
     /// [`Self::current_information`].
     fn texture_recovery(&self, image: &Metered, xs: &[f64]) -> Vec<f64> {
-        let (w, h) = (image.width(), image.height());
-        let luma = image.luma();
-        let weight = |i: usize| image.weight().map_or(1.0, |wt| f64::from(wt[i]));
-        let levels: Vec<f32> = xs.iter().map(|&x| x as f32).collect();
         let widest = self.anchors.iter().chain(xs).copied().fold(1.0, f64::min) as f32;
-        // Weight of the saturated pixels and of each anchor's band, and the
-        // weight and information of the pixels whose 3×3 neighbourhood lies
-        // in the widest band.
-        let mut saturated = 0.0f64;
-        let mut band = vec![0.0f64; xs.len()];
-        let (mut texture_weight, mut texture_info) = (0.0f64, 0.0f64);
-        // The 3×3 minimum and maximum, from the minima and maxima of three
-        // columns in each of the last three rows.
-        let row_extremes = |y: usize, lo: &mut Vec<f32>, hi: &mut Vec<f32>| {
-            lo.clear();
-            hi.clear();
-            for win in luma[y * w..(y + 1) * w].windows(3) {
-                lo.push(win[0].min(win[1]).min(win[2]));
-                hi.push(win[0].max(win[1]).max(win[2]));
-            }
-        };
-        let mut lo: [Vec<f32>; 3] = Default::default();
-        let mut hi: [Vec<f32>; 3] = Default::default();
-        for y in 0..h {
-            row_extremes(y, &mut lo[y % 3], &mut hi[y % 3]);
-            if y < 2 {
-                continue;
-            }
-            // Row `y − 1` now has all three of its neighbourhood rows.
-            let yc = y - 1;
-            for x in 1..w - 1 {
-                let i = yc * w + x;
-                let wt = weight(i);
-                let v = luma[i];
-                if wt <= 0.0 {
-                    continue;
-                }
-                if v >= SATURATED_LEVEL {
-                    saturated += wt;
-                    continue;
-                }
-                for (n, &s) in band.iter_mut().zip(&levels) {
-                    if s < 1.0 && v >= s {
-                        *n += wt;
-                    }
-                }
-                let nmin = lo[0][x - 1].min(lo[1][x - 1]).min(lo[2][x - 1]);
-                let nmax = hi[0][x - 1].max(hi[1][x - 1]).max(hi[2][x - 1]);
-                if nmin >= widest && nmax < SATURATED_LEVEL {
-                    texture_weight += wt;
-                    texture_info += f64::from(self.info[i]);
-                }
-            }
-        }
-        let texture = if texture_weight > 0.0 {
-            texture_info / texture_weight
+        let levels: Vec<f32> = xs.iter().map(|&x| x as f32).collect();
+        let sums = kernel::saturation_sums(
+            self.scratch.isa(),
+            image.luma(),
+            image.weight(),
+            &self.info,
+            image.width(),
+            image.height(),
+            &levels,
+            widest,
+            SATURATED_LEVEL,
+        );
+        let texture = if sums.texture_weight > 0.0 {
+            sums.texture_info / sums.texture_weight
         } else {
             0.0
         };
-        band.iter().map(|&n| saturated.min(n) * texture).collect()
+        sums.bands
+            .iter()
+            .map(|&n| sums.saturated.min(n) * texture)
+            .collect()
     }
 
     /// `M` of the simulated image at `x`; `held`: the weights of

@@ -11,11 +11,13 @@
 //!   lanes beyond the row masked out.
 //! - **A sum of logarithms is the logarithm of a product.** The unweighted
 //!   score needs only `Σ ln q` with `q = 1 + λ·max(m − δ, 0) ∈ [1, q_max]`.
-//!   Each lane multiplies its `q`s into a running product and moves the
-//!   product's binary exponent into an integer counter after each factor, so
-//!   it cannot overflow. One logarithm per lane at the end replaces one per
-//!   pixel. The relative rounding error is about 6e-8 per factor, i.e. about
-//!   6e-8 absolute per pixel in `ln q`.
+//!   Each column multiplies its `q`s into a running product and moves the
+//!   product's binary exponent into an integer counter every few rows, so
+//!   it cannot overflow. At the end the columns' mantissas are multiplied
+//!   eight at a time in double precision, so one logarithm per eight columns
+//!   replaces one per pixel. The relative rounding error is about 6e-8 per
+//!   factor, i.e. about 6e-8 absolute per pixel in `ln q`. Weights that are
+//!   all 0 or 1 (a scale-and-clip mask) keep the product: `q^w` is `q` or 1.
 //! - **Explicit lanes and run-time dispatch.** The loops are written over
 //!   fixed-size arrays of 16 lanes that the compiler turns into vector code
 //!   (16 rather than the register width: fewer, longer chunks measured
@@ -25,6 +27,11 @@
 //!
 //! The weighted score (a metering mask) and the information map keep one
 //! fast logarithm per pixel: weights are fractional at mask borders.
+//!
+//! Row buffers start on a cache line (`Aligned`), so whole-vector stores
+//! never straddle two lines. The γ-mapping's `log₂ I` (`log2_map`) has no
+//! division (`fastmath::log2`), and `2^z` rounds and places the exponent
+//! with one addition (`fastmath::Exp2`).
 
 use std::sync::OnceLock;
 
@@ -133,13 +140,49 @@ const MAX_LANES: usize = 16;
 /// Row buffers, reused from call to call.
 #[derive(Clone, Debug, Default)]
 pub(crate) struct Rows {
-    ring: [Vec<f32>; 3],
-    sv: Vec<f32>,
-    dv: Vec<f32>,
-    product: Vec<f32>,
-    exponent: Vec<i32>,
-    info: Vec<f32>,
-    column: Vec<f32>,
+    ring: [Aligned<f32>; 3],
+    sv: Aligned<f32>,
+    dv: Aligned<f32>,
+    product: Aligned<f32>,
+    exponent: Aligned<i32>,
+    info: Aligned<f32>,
+    column: Aligned<f32>,
+}
+
+/// A buffer whose first element sits on a 64-byte boundary (a cache line),
+/// so that whole-vector stores at multiples of 16 lanes never straddle two
+/// lines (`Vec` only promises the element's alignment).
+#[derive(Clone, Debug, Default)]
+pub(crate) struct Aligned<T> {
+    buf: Vec<T>,
+    start: usize,
+    len: usize,
+}
+
+impl<T: Copy + Default> Aligned<T> {
+    /// `len` copies of `value`.
+    fn reset(&mut self, len: usize, value: T) {
+        let size = std::mem::size_of::<T>().max(1);
+        let spare = 64 / size;
+        self.buf.clear();
+        self.buf.resize(len + spare, value);
+        let misalign = (self.buf.as_ptr() as usize % 64) / size;
+        self.start = (spare - misalign) % spare;
+        self.len = len;
+    }
+}
+
+impl<T> std::ops::Deref for Aligned<T> {
+    type Target = [T];
+    fn deref(&self) -> &[T] {
+        &self.buf[self.start..self.start + self.len]
+    }
+}
+
+impl<T> std::ops::DerefMut for Aligned<T> {
+    fn deref_mut(&mut self) -> &mut [T] {
+        &mut self.buf[self.start..self.start + self.len]
+    }
 }
 
 /// A kernel, compiled once per instruction set by [`dispatch`].
@@ -302,6 +345,169 @@ pub(crate) fn log2_map(isa: Isa, luma: &[f32], floor: f32, out: &mut Vec<f32>) {
     dispatch(isa, Log2Map { luma, floor, out });
 }
 
+/// What scale-and-clip's assumed recovery needs to know about the
+/// saturated pixels of a `w×h` image (interior pixels only, each counted
+/// with its weight): the weight of the saturated ones (at or above
+/// `level`), of those in each band `[s, level)` for the `levels` below 1
+/// (0 for the others), and the weight and summed `info` of the pixels whose
+/// whole 3×3 neighbourhood lies in `[widest, level)`.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub(crate) struct SaturationSums {
+    pub(crate) saturated: f64,
+    pub(crate) bands: Vec<f64>,
+    pub(crate) texture_weight: f64,
+    pub(crate) texture_info: f64,
+}
+
+/// [`SaturationSums`] of `luma` (`w×h`, with `info` per pixel and optional
+/// weights; empty sums if a buffer is short).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn saturation_sums(
+    isa: Isa,
+    luma: &[f32],
+    weight: Option<&[f32]>,
+    info: &[f32],
+    w: usize,
+    h: usize,
+    levels: &[f32],
+    widest: f32,
+    level: f32,
+) -> SaturationSums {
+    let short = |v: &[f32]| v.len() < w * h;
+    if w < 3 || h < 3 || short(luma) || short(info) || weight.is_some_and(short) {
+        return SaturationSums {
+            bands: vec![0.0; levels.len()],
+            ..Default::default()
+        };
+    }
+    dispatch(
+        isa,
+        Saturation {
+            luma,
+            weight,
+            info,
+            w,
+            h,
+            levels,
+            widest,
+            level,
+        },
+    )
+}
+
+struct Saturation<'a> {
+    luma: &'a [f32],
+    weight: Option<&'a [f32]>,
+    info: &'a [f32],
+    w: usize,
+    h: usize,
+    levels: &'a [f32],
+    widest: f32,
+    level: f32,
+}
+
+impl Kernel for Saturation<'_> {
+    type Output = SaturationSums;
+
+    #[inline(always)]
+    fn run<const L: usize, const FMA: bool>(self) -> SaturationSums {
+        let (luma, weight, info, levels) = (self.luma, self.weight, self.info, self.levels);
+        let (w, h, widest, level) = (self.w, self.h, self.widest, self.level);
+        let n = w - 2;
+        let mut out = SaturationSums {
+            bands: vec![0.0; levels.len()],
+            ..Default::default()
+        };
+        // Each row's extremes over three columns, for the last three rows.
+        let mut lo = [vec![0.0f32; n], vec![0.0f32; n], vec![0.0f32; n]];
+        let mut hi = [vec![0.0f32; n], vec![0.0f32; n], vec![0.0f32; n]];
+        let extremes = |y: usize, lo: &mut [f32], hi: &mut [f32]| {
+            let row = &luma[y * w..(y + 1) * w];
+            let (a, b, c) = (&row[..n], &row[1..n + 1], &row[2..n + 2]);
+            for ((((lo, hi), &a), &b), &c) in lo.iter_mut().zip(hi.iter_mut()).zip(a).zip(b).zip(c)
+            {
+                *lo = a.min(b).min(c);
+                *hi = a.max(b).max(c);
+            }
+        };
+        let ones = vec![1.0f32; n];
+        let mut nmin = vec![0.0f32; n];
+        let mut nmax = vec![0.0f32; n];
+        let mut bands = vec![[0.0f32; L]; levels.len()];
+        for y in 0..h {
+            extremes(y, &mut lo[y % 3], &mut hi[y % 3]);
+            if y < 2 {
+                continue;
+            }
+            // Row `y − 1` now has all three rows of its neighbourhoods.
+            for (((mn, mx), (&l0, &h0)), ((&l1, &h1), (&l2, &h2))) in nmin
+                .iter_mut()
+                .zip(nmax.iter_mut())
+                .zip(lo[0].iter().zip(&hi[0]))
+                .zip(lo[1].iter().zip(&hi[1]).zip(lo[2].iter().zip(&hi[2])))
+            {
+                *mn = l0.min(l1).min(l2);
+                *mx = h0.max(h1).max(h2);
+            }
+            let span = (y - 1) * w + 1..(y - 1) * w + 1 + n;
+            let v = &luma[span.clone()];
+            let wt = weight.map_or(&ones[..], |wt| &wt[span.clone()]);
+            let inf = &info[span];
+            let mut sat = [0.0f32; L];
+            let (mut tw, mut ti) = ([0.0f32; L], [0.0f32; L]);
+            let (vc, _) = v.as_chunks::<L>();
+            let (wc, _) = wt.as_chunks::<L>();
+            let (ic, _) = inf.as_chunks::<L>();
+            let (nc, _) = nmin.as_chunks::<L>();
+            let (xc, _) = nmax.as_chunks::<L>();
+            for ((((v, wt), inf), mn), mx) in vc.iter().zip(wc).zip(ic).zip(nc).zip(xc) {
+                for l in 0..L {
+                    sat[l] += if v[l] >= level { wt[l] } else { 0.0 };
+                    let texture = mn[l] >= widest && mx[l] < level;
+                    tw[l] += if texture { wt[l] } else { 0.0 };
+                    ti[l] += if texture { inf[l] } else { 0.0 };
+                }
+            }
+            for (acc, &s) in bands.iter_mut().zip(levels) {
+                *acc = [0.0; L];
+                if s < 1.0 {
+                    for (v, wt) in vc.iter().zip(wc) {
+                        for l in 0..L {
+                            acc[l] += if v[l] >= s && v[l] < level {
+                                wt[l]
+                            } else {
+                                0.0
+                            };
+                        }
+                    }
+                }
+            }
+            // The row's last, partial vector.
+            let tail = vc.len() * L..n;
+            for x in tail {
+                sat[0] += if v[x] >= level { wt[x] } else { 0.0 };
+                let texture = nmin[x] >= widest && nmax[x] < level;
+                tw[0] += if texture { wt[x] } else { 0.0 };
+                ti[0] += if texture { inf[x] } else { 0.0 };
+                for (acc, &s) in bands.iter_mut().zip(levels) {
+                    acc[0] += if s < 1.0 && v[x] >= s && v[x] < level {
+                        wt[x]
+                    } else {
+                        0.0
+                    };
+                }
+            }
+            out.saturated += total(&sat);
+            out.texture_weight += total(&tw);
+            out.texture_info += total(&ti);
+            for (b, acc) in out.bands.iter_mut().zip(&bands) {
+                *b += total(acc);
+            }
+        }
+        out
+    }
+}
+
 impl Source<'_> {
     fn covers(&self, len: usize) -> bool {
         match self {
@@ -325,7 +531,7 @@ impl Source<'_> {
             Source::Gamma { log2, gamma } => {
                 let exp2 = fastmath::Exp2::scaled(scale);
                 for (o, &l) in out.iter_mut().zip(&log2[span]) {
-                    *o = exp2.in_range::<FMA>(gamma * l);
+                    *o = exp2.product::<FMA>(gamma, l);
                 }
             }
             Source::Scale { luma, s } => {
@@ -350,12 +556,10 @@ impl Rows {
     /// last vector can be loaded whole.
     fn resize(&mut self, w: usize) {
         for r in &mut self.ring {
-            r.resize(w, 0.0);
+            r.reset(w, 0.0);
         }
-        self.sv.clear();
-        self.sv.resize(w + 2 * MAX_LANES, 0.0);
-        self.dv.clear();
-        self.dv.resize(w + 2 * MAX_LANES, 0.0);
+        self.sv.reset(w + 2 * MAX_LANES, 0.0);
+        self.dv.reset(w + 2 * MAX_LANES, 0.0);
     }
 
     /// Maps the rows the first output row needs.
@@ -476,19 +680,19 @@ impl<const L: usize> Sink<L> for ProductSink<'_> {
 }
 
 /// [`ProductSink`], and adds `log₂ q·log₂ I` (approximate) per column.
-struct ProductDotSink<'a, const FMA: bool> {
+struct ProductDotSink<'a, const L: usize, const FMA: bool> {
     product: &'a mut [f32],
-    dot: &'a mut [f32],
+    dot: [f32; L],
     log2: &'a [f32],
 }
 
-impl<const L: usize, const FMA: bool> Sink<L> for ProductDotSink<'_, FMA> {
+impl<const L: usize, const FMA: bool> Sink<L> for ProductDotSink<'_, L, FMA> {
     #[inline(always)]
     fn take(&mut self, x: usize, q: &[f32; L]) {
         let li = lanes::<L>(self.log2, x);
         for (((p, d), &q), &li) in self.product[x..x + L]
             .iter_mut()
-            .zip(&mut self.dot[x..x + L])
+            .zip(&mut self.dot)
             .zip(q)
             .zip(&li)
         {
@@ -506,6 +710,23 @@ fn normalise(product: &mut [f32], exponent: &mut [i32]) {
         let bits = p.to_bits();
         *e += (bits >> 23) as i32 - 127;
         *p = f32::from_bits((bits & 0x007f_ffff) | 0x3f80_0000);
+    }
+}
+
+/// [`ProductSink`] for 0/1 weights: `q^w` is `q` or 1, so the weighted sum
+/// of logarithms stays a product.
+struct MaskedProductSink<'a> {
+    product: &'a mut [f32],
+    weight: &'a [f32],
+}
+
+impl<const L: usize> Sink<L> for MaskedProductSink<'_> {
+    #[inline(always)]
+    fn take(&mut self, x: usize, q: &[f32; L]) {
+        let wt = lanes::<L>(self.weight, x);
+        for ((p, &q), &wt) in self.product[x..x + L].iter_mut().zip(q).zip(&wt) {
+            *p *= if wt > 0.0 { q } else { 1.0 };
+        }
     }
 }
 
@@ -533,6 +754,18 @@ fn accumulate<const FMA: bool>(sum: &mut [f32], dot: &mut [f32], a: &[f32], b: &
         *s += a;
         *d = madd::<FMA>(a, b, *d);
     }
+}
+
+/// `ln Π m·2^e` over the columns (each mantissa `m` in [1, 2)): the
+/// mantissas are multiplied in double precision, eight at a time (a product
+/// below 2^8), so one logarithm per eight columns replaces one per column.
+fn ln_of_products(mantissa: &[f32], exponent: &[i32]) -> f64 {
+    let exponents: f64 = exponent.iter().map(|&e| f64::from(e)).sum();
+    let logs: f64 = mantissa
+        .chunks(8)
+        .map(|c| c.iter().map(|&m| f64::from(m)).product::<f64>().ln())
+        .sum();
+    exponents * std::f64::consts::LN_2 + logs
 }
 
 /// `Σ v` in double precision.
@@ -571,26 +804,30 @@ impl Kernel for SumLnQ<'_> {
         } = pass;
         let n = w - 2;
         let span = n.div_ceil(L) * L;
-        rows.product.clear();
-        rows.product.resize(span, 1.0);
-        rows.exponent.clear();
-        rows.exponent.resize(span, 0);
-        rows.info.clear();
-        rows.info.resize(span, 0.0);
-        rows.column.clear();
-        rows.column.resize(span, 0.0);
+        rows.product.reset(span, 1.0);
+        rows.exponent.reset(span, 0);
+        rows.info.reset(span, 0.0);
+        rows.column.reset(span, 0.0);
         let mut taken = 0;
+        let mut dot_total = 0.0f64;
+        // Weights of only 0 and 1 keep the product (no logarithm per pixel).
+        #[allow(clippy::float_cmp)] // exactly 0 or exactly 1
+        let binary = weight.is_some_and(|wt| {
+            wt.iter()
+                .fold(true, |all, &v| all & ((v == 0.0) | (v == 1.0)))
+        });
         rows.start::<FMA>(&src, w, p.scale);
         for y in 1..h - 1 {
             rows.advance::<FMA>(&src, w, p.scale, y);
             match (weight, log2) {
                 (None, Some(log2)) => {
-                    let mut sink = ProductDotSink::<FMA> {
+                    let mut sink = ProductDotSink::<L, FMA> {
                         product: &mut rows.product,
-                        dot: &mut rows.info,
+                        dot: [0.0; L],
                         log2: &log2[y * w + 1..y * w + 1 + n],
                     };
                     for_each_q::<L, FMA>(&rows.sv, &rows.dv, n, &p, &mut sink);
+                    dot_total += total(&sink.dot);
                     taken += 1;
                     if taken == p.group {
                         normalise(&mut rows.product, &mut rows.exponent);
@@ -608,6 +845,18 @@ impl Kernel for SumLnQ<'_> {
                         taken = 0;
                     }
                 }
+                (Some(wt), _) if binary => {
+                    let mut sink = MaskedProductSink {
+                        product: &mut rows.product,
+                        weight: &wt[y * w + 1..y * w + 1 + n],
+                    };
+                    for_each_q::<L, FMA>(&rows.sv, &rows.dv, n, &p, &mut sink);
+                    taken += 1;
+                    if taken == p.group {
+                        normalise(&mut rows.product, &mut rows.exponent);
+                        taken = 0;
+                    }
+                }
                 (Some(wt), _) => {
                     let span = y * w + 1..y * w + 1 + n;
                     let mut sink = InfoSink::<L, FMA> {
@@ -615,24 +864,15 @@ impl Kernel for SumLnQ<'_> {
                         weight: Some(&wt[span]),
                     };
                     for_each_q::<L, FMA>(&rows.sv, &rows.dv, n, &p, &mut sink);
-                    for (s, &v) in rows.column.iter_mut().zip(&rows.info) {
+                    for (s, &v) in rows.column.iter_mut().zip(rows.info.iter()) {
                         *s += v;
                     }
                 }
             }
         }
         normalise(&mut rows.product, &mut rows.exponent);
-        let ln_product: f64 = rows
-            .product
-            .iter()
-            .zip(&rows.exponent)
-            .map(|(&m, &e)| f64::from(e) * std::f64::consts::LN_2 + f64::from(m).ln())
-            .sum();
-        let dot = if log2.is_some() {
-            total(&rows.info) * std::f64::consts::LN_2
-        } else {
-            0.0
-        };
+        let ln_product = ln_of_products(&rows.product, &rows.exponent);
+        let dot = dot_total * std::f64::consts::LN_2;
         (total(&rows.column) + ln_product, dot)
     }
 }
@@ -665,8 +905,7 @@ impl Kernel for Information<'_> {
         let n = w - 2;
         let src = Source::Plain(luma);
         let mut row = std::mem::take(&mut rows.product);
-        row.clear();
-        row.resize(n.div_ceil(L) * L, 0.0);
+        row.reset(n.div_ceil(L) * L, 0.0);
         let mut sum = vec![0.0f32; n];
         let mut dot = vec![0.0f32; n];
         rows.start::<FMA>(&src, w, p.scale);
@@ -702,8 +941,7 @@ impl Kernel for Log2Map<'_> {
     fn run<const L: usize, const FMA: bool>(self) {
         let floor = self.floor;
         for (o, &v) in self.out.iter_mut().zip(self.luma) {
-            let l = fastmath::ln_with::<FMA>(v.max(1e-30)) * std::f32::consts::LOG2_E;
-            *o = l.clamp(floor, 0.0);
+            *o = fastmath::log2::<FMA>(v.max(1e-30)).clamp(floor, 0.0);
         }
     }
 }
@@ -726,24 +964,29 @@ mod tests {
             .collect()
     }
 
+    /// `ln q` of interior pixel `(x, y)` of a `w`-wide image, in double
+    /// precision (δ = 0.06).
+    fn reference_ln_q(img: &[f32], w: usize, x: usize, y: usize, lambda: f64) -> f64 {
+        let at = |x: usize, y: usize| f64::from(img[y * w + x]);
+        let gx = at(x + 1, y - 1) + 2.0 * at(x + 1, y) + at(x + 1, y + 1)
+            - at(x - 1, y - 1)
+            - 2.0 * at(x - 1, y)
+            - at(x - 1, y + 1);
+        let gy = at(x - 1, y + 1) + 2.0 * at(x, y + 1) + at(x + 1, y + 1)
+            - at(x - 1, y - 1)
+            - 2.0 * at(x, y - 1)
+            - at(x + 1, y - 1);
+        let m = (gx * gx + gy * gy).sqrt() / f64::from(SOBEL_NORM);
+        (1.0 + lambda * (m - 0.06).max(0.0)).ln()
+    }
+
     /// Straightforward double-precision Eq. 1 sum of `w·ln q`.
     fn reference(img: &[f32], w: usize, h: usize, weight: Option<&[f32]>, lambda: f64) -> f64 {
-        let delta = 0.06;
-        let at = |x: usize, y: usize| f64::from(img[y * w + x]);
         let mut total = 0.0;
         for y in 1..h - 1 {
             for x in 1..w - 1 {
-                let gx = at(x + 1, y - 1) + 2.0 * at(x + 1, y) + at(x + 1, y + 1)
-                    - at(x - 1, y - 1)
-                    - 2.0 * at(x - 1, y)
-                    - at(x - 1, y + 1);
-                let gy = at(x - 1, y + 1) + 2.0 * at(x, y + 1) + at(x + 1, y + 1)
-                    - at(x - 1, y - 1)
-                    - 2.0 * at(x, y - 1)
-                    - at(x + 1, y - 1);
-                let m = (gx * gx + gy * gy).sqrt() / f64::from(SOBEL_NORM);
-                let q = 1.0 + lambda * (m - delta).max(0.0);
-                total += weight.map_or(1.0, |wt| f64::from(wt[y * w + x])) * q.ln();
+                total += weight.map_or(1.0, |wt| f64::from(wt[y * w + x]))
+                    * reference_ln_q(img, w, x, y, lambda);
             }
         }
         total
@@ -755,9 +998,10 @@ mod tests {
         for (w, h) in [(37, 11), (64, 9), (3, 3), (130, 40)] {
             let img = textured(w, h, w as u64);
             let weight: Vec<f32> = (0..w * h).map(|i| (i % 7) as f32 / 6.0).collect();
+            let binary: Vec<f32> = (0..w * h).map(|i| f32::from(i % 5 != 0)).collect();
             for lambda in [1000.0f64, 10.0, 1e9] {
                 let p = Params::new(lambda as f32, 0.06, SOBEL_NORM);
-                for wt in [None, Some(weight.as_slice())] {
+                for wt in [None, Some(weight.as_slice()), Some(binary.as_slice())] {
                     let want = reference(&img, w, h, wt, lambda);
                     for isa in Isa::available() {
                         let got =
@@ -866,36 +1110,43 @@ mod tests {
     }
 
     #[test]
-    fn the_information_dot_matches_the_exact_one() {
+    fn the_information_dot_and_the_logarithms_match_double_precision() {
         let (w, h) = (83, 29);
         let img = textured(w, h, 5);
-        let mut log2 = Vec::new();
-        log2_map(Isa::detect(), &img, -126.0, &mut log2);
         let p = Params::new(1000.0, 0.06, SOBEL_NORM);
+        // Σ ln q·log₂ I in double precision.
+        let (mut exact_sum, mut exact_dot) = (0.0, 0.0);
+        for y in 1..h - 1 {
+            for x in 1..w - 1 {
+                let ln_q = reference_ln_q(&img, w, x, y, 1000.0);
+                exact_sum += ln_q;
+                exact_dot += ln_q * f64::from(img[y * w + x]).log2();
+            }
+        }
+        let exact_mean = exact_dot / exact_sum;
+        assert!(
+            exact_mean < -0.1,
+            "the test image should be mid-grey: {exact_mean}"
+        );
+        let floor = -126.0 / 1.9;
         for isa in Isa::available() {
-            let (exact_sum, exact_dot) = information(
-                isa,
-                &img,
-                Some(&log2),
-                w,
-                h,
-                None,
-                p,
-                &mut Rows::default(),
-                None,
-            );
-            let (sum, dot) = sum_ln_q_and_dot(isa, &img, &log2, w, h, p, &mut Rows::default());
+            let mut logs = Vec::new();
+            log2_map(isa, &img, floor, &mut logs);
+            for (&l, &v) in logs.iter().zip(&img) {
+                let want = f64::from(v).log2().clamp(f64::from(floor), 0.0);
+                assert!(
+                    (f64::from(l) - want).abs() <= 3e-7 * (1.0 + want.abs()),
+                    "{isa:?}: log₂ {v} = {l}, not {want}"
+                );
+            }
+            let (sum, dot) = sum_ln_q_and_dot(isa, &img, &logs, w, h, p, &mut Rows::default());
             assert!(
                 (sum - exact_sum).abs() <= 1e-5 * exact_sum,
                 "{isa:?}: {sum} vs {exact_sum}"
             );
             // ln q to 1.5e-4 of ~5: the weighted mean of log₂ I moves by less
             // than 1e-4.
-            let (mean, exact_mean) = (dot / sum, exact_dot / exact_sum);
-            assert!(
-                exact_mean < -0.1,
-                "the test image should be mid-grey: {exact_mean}"
-            );
+            let mean = dot / sum;
             assert!(
                 (mean - exact_mean).abs() < 1e-4,
                 "{isa:?}: {mean} vs {exact_mean}"
