@@ -28,6 +28,13 @@
 //! The weighted score (a metering mask) and the information map keep one
 //! fast logarithm per pixel: weights are fractional at mask borders.
 //!
+//! On AVX-512 the unweighted (or 0/1-weighted) passes run the Sobel
+//! operator in one loop per row (`product_row_avx512`): each vector's
+//! vertical passes stay in registers and the next vector's are shifted in
+//! across the boundary with `valignd`, which the portable lanes cannot
+//! express (LLVM turns such shifts into gathers). That loop is the one place
+//! with `unsafe` loads and stores; their bounds are checked before it.
+//!
 //! Row buffers start on a cache line (`Aligned`), so whole-vector stores
 //! never straddle two lines. The γ-mapping's `log₂ I` (`log2_map`) has no
 //! division (`fastmath::log2`), and `2^z` rounds and places the exponent
@@ -257,6 +264,7 @@ pub(crate) fn sum_ln_q(
                 p,
                 rows,
             },
+            avx512: isa.supported() == Isa::Avx512,
         },
     )
     .0
@@ -291,6 +299,7 @@ pub(crate) fn sum_ln_q_and_dot(
                 p,
                 rows,
             },
+            avx512: false,
         },
     )
 }
@@ -551,12 +560,23 @@ impl Source<'_> {
     }
 }
 
+/// The rows `y − 1`, `y` and `y + 1` of the ring.
+#[inline(always)]
+fn ring_rows(ring: &[Aligned<f32>; 3], y: usize) -> [&[f32]; 3] {
+    let [r0, r1, r2] = ring;
+    match (y + 1) % 3 {
+        0 => [r1, r2, r0],
+        1 => [r2, r0, r1],
+        _ => [r0, r1, r2],
+    }
+}
+
 impl Rows {
     /// Ring rows of `w`; pass rows of `w` plus zero padding, so that a row's
     /// last vector can be loaded whole.
     fn resize(&mut self, w: usize) {
         for r in &mut self.ring {
-            r.reset(w, 0.0);
+            r.reset(w + 2 * MAX_LANES, 0.0);
         }
         self.sv.reset(w + 2 * MAX_LANES, 0.0);
         self.dv.reset(w + 2 * MAX_LANES, 0.0);
@@ -569,23 +589,36 @@ impl Rows {
         src.map_row::<FMA>(1, w, scale, &mut self.ring[1]);
     }
 
+    /// Maps row `y + 1` into the ring.
+    #[inline(always)]
+    fn map_next<const FMA: bool>(&mut self, src: &Source<'_>, w: usize, scale: f32, y: usize) {
+        let [r0, r1, r2] = &mut self.ring;
+        let c = match (y + 1) % 3 {
+            0 => r0,
+            1 => r1,
+            _ => r2,
+        };
+        src.map_row::<FMA>(y + 1, w, scale, c);
+    }
+
     /// Maps row `y + 1` and runs the vertical Sobel passes centred on row
     /// `y`: smoothing for ∂x into `sv`, difference for ∂y into `dv`.
     #[inline(always)]
     fn advance<const FMA: bool>(&mut self, src: &Source<'_>, w: usize, scale: f32, y: usize) {
-        let [r0, r1, r2] = &mut self.ring;
-        let (a, b, c) = match (y + 1) % 3 {
-            0 => (r1, r2, r0),
-            1 => (r2, r0, r1),
-            _ => (r0, r1, r2),
-        };
-        src.map_row::<FMA>(y + 1, w, scale, c);
+        self.map_next::<FMA>(src, w, scale, y);
+        self.vertical::<FMA>(w, y);
+    }
+
+    /// The vertical Sobel passes centred on row `y` (rows `y ± 1` mapped).
+    #[inline(always)]
+    fn vertical<const FMA: bool>(&mut self, w: usize, y: usize) {
+        let [a, b, c] = ring_rows(&self.ring, y);
         for (((sv, dv), (&a, &b)), &c) in self
             .sv
             .iter_mut()
             .zip(self.dv.iter_mut())
-            .zip(a.iter().zip(b.iter()))
-            .zip(c.iter())
+            .zip(a[..w].iter().zip(&b[..w]))
+            .zip(&c[..w])
         {
             *sv = madd::<FMA>(2.0, b, a + c);
             *dv = c - a;
@@ -600,6 +633,94 @@ fn q_of<const FMA: bool>(svl: f32, svr: f32, dvl: f32, dvc: f32, dvr: f32, p: &P
     let gy = madd::<FMA>(2.0, dvc, dvl + dvr);
     let mag2 = madd::<FMA>(gx, gx, gy * gy);
     (mag2.sqrt() + p.offset).max(1.0)
+}
+
+/// One row's `q`s multiplied into `product` (`q^w` with 0/1 weights
+/// `mask`), with the vertical and horizontal Sobel passes fused in
+/// registers: each vector's vertical passes come from the three mapped rows
+/// `a`, `b`, `c` and the next vector's are shifted in across the boundary
+/// (`valignd`), so the only memory traffic is the three rows and the
+/// product. AVX-512 only: the portable lanes cannot express the shift (LLVM
+/// makes gathers of it). Returns `false`, having done nothing, when a buffer
+/// is shorter than the pass needs (the rows are padded by one vector).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx2,fma")]
+#[allow(unsafe_code)]
+fn product_row_avx512(
+    rows: [&[f32]; 3],
+    product: &mut [f32],
+    mask: Option<&[f32]>,
+    n: usize,
+    p: &Params,
+) -> bool {
+    use std::arch::x86_64::{
+        __m512, _mm512_add_ps, _mm512_alignr_epi32, _mm512_castps_si512, _mm512_castsi512_ps,
+        _mm512_cmp_ps_mask, _mm512_fmadd_ps, _mm512_loadu_ps, _mm512_mask_blend_ps, _mm512_max_ps,
+        _mm512_mul_ps, _mm512_set1_ps, _mm512_setzero_ps, _mm512_sqrt_ps, _mm512_storeu_ps,
+        _mm512_sub_ps, _CMP_GT_OQ,
+    };
+    const L: usize = 16;
+    let chunks = n.div_ceil(L);
+    let [a, b, c] = rows;
+    if [a, b, c].iter().any(|r| r.len() < (chunks + 1) * L)
+        || product.len() < chunks * L
+        || mask.is_some_and(|m| m.len() < n)
+    {
+        return false;
+    }
+    // SAFETY (every load and store below): the lengths were checked above,
+    // so vector `k ≤ chunks` of a row and vector `k < chunks` of the product
+    // lie inside their slices; mask loads go through `lanes`.
+    let load =
+        |row: &[f32], k: usize| -> __m512 { unsafe { _mm512_loadu_ps(row.as_ptr().add(k * L)) } };
+    let two = _mm512_set1_ps(2.0);
+    let offset = _mm512_set1_ps(p.offset);
+    let one = _mm512_set1_ps(1.0);
+    let vertical = |k: usize| {
+        let (av, bv, cv) = (load(a, k), load(b, k), load(c, k));
+        (
+            _mm512_fmadd_ps(two, bv, _mm512_add_ps(av, cv)),
+            _mm512_sub_ps(cv, av),
+        )
+    };
+    let shift = |next: __m512, cur: __m512, k: u8| -> __m512 {
+        let (next, cur) = (_mm512_castps_si512(next), _mm512_castps_si512(cur));
+        _mm512_castsi512_ps(if k == 1 {
+            _mm512_alignr_epi32::<1>(next, cur)
+        } else {
+            _mm512_alignr_epi32::<2>(next, cur)
+        })
+    };
+    let (mut sv, mut dv) = vertical(0);
+    for k in 0..chunks {
+        let (sv_next, dv_next) = vertical(k + 1);
+        let gx = _mm512_sub_ps(shift(sv_next, sv, 2), sv);
+        let gy = _mm512_fmadd_ps(
+            two,
+            shift(dv_next, dv, 1),
+            _mm512_add_ps(dv, shift(dv_next, dv, 2)),
+        );
+        let mag2 = _mm512_fmadd_ps(gx, gx, _mm512_mul_ps(gy, gy));
+        let q = _mm512_max_ps(_mm512_add_ps(_mm512_sqrt_ps(mag2), offset), one);
+        // Lanes past the row, and with weight 0, take 1.
+        let rest = n - k * L;
+        let mut keep: u16 = if rest < L {
+            (1u16 << rest) - 1
+        } else {
+            u16::MAX
+        };
+        if let Some(mask) = mask {
+            let m = lanes::<L>(mask, k * L);
+            let mv = unsafe { _mm512_loadu_ps(m.as_ptr()) };
+            keep &= _mm512_cmp_ps_mask::<_CMP_GT_OQ>(mv, _mm512_setzero_ps());
+        }
+        let q = _mm512_mask_blend_ps(keep, one, q);
+        let at = unsafe { product.as_mut_ptr().add(k * L) };
+        unsafe { _mm512_storeu_ps(at, _mm512_mul_ps(_mm512_loadu_ps(at), q)) };
+        sv = sv_next;
+        dv = dv_next;
+    }
+    true
 }
 
 /// What is done with each vector of `q`s (a trait rather than a closure, so
@@ -787,6 +908,8 @@ struct SumLnQ<'a> {
     src: Source<'a>,
     log2: Option<&'a [f32]>,
     pass: Pass<'a>,
+    /// The pass runs on AVX-512 ([`product_row_avx512`] may be called).
+    avx512: bool,
 }
 
 impl Kernel for SumLnQ<'_> {
@@ -794,7 +917,12 @@ impl Kernel for SumLnQ<'_> {
 
     #[inline(always)]
     fn run<const L: usize, const FMA: bool>(self) -> (f64, f64) {
-        let Self { src, log2, pass } = self;
+        let Self {
+            src,
+            log2,
+            pass,
+            avx512,
+        } = self;
         let Pass {
             w,
             h,
@@ -816,9 +944,34 @@ impl Kernel for SumLnQ<'_> {
             wt.iter()
                 .fold(true, |all, &v| all & ((v == 0.0) | (v == 1.0)))
         });
+        // The product passes fused on AVX-512 (no vertical pass rows).
+        let fused = avx512 && log2.is_none() && (weight.is_none() || binary);
         rows.start::<FMA>(&src, w, p.scale);
         for y in 1..h - 1 {
-            rows.advance::<FMA>(&src, w, p.scale, y);
+            if fused {
+                rows.map_next::<FMA>(&src, w, p.scale, y);
+                #[cfg(target_arch = "x86_64")]
+                {
+                    let [a, b, c] = ring_rows(&rows.ring, y);
+                    let mask = weight.map(|wt| &wt[y * w + 1..y * w + 1 + n]);
+                    // SAFETY: `avx512` is set only when the CPU has AVX-512F,
+                    // AVX2 and FMA (`Isa::supported`).
+                    #[allow(unsafe_code)]
+                    let done =
+                        unsafe { product_row_avx512([a, b, c], &mut rows.product, mask, n, &p) };
+                    if done {
+                        taken += 1;
+                        if taken == p.group {
+                            normalise(&mut rows.product, &mut rows.exponent);
+                            taken = 0;
+                        }
+                        continue;
+                    }
+                }
+                rows.vertical::<FMA>(w, y);
+            } else {
+                rows.advance::<FMA>(&src, w, p.scale, y);
+            }
             match (weight, log2) {
                 (None, Some(log2)) => {
                     let mut sink = ProductDotSink::<L, FMA> {
