@@ -66,6 +66,17 @@ pub struct Session {
     pub notes: Vec<String>,
 }
 
+impl Session {
+    /// The cameras' names, in rig order.
+    pub fn camera_names(&self) -> Vec<String> {
+        self.pipeline
+            .cameras()
+            .iter()
+            .map(|c| c.name.clone())
+            .collect()
+    }
+}
+
 /// The canvas every session composes on: 10 m × 10 m at 100 px/m.
 pub fn canvas_spec() -> CanvasSpec {
     CanvasSpec::default()

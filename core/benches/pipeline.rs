@@ -8,10 +8,9 @@
 //!
 //! - `processor`: rigview's processing thread as it runs (masks prepared
 //!   once per calibration).
-//! - `closed_loop_and_compose`: the same steps as the closed loop of the
-//!   tests does them (`ClosedLoop`'s metering, which derives each mask's
-//!   coverage on every frame) plus the composition: the peer in the same
-//!   run.
+//! - `closed_loop_and_compose`: the peer in the same run: the same steps
+//!   with metering that derives each ground mask's coverage on every frame
+//!   (`Meter::meter` with the raw mask), plus the composition.
 //!
 //! Results: `BENCHMARKS.md` at the workspace root.
 
@@ -20,7 +19,7 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use rigview_core::exposure::{CameraInput, Meter, MeteringConfig, NeighbourGraph, RigController};
+use rigview_core::exposure::{Meter, MeteringConfig, NeighbourGraph, RigController};
 use rigview_core::pipeline::{ProcessingSettings, Processor, StageTimes};
 use rigview_core::sim::{SimConfig, SimRender, SimRig, SimRigOptions};
 use rigview_core::source::FrameSource;
@@ -80,15 +79,7 @@ fn bench(c: &mut Criterion) {
                 .map(|(v, m)| meter.meter(v, Some(m)).unwrap())
                 .collect();
             let pairs = view.pair_observations(&views).unwrap();
-            let inputs: Vec<_> = frames
-                .iter()
-                .zip(&metered)
-                .map(|(f, m)| CameraInput {
-                    info: f.info(),
-                    metered: m,
-                })
-                .collect();
-            let step = controller.step(&inputs, &pairs).unwrap();
+            let step = controller.step_frames(&frames, &metered, &pairs).unwrap();
             let mut canvas = Canvas::new(w, h, 1);
             composer
                 .compose(&view, &views, BlendMode::Linear, &mut canvas)

@@ -199,6 +199,27 @@ impl Frame {
     }
 }
 
+impl crate::exposure::RigController {
+    /// One step on a complete set's `frames` (rig order), metered as
+    /// `metered`, with the overlap patches `pairs`.
+    pub fn step_frames(
+        &mut self,
+        frames: &[&Frame],
+        metered: &[crate::exposure::Metered],
+        pairs: &[crate::exposure::PairObservation],
+    ) -> Result<crate::exposure::RigStep> {
+        let inputs: Vec<_> = frames
+            .iter()
+            .zip(metered)
+            .map(|(f, m)| crate::exposure::CameraInput {
+                info: f.info(),
+                metered: m,
+            })
+            .collect();
+        self.step(&inputs, pairs)
+    }
+}
+
 impl crate::exposure::RigStep {
     /// The step's commands, for [`FrameSource::apply`].
     pub fn commands(&self) -> Vec<ExposureCommand> {

@@ -19,7 +19,9 @@ use std::time::{Duration, Instant};
 use anyhow::Result;
 use egui::{Color32, ColorImage, TextureHandle, TextureOptions};
 use rigview_core::exposure::NeighbourGraph;
-use rigview_core::pipeline::{Control, Output, PipelineOptions, ProcessingSettings};
+use rigview_core::pipeline::{
+    Control, Output, PipelineOptions, PipelineStatus, ProcessingSettings,
+};
 use rigview_core::surround::SurroundView;
 
 use crate::session::{self, Session, SourceSpec};
@@ -43,6 +45,8 @@ pub struct RigviewApp {
     store: SettingsStore,
     dirty: Option<Instant>,
     latest: Option<Arc<Output>>,
+    /// The pipeline's status, taken once per window frame.
+    status: Option<PipelineStatus>,
     canvas_tex: Option<TextureHandle>,
     thumb_tex: Vec<Option<TextureHandle>>,
     messages: Vec<Message>,
@@ -134,6 +138,7 @@ impl RigviewApp {
             store,
             dirty: None,
             latest: None,
+            status: None,
             canvas_tex: None,
             thumb_tex: vec![None; n],
             messages,
@@ -330,10 +335,9 @@ impl RigviewApp {
 
     /// Shows the source's new messages.
     fn take_notes(&mut self) {
-        let Some(s) = &self.session else {
+        let Some(st) = &self.status else {
             return;
         };
-        let st = s.pipeline.status();
         let new = st.notes_total.saturating_sub(self.notes_seen);
         self.notes_seen = st.notes_total;
         let skip = st
@@ -385,6 +389,7 @@ impl RigviewApp {
     pub fn show(&mut self, ui: &mut egui::Ui) {
         let ctx = ui.ctx().clone();
         self.poll_background();
+        self.status = self.session.as_ref().map(|s| s.pipeline.status());
         self.take_notes();
         self.take_output(&ctx);
         panels::menu_bar(self, ui);

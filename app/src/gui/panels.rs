@@ -9,6 +9,7 @@ use rigview_core::source::StreamState;
 use rigview_core::surround::BlendMode;
 
 use super::{camera_colour, RigviewApp};
+use crate::session::Session;
 use crate::settings::ViewMode;
 
 /// The thumbnail of one camera: its metered image, with the pixels that
@@ -123,13 +124,10 @@ pub(super) fn status_bar(app: &mut RigviewApp, ui: &mut Ui) {
                 ui.colored_label(Color32::from_rgb(240, 80, 70), "no source");
                 return;
             };
-            let st = s.pipeline.status();
-            let names: Vec<String> = s
-                .pipeline
-                .cameras()
-                .iter()
-                .map(|c| c.name.clone())
-                .collect();
+            let Some(st) = &app.status else {
+                return;
+            };
+            let names = s.camera_names();
             let mut lost = 0;
             for (name, h) in names.iter().zip(&st.health) {
                 let (word, colour) = state_word(h.state);
@@ -324,13 +322,7 @@ fn controls_inner(app: &mut RigviewApp, ui: &mut Ui) {
     let names: Vec<String> = app
         .session
         .as_ref()
-        .map(|s| {
-            s.pipeline
-                .cameras()
-                .iter()
-                .map(|c| c.name.clone())
-                .collect()
-        })
+        .map(Session::camera_names)
         .unwrap_or_default();
     let mut sends = Vec::new();
     egui::Grid::new("manual").num_columns(2).show(ui, |ui| {
@@ -471,13 +463,7 @@ pub(super) fn cameras_panel(app: &mut RigviewApp, ui: &mut Ui) {
             let names: Vec<String> = app
                 .session
                 .as_ref()
-                .map(|s| {
-                    s.pipeline
-                        .cameras()
-                        .iter()
-                        .map(|c| c.name.clone())
-                        .collect()
-                })
+                .map(Session::camera_names)
                 .unwrap_or_default();
             let n = out.cameras.len().max(1) as f32;
             let width = ((ui.available_width() - 12.0 * n) / n).clamp(80.0, 360.0);

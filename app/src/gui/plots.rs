@@ -12,6 +12,12 @@ use super::{camera_colour, RigviewApp};
 /// The series of one plot: a name and its points.
 pub type Series = Vec<(String, Vec<[f64; 2]>)>;
 
+/// The rows within `seconds` of the newest.
+fn recent(t: &Telemetry, seconds: f64) -> impl Iterator<Item = &TelemetryRow> {
+    let t_end = t.last().map_or(0.0, |r| r.time_s);
+    t.rows().iter().filter(move |r| r.time_s >= t_end - seconds)
+}
+
 /// Per camera, `value(row, camera)` over the rows within `seconds` of the
 /// newest.
 pub fn camera_series(
@@ -19,15 +25,11 @@ pub fn camera_series(
     seconds: f64,
     value: impl Fn(&TelemetryRow, usize) -> Option<f64>,
 ) -> Series {
-    let t_end = t.last().map_or(0.0, |r| r.time_s);
     t.camera_names()
         .iter()
         .enumerate()
         .map(|(k, name)| {
-            let pts = t
-                .rows()
-                .iter()
-                .filter(|r| r.time_s >= t_end - seconds)
+            let pts = recent(t, seconds)
                 .filter_map(|r| value(r, k).filter(|v| v.is_finite()).map(|v| [r.time_s, v]))
                 .collect();
             (name.clone(), pts)
@@ -37,15 +39,11 @@ pub fn camera_series(
 
 /// Per overlap, its log2 r_ij.
 pub fn pair_series(t: &Telemetry, seconds: f64) -> Series {
-    let t_end = t.last().map_or(0.0, |r| r.time_s);
     t.pair_names()
         .iter()
         .enumerate()
         .map(|(k, name)| {
-            let pts = t
-                .rows()
-                .iter()
-                .filter(|r| r.time_s >= t_end - seconds)
+            let pts = recent(t, seconds)
                 .filter_map(|r| r.log2_r.get(k).copied().flatten().map(|v| [r.time_s, v]))
                 .collect();
             (name.clone(), pts)
@@ -183,20 +181,14 @@ fn plots_inner(app: &mut RigviewApp, ui: &mut Ui) {
     let (rate, stages): (Series, Series) = {
         let t = s.pipeline.telemetry();
         exposure_plots(ui, &t, secs);
-        let t_end = t.last().map_or(0.0, |r| r.time_s);
-        let recent: Vec<_> = t
-            .rows()
-            .iter()
-            .filter(|r| r.time_s >= t_end - secs)
-            .collect();
+        let rows: Vec<_> = recent(&t, secs).collect();
         let stages = StageTimes::NAMES
             .iter()
             .enumerate()
             .map(|(k, name)| {
                 (
                     (*name).to_owned(),
-                    recent
-                        .iter()
+                    rows.iter()
                         .map(|r| [r.time_s, r.times.values()[k]])
                         .collect(),
                 )
@@ -204,18 +196,16 @@ fn plots_inner(app: &mut RigviewApp, ui: &mut Ui) {
             .collect();
         let rate = vec![(
             "sets/s".to_owned(),
-            t.rows()
-                .iter()
-                .filter(|r| r.time_s >= t_end - secs)
-                .map(|r| [r.time_s, r.set_rate_hz])
-                .collect(),
+            rows.iter().map(|r| [r.time_s, r.set_rate_hz]).collect(),
         )];
         (rate, stages)
     };
-    let status = s.pipeline.status();
     let latency: Series = vec![(
         "set ready to displayed (ms)".to_owned(),
-        status.display_latency.iter().copied().collect(),
+        app.status
+            .as_ref()
+            .map(|st| st.display_latency.iter().copied().collect())
+            .unwrap_or_default(),
     )];
     plot(ui, "rate", "frame-set rate (sets/s)", &rate, |_| {
         Color32::LIGHT_GREEN
@@ -224,12 +214,7 @@ fn plots_inner(app: &mut RigviewApp, ui: &mut Ui) {
         Color32::LIGHT_RED
     });
     plot(ui, "stages", "time per stage (ms)", &stages, camera_colour);
-    let names: Vec<String> = s
-        .pipeline
-        .cameras()
-        .iter()
-        .map(|c| c.name.clone())
-        .collect();
+    let names = s.camera_names();
     let sel = &mut app.settings.window.selected_camera;
     if *sel >= names.len() {
         *sel = 0;

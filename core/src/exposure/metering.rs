@@ -465,6 +465,59 @@ impl Grid {
     }
 }
 
+/// Each camera's metering mask (or none), prepared for its camera's frames
+/// once, so that metering a frame set costs no mask work.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct CameraMasks {
+    raw: Vec<Option<RoiMask>>,
+    prepared: Vec<Option<PreparedMask>>,
+}
+
+impl CameraMasks {
+    /// No masks for `cameras` cameras: whole frames are metered.
+    pub fn none(cameras: usize) -> Self {
+        Self {
+            raw: vec![None; cameras],
+            prepared: vec![None; cameras],
+        }
+    }
+
+    /// `masks[i]` for camera `i`, whose frames come in `formats[i]`. A mask
+    /// that does not fit its camera is kept unprepared (and metering a
+    /// frame with it reports why).
+    pub fn new(meter: &Meter, masks: &[RoiMask], formats: &[PixelFormat]) -> Self {
+        Self {
+            raw: masks.iter().cloned().map(Some).collect(),
+            prepared: masks
+                .iter()
+                .zip(formats)
+                .map(|(m, &f)| meter.prepare(m, f).ok())
+                .collect(),
+        }
+    }
+
+    /// The masks as given.
+    pub fn raw(&self) -> &[Option<RoiMask>] {
+        &self.raw
+    }
+
+    /// Meters `frames[i]` with camera `i`'s mask: through the prepared mask
+    /// when the frame fits it, else with the mask itself.
+    pub fn meter(&self, meter: &Meter, frames: &[FrameView<'_>]) -> Result<Vec<Metered>> {
+        frames
+            .iter()
+            .enumerate()
+            .map(|(i, f)| {
+                let raw = self.raw.get(i).and_then(Option::as_ref);
+                match self.prepared.get(i).and_then(Option::as_ref) {
+                    Some(p) => meter.meter_prepared(f, p).or_else(|_| meter.meter(f, raw)),
+                    None => meter.meter(f, raw),
+                }
+            })
+            .collect()
+    }
+}
+
 /// A ground mask prepared for one frame size, pixel layout and metering
 /// size ([`Meter::prepare`]).
 #[derive(Clone, Debug, PartialEq)]

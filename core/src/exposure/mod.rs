@@ -33,6 +33,6 @@ pub use estimator::{Estimate, Estimator, EstimatorConfig, Simulation, DEFAULT_AN
 pub use frame::{FrameView, PixelFormat, RoiMask};
 pub use kernel::Isa;
 pub use laws::{LawKind, LawParams};
-pub use metering::{ImageStats, Meter, Metered, MeteringConfig, PreparedMask};
+pub use metering::{CameraMasks, ImageStats, Meter, Metered, MeteringConfig, PreparedMask};
 pub use metric::{GradientMetric, MetricParams};
 pub use split::{ExposureRange, ExposureSetting, SplitParams, Splitter};

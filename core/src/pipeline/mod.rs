@@ -44,9 +44,9 @@ pub use telemetry::{CameraRow, StageTimes, Telemetry, TelemetryRow};
 
 use crate::error::{Error, Result};
 use crate::exposure::{
-    BalanceParams, CameraInput, ControlMode, ControllerConfig, Estimate, Estimator,
+    BalanceParams, CameraMasks, ControlMode, ControllerConfig, Estimate, Estimator,
     ExposureSetting, FrameView, Meter, Metered, MeteringConfig, NeighbourGraph, PixelFormat,
-    PreparedMask, RigController, RoiMask,
+    RigController,
 };
 use crate::source::{
     CameraInfo, ExposureCommand, FrameSet, FrameSource, SourceError, StreamHealth,
@@ -371,10 +371,7 @@ pub struct Processor {
     controller: RigController,
     display_estimators: Vec<Estimator>,
     view: Option<SurroundView>,
-    masks: Vec<Option<RoiMask>>,
-    /// The masks prepared for the cameras' frames (metering is then a
-    /// third as costly); `None` where a camera's frames do not fit.
-    prepared: Vec<Option<PreparedMask>>,
+    masks: CameraMasks,
     overlay: Arc<Overlay>,
     composer: Composer,
     last_taken: Vec<Option<ExposureSetting>>,
@@ -408,8 +405,7 @@ impl Processor {
             display_estimators,
             overlay: Arc::new(Overlay::of(view.as_ref(), n)),
             view,
-            masks: vec![None; n],
-            prepared: vec![None; n],
+            masks: CameraMasks::none(n),
             composer: Composer::new(),
             last_taken: vec![None; n],
             compose: true,
@@ -424,18 +420,12 @@ impl Processor {
 
     fn update_masks(&mut self) {
         self.masks = match (&self.view, self.settings.roi) {
-            (Some(v), MeterRoi::Ground) => v.ground_masks().iter().cloned().map(Some).collect(),
-            _ => vec![None; self.cameras.len()],
+            (Some(v), MeterRoi::Ground) => {
+                let formats: Vec<_> = self.cameras.iter().map(|c| c.format).collect();
+                CameraMasks::new(&self.meter, v.ground_masks(), &formats)
+            }
+            _ => CameraMasks::none(self.cameras.len()),
         };
-        self.prepared = self
-            .masks
-            .iter()
-            .zip(&self.cameras)
-            .map(|(m, c)| {
-                m.as_ref()
-                    .and_then(|m| self.meter.prepare(m, c.format).ok())
-            })
-            .collect();
     }
 
     /// The settings in force.
@@ -566,31 +556,15 @@ impl Processor {
             .iter()
             .map(|f| f.view())
             .collect::<Result<Vec<FrameView<'_>>>>()?;
-        let metered = views
-            .iter()
-            .zip(self.masks.iter().zip(&self.prepared))
-            .map(|(v, (m, p))| match p {
-                Some(p) => self
-                    .meter
-                    .meter_prepared(v, p)
-                    .or_else(|_| self.meter.meter(v, m.as_ref())),
-                None => self.meter.meter(v, m.as_ref()),
-            })
-            .collect::<Result<Vec<_>>>()?;
+        let metered = self.masks.meter(&self.meter, &views)?;
         let observations = match &self.view {
             Some(v) => v.pair_observations(&views)?,
             None => Vec::new(),
         };
         let t1 = Instant::now();
-        let inputs: Vec<CameraInput<'_>> = frames
-            .iter()
-            .zip(&metered)
-            .map(|(f, m)| CameraInput {
-                info: f.info(),
-                metered: m,
-            })
-            .collect();
-        let step = self.controller.step(&inputs, &observations)?;
+        let step = self
+            .controller
+            .step_frames(&frames, &metered, &observations)?;
         let camera_auto = self.settings.strategy == Strategy::CameraAuto;
         let commands = if camera_auto {
             Vec::new()

@@ -7,7 +7,7 @@ use std::time::Duration;
 
 use crate::error::{Error, Result};
 use crate::exposure::{
-    CameraInput, Meter, Metered, PairObservation, RigController, RigStep, RoiMask,
+    CameraMasks, Meter, Metered, PairObservation, RigController, RigStep, RoiMask,
 };
 use crate::source::{FrameSet, FrameSource, SourceError};
 use crate::surround::SurroundView;
@@ -31,7 +31,7 @@ pub struct ClosedLoop<S: FrameSource> {
     source: S,
     meter: Meter,
     view: Option<SurroundView>,
-    masks: Vec<Option<RoiMask>>,
+    masks: CameraMasks,
     controller: RigController,
     timeout: Duration,
 }
@@ -61,9 +61,10 @@ impl<S: FrameSource> ClosedLoop<S> {
                         v.layers().len()
                     )));
                 }
-                v.ground_masks().iter().cloned().map(Some).collect()
+                let formats: Vec<_> = source.cameras().iter().map(|c| c.format).collect();
+                CameraMasks::new(&meter, v.ground_masks(), &formats)
             }
-            None => vec![None; n],
+            None => CameraMasks::none(n),
         };
         Ok(Self {
             source,
@@ -102,7 +103,7 @@ impl<S: FrameSource> ClosedLoop<S> {
 
     /// The metering masks, one per camera.
     pub fn masks(&self) -> &[Option<RoiMask>] {
-        &self.masks
+        self.masks.raw()
     }
 
     /// One set through the loop; `None` when the source gave no set.
@@ -123,24 +124,12 @@ impl<S: FrameSource> ClosedLoop<S> {
             .iter()
             .map(|f| f.view())
             .collect::<Result<Vec<_>>>()?;
-        let metered = views
-            .iter()
-            .zip(&self.masks)
-            .map(|(v, m)| self.meter.meter(v, m.as_ref()))
-            .collect::<Result<Vec<_>>>()?;
+        let metered = self.masks.meter(&self.meter, &views)?;
         let pairs = match &self.view {
             Some(v) => v.pair_observations(&views)?,
             None => Vec::new(),
         };
-        let inputs: Vec<CameraInput<'_>> = frames
-            .iter()
-            .zip(&metered)
-            .map(|(f, m)| CameraInput {
-                info: f.info(),
-                metered: m,
-            })
-            .collect();
-        let step = self.controller.step(&inputs, &pairs)?;
+        let step = self.controller.step_frames(&frames, &metered, &pairs)?;
         let commands = step.commands();
         self.source.apply(&commands)?;
         Ok(Some(LoopStep {
