@@ -6,7 +6,9 @@
 //!   against OpenCV: per anchor a 256-entry float LUT `(v/255)^γ` on the
 //!   8-bit image → Sobel x, y (CV_32F, 3×3) → magnitude → affine
 //!   `λ·|∇|/(4√2) − λδ + 1` → max with 1 → log → sum over the interior; then
-//!   rigview's own polynomial fit and argmax.
+//!   rigview's own polynomial fit and argmax. `rigview_gamma_with_info`
+//!   also forms the information-weighted intensity (`estimate_with_info`,
+//!   which the fast law asks for), work the peer does not do.
 //! - `meter_and_estimate_1288x964`: from a full 1288×964 frame (Mono8 and
 //!   RGB8): rigview's `Meter::meter` + `Estimator::estimate` against OpenCV
 //!   (`cvtColor RGB2GRAY` for RGB8) → `resize INTER_AREA` to 322×241 → the
@@ -224,6 +226,16 @@ fn estimate_320x240(c: &mut Criterion) {
     configure(&mut group);
     group.bench_function("rigview_gamma", |b| {
         b.iter(|| gamma.estimate(black_box(&metered)).unwrap().gamma_hat);
+    });
+    // With the information-weighted intensity the fast law falls back on
+    // (its γ = 1 pass also forms `Σ m̄·log₂ I`).
+    group.bench_function("rigview_gamma_with_info", |b| {
+        b.iter(|| {
+            gamma
+                .estimate_with_info(black_box(&metered))
+                .unwrap()
+                .gamma_hat
+        });
     });
     group.bench_function("rigview_scale_clip", |b| {
         b.iter(|| scale_clip.estimate(black_box(&metered)).unwrap().gamma_hat);

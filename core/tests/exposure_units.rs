@@ -304,6 +304,58 @@ fn both_simulations_point_the_right_way() {
     assert!(!gd.flat);
 }
 
+/// The information-weighted intensity (only the fast law uses it) comes
+/// when asked for, and asking changes nothing else of the estimate.
+#[test]
+fn the_information_weighted_intensity_comes_when_asked() {
+    let image = metered_scene(9000.0);
+    let mut g = Estimator::new(EstimatorConfig::default()).unwrap();
+    let plain = g.estimate(&image).unwrap();
+    let full = g.estimate_with_info(&image).unwrap();
+    assert_eq!(plain.info_intensity, None);
+    let mu = full.info_intensity.expect("asked for");
+    assert!(
+        close(plain.m_current, full.m_current, 1e-5 * full.m_current),
+        "M {} vs {}",
+        plain.m_current,
+        full.m_current
+    );
+    assert!(close(plain.gamma_hat, full.gamma_hat, 1e-6));
+    // exp2(Σ m̄·log₂ I / Σ m̄) from the information map, in double precision.
+    let mut map = Vec::new();
+    let mut scratch = rigview_core::exposure::metric::Scratch::default();
+    g.metric().information_map(
+        image.luma(),
+        image.width(),
+        image.height(),
+        None,
+        &mut scratch,
+        &mut map,
+    );
+    let (mut num, mut den) = (0.0f64, 0.0f64);
+    for (&m, &v) in map.iter().zip(image.luma()) {
+        if m > 0.0 {
+            num += f64::from(m) * f64::from(v).log2();
+            den += f64::from(m);
+        }
+    }
+    let want = (num / den).exp2();
+    assert!(close(mu, want, 1e-3 * want), "μ {mu} vs {want}");
+    // Scale-and-clip's information map gives it anyway.
+    let mut s = Estimator::new(EstimatorConfig {
+        simulation: Simulation::ScaleClip,
+        ..Default::default()
+    })
+    .unwrap();
+    assert!(s.estimate(&image).unwrap().info_intensity.is_some());
+    // The fast law's controller asks for it.
+    assert!(g
+        .estimate_with_slope(&image)
+        .unwrap()
+        .info_intensity
+        .is_some());
+}
+
 #[test]
 fn a_black_image_is_flat_and_the_controller_falls_back_to_mean_steps() {
     let black = Metered::from_luma(16, 16, vec![0.0; 256], None).unwrap();

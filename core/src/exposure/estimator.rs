@@ -327,8 +327,12 @@ pub struct Estimate {
     pub m_current: f64,
     /// The information-weighted geometric mean intensity of the image as it
     /// is, `exp(Σ m̄·ln I / Σ m̄)`: the intensity where its gradient
-    /// information lies (0.5 when there is none).
-    pub info_intensity: f64,
+    /// information lies (0.5 when there is none). Computed when asked for
+    /// ([`Estimator::estimate_with_info`], [`Estimator::estimate_with_slope`])
+    /// and for scale-and-clip, whose information map gives it at no cost; a
+    /// plain γ-mapping estimate leaves it out (it makes the γ = 1 pass about
+    /// 2.5 times as long, and only the fast law uses it).
+    pub info_intensity: Option<f64>,
     /// `dγ̂/d ln E` measured on the image itself, when asked for
     /// ([`Estimator::estimate_with_slope`]).
     pub slope: Option<f64>,
@@ -348,7 +352,7 @@ pub struct Estimator {
     anchors: Vec<f64>,
     metric: GradientMetric,
     scratch: Scratch,
-    logs: Vec<f32>,
+    logs: kernel::Aligned<f32>,
     info: Vec<f32>,
     mapped: Vec<f32>,
 }
@@ -365,7 +369,7 @@ impl Estimator {
             config,
             anchors,
             scratch: Scratch::default(),
-            logs: Vec::new(),
+            logs: kernel::Aligned::default(),
             info: Vec::new(),
             mapped: Vec::new(),
         })
@@ -404,7 +408,7 @@ impl Estimator {
     /// scale-and-clip below 1, `M_sim` of the module documentation).
     pub fn score_at(&mut self, image: &Metered, x: f64) -> f64 {
         self.prepare(image);
-        self.current_information(image);
+        self.current_information(image, false);
         let held = self.held_weights(image);
         let recovered = if held {
             self.texture_recovery(image, &[x])
@@ -414,11 +418,15 @@ impl Estimator {
         self.score_mapped(image, x, held) + recovered.first().copied().unwrap_or(0.0)
     }
 
-    /// `M` of the image as it is and the information-weighted geometric
-    /// mean intensity; fills the information map when scale-and-clip needs
-    /// it.
-    fn current_information(&mut self, image: &Metered) -> (f64, f64) {
-        let map = (self.config.simulation == Simulation::ScaleClip).then_some(&mut self.info);
+    /// `M` of the image as it is and, when `with_intensity` or for
+    /// scale-and-clip, the information-weighted geometric mean intensity;
+    /// fills the information map when scale-and-clip needs it.
+    fn current_information(&mut self, image: &Metered, with_intensity: bool) -> (f64, Option<f64>) {
+        let scale_clip = self.config.simulation == Simulation::ScaleClip;
+        if !with_intensity && !scale_clip {
+            return (self.score(image), None);
+        }
+        let map = scale_clip.then_some(&mut self.info);
         let (m, m_log2_i) = self.metric.information_with_log2(
             image.luma(),
             &self.logs,
@@ -429,7 +437,7 @@ impl Estimator {
             map,
         );
         let intensity = if m > 0.0 { (m_log2_i / m).exp2() } else { 0.5 };
-        (m, intensity)
+        (m, Some(intensity))
     }
 
     /// For scale-and-clip on an image with a saturated pixel: the weights of
@@ -542,8 +550,17 @@ impl Estimator {
 
     /// Scores every anchor, fits the polynomial and finds its maximum.
     pub fn estimate(&mut self, image: &Metered) -> Result<Estimate> {
+        self.estimate_inner(image, false)
+    }
+
+    /// [`Estimator::estimate`] with [`Estimate::info_intensity`].
+    pub fn estimate_with_info(&mut self, image: &Metered) -> Result<Estimate> {
+        self.estimate_inner(image, true)
+    }
+
+    fn estimate_inner(&mut self, image: &Metered, with_intensity: bool) -> Result<Estimate> {
         self.prepare(image);
-        let (m_current, info_intensity) = self.current_information(image);
+        let (m_current, info_intensity) = self.current_information(image, with_intensity);
         let held = self.held_weights(image);
         let xs = self.anchors.clone();
         let recovered = if held {
@@ -602,12 +619,12 @@ impl Estimator {
 pub const SLOPE_STEP: f64 = 1.3;
 
 impl Estimator {
-    /// [`Estimator::estimate`], plus the slope `dγ̂/d ln E` measured by
+    /// [`Estimator::estimate_with_info`], plus the slope `dγ̂/d ln E` measured by
     /// estimating again on the image scaled by [`SLOPE_STEP`] towards the
     /// fixed point (`min(1, s·I)`: what a linear sensor delivers). The
     /// slope is left out when either estimate sits at a bound or is flat.
     pub fn estimate_with_slope(&mut self, image: &Metered) -> Result<Estimate> {
-        let mut estimate = self.estimate(image)?;
+        let mut estimate = self.estimate_with_info(image)?;
         if estimate.flat || estimate.at_bound.is_some() {
             return Ok(estimate);
         }

@@ -17,7 +17,8 @@
 //!     the ratio instead: a pixel of intensity `μ` mapped by `γ̂` becomes
 //!     `μ^γ̂`, which a linear sensor reaches with the ratio `μ^(γ̂−1)`; `μ`
 //!     is the intensity where the image's gradient information lies
-//!     ([`Estimate::info_intensity`], clamped to [0.02, 0.95]);
+//!     ([`Estimate::info_intensity`], clamped to [0.02, 0.95]; the mean
+//!     intensity for an estimate made without it);
 //!   - when the maximiser sits at an end of the anchors' span the best
 //!     exposure lies beyond it: scale-and-clip's `ŝ` at its upper end is
 //!     squared (extrapolated one span further); the γ prediction is replaced, if that is larger, by
@@ -162,7 +163,12 @@ pub fn fast_ratio(damping: f64, estimate: &Estimate, stats: &ImageStats) -> f64 
                 .filter(|&k| k > 0.05 && estimate.at_bound.is_none())
                 .map(|k| (-(g - 1.0) / k).exp());
             newton.unwrap_or_else(|| {
-                let mu = estimate.info_intensity.clamp(0.02, 0.95);
+                // Without the information-weighted intensity (an estimate
+                // not made for this law), the mean intensity stands in.
+                let mu = estimate
+                    .info_intensity
+                    .unwrap_or(f64::from(stats.mean))
+                    .clamp(0.02, 0.95);
                 mu.powf(g - 1.0)
             })
         }
