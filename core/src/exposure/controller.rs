@@ -186,6 +186,9 @@ pub struct CameraController {
     pending: Option<Pending>,
     last_frame: Option<u64>,
     manual: Option<f64>,
+    /// `ln R` of Eq. 6, smoothed over the steps that balanced
+    /// ([`balance::smoothed_unary_ratio`]).
+    balance_log_ratio: Option<f64>,
 }
 
 impl CameraController {
@@ -199,6 +202,7 @@ impl CameraController {
             pending: None,
             last_frame: None,
             manual: None,
+            balance_log_ratio: None,
         })
     }
 
@@ -551,7 +555,12 @@ impl RigController {
                 if neighbour.is_empty() {
                     (u.desired, None)
                 } else {
-                    let b = balance::balance(u.desired, u.taken, &neighbour);
+                    let r = balance::smoothed_unary_ratio(
+                        u.desired / u.taken,
+                        &mut cam.balance_log_ratio,
+                        u.hold.is_none(),
+                    );
+                    let b = balance::balance_at(u.desired, u.taken, &neighbour, balance::alpha(r));
                     (b.exposure, Some(b.alpha))
                 }
             } else {
