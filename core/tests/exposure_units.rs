@@ -469,41 +469,6 @@ fn alpha_follows_eq6() {
     }
 }
 
-/// α's unary ratio is smoothed in ln R with weight ½: by hand.
-#[test]
-fn the_unary_ratio_of_alpha_is_smoothed() {
-    let mut state = None;
-    // The first step takes R as it is (clamped to [0.5, 2]).
-    assert!(close(
-        balance::smoothed_unary_ratio(0.25, &mut state, true),
-        0.5,
-        1e-12
-    ));
-    // Then ½·ln 2 + ½·ln 0.5 = 0: R = 1, and α = ½ rather than 1.
-    let r = balance::smoothed_unary_ratio(2.0, &mut state, true);
-    assert!(close(r, 1.0, 1e-12), "{r}");
-    assert!(close(balance::alpha(r), 0.5, 1e-12));
-    // A step that sends no command reads without changing the state.
-    assert!(close(
-        balance::smoothed_unary_ratio(2.0, &mut state, false),
-        2f64.sqrt(),
-        1e-12
-    ));
-    assert!(close(
-        balance::smoothed_unary_ratio(2.0, &mut state, true),
-        2f64.sqrt(),
-        1e-12
-    ));
-    // Not a ratio: taken as 1.
-    let before = state;
-    let r = balance::smoothed_unary_ratio(f64::NAN, &mut state, true);
-    assert!(close(r, 2f64.powf(0.25), 1e-12), "{r}");
-    assert_ne!(state, before);
-    // balance_at uses the α it is given.
-    let b = balance::balance_at(1200.0, 1000.0, &[2.0], 0.75);
-    assert!(close(b.exposure, 0.75 * 1200.0 + 0.25 * 2000.0, 1e-9));
-}
-
 #[test]
 fn balance_is_the_minimiser_of_eq5() {
     let (u, e, ratios) = (1200.0, 1000.0, [2.0, 1.0]);

@@ -10,10 +10,6 @@
 //! R_i        = E_{t+1,i} / E_{t,i} clamped to [0.5, 2]
 //! ```
 //!
-//! The controller takes α from `R_i` averaged in `ln R` over its steps
-//! ([`smoothed_unary_ratio`], which says why); [`balance`] is Eq. 6 with
-//! this step's `R_i`.
-//!
 //! Patches in which either camera is saturated or nearly black say nothing
 //! about the brightness ratio and are left out.
 
@@ -141,39 +137,6 @@ pub fn alpha(unary_ratio: f64) -> f64 {
     }
 }
 
-/// How much of a new unary ratio the smoothed one takes per step
-/// ([`smoothed_unary_ratio`]).
-pub const ALPHA_SMOOTHING: f64 = 0.5;
-
-/// The unary ratio `R` that α is taken from: the new one averaged in
-/// `ln R` with those of earlier steps (weight [`ALPHA_SMOOTHING`]), kept in
-/// `state`; `update` false (a step that sends no command) reads the state
-/// without changing it.
-///
-/// Eq. 6 as written takes α from this frame's `R` alone. Where a camera's
-/// own optimum and its neighbours' brightness disagree by much (a camera
-/// on a sunlit mat beside cameras in shade), that closes a loop with a gain
-/// above 1: near its fixed point `R ≈ 1`, α = ½ and the neighbours pull the
-/// camera up; the unary then asks for its largest step down, α = 1 and it
-/// follows; and so on, a cycle of two steps. Smoothing `R` keeps α steady
-/// across such a pair of steps while still following a scene that changes
-/// over a few frames.
-pub fn smoothed_unary_ratio(unary_ratio: f64, state: &mut Option<f64>, update: bool) -> f64 {
-    let now = if unary_ratio.is_finite() && unary_ratio > 0.0 {
-        unary_ratio.clamp(0.5, 2.0).ln()
-    } else {
-        0.0
-    };
-    let smoothed = match *state {
-        Some(prev) => ALPHA_SMOOTHING * now + (1.0 - ALPHA_SMOOTHING) * prev,
-        None => now,
-    };
-    if update {
-        *state = Some(smoothed);
-    }
-    smoothed.exp()
-}
-
 /// The closed-form minimiser of Eq. 5.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Balanced {
@@ -196,19 +159,7 @@ pub fn balance(unary: f64, current: f64, ratios: &[f64]) -> Balanced {
             mean_ratio: 1.0,
         };
     }
-    balance_at(unary, current, ratios, alpha(unary / current))
-}
-
-/// [`balance`] with a given α (for example from
-/// [`smoothed_unary_ratio`]).
-pub fn balance_at(unary: f64, current: f64, ratios: &[f64], a: f64) -> Balanced {
-    if ratios.is_empty() || current <= 0.0 {
-        return Balanced {
-            exposure: unary,
-            alpha: 1.0,
-            mean_ratio: 1.0,
-        };
-    }
+    let a = alpha(unary / current);
     let mean_ratio = ratios.iter().sum::<f64>() / ratios.len() as f64;
     Balanced {
         exposure: a * unary + (1.0 - a) * mean_ratio * current,

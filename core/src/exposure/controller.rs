@@ -186,9 +186,6 @@ pub struct CameraController {
     pending: Option<Pending>,
     last_frame: Option<u64>,
     manual: Option<f64>,
-    /// `ln R` of Eq. 6, smoothed over the steps that balanced
-    /// ([`balance::smoothed_unary_ratio`]).
-    balance_log_ratio: Option<f64>,
 }
 
 impl CameraController {
@@ -202,7 +199,6 @@ impl CameraController {
             pending: None,
             last_frame: None,
             manual: None,
-            balance_log_ratio: None,
         })
     }
 
@@ -555,12 +551,7 @@ impl RigController {
                 if neighbour.is_empty() {
                     (u.desired, None)
                 } else {
-                    let r = balance::smoothed_unary_ratio(
-                        u.desired / u.taken,
-                        &mut cam.balance_log_ratio,
-                        u.hold.is_none(),
-                    );
-                    let b = balance::balance_at(u.desired, u.taken, &neighbour, balance::alpha(r));
+                    let b = balance::balance(u.desired, u.taken, &neighbour);
                     (b.exposure, Some(b.alpha))
                 }
             } else {
