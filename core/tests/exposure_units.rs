@@ -512,6 +512,83 @@ fn balancing_alone_equalises_brightness_on_any_graph() {
     }
 }
 
+#[test]
+fn damping_keeps_a_steady_direction_and_halves_on_reversals() {
+    let p = balance::DampingParams::default();
+    let mut d = balance::Damping::default();
+    // The same direction: the whole step, every time.
+    assert_eq!(d.apply(1000.0, 2000.0, &p), (2000.0, 1.0));
+    assert_eq!(d.apply(2000.0, 8000.0, &p), (8000.0, 1.0));
+    // A reversal halves κ, in log exposure: 8000·2^(−1/2).
+    let (e, k) = d.apply(8000.0, 4000.0, &p);
+    assert_eq!(k, 0.5);
+    assert!(close(e, 8000.0 * 0.5f64.sqrt(), 1e-9));
+    // Another: a quarter of a 1 EV step.
+    let (e2, k) = d.apply(e, 2.0 * e, &p);
+    assert_eq!(k, 0.25);
+    assert!(close(e2, e * 2f64.powf(0.25), 1e-9));
+    // Steps inside the dead band change nothing, whatever their direction.
+    let tiny = 2f64.powf(0.5 * p.dead_band_ev);
+    assert_eq!(d.apply(e2, e2 / tiny, &p).1, 0.25);
+    assert_eq!(d.apply(e2, e2 * tiny, &p).1, 0.25);
+    // Keeping the direction doubles κ back to 1, not beyond.
+    assert_eq!(d.apply(e2, 2.0 * e2, &p).1, 0.5);
+    assert_eq!(d.apply(e2, 2.0 * e2, &p).1, 1.0);
+    assert_eq!(d.apply(e2, 2.0 * e2, &p).1, 1.0);
+    // Reversals stop at the floor.
+    for k in 0..12 {
+        let t = if k % 2 == 0 { 0.5 } else { 2.0 };
+        d.apply(1000.0, 1000.0 * t, &p);
+    }
+    assert_eq!(d.kappa(), p.floor);
+    d.reset();
+    assert_eq!(d.kappa(), 1.0);
+    // No exposure to step from: the target stands.
+    assert_eq!(d.apply(0.0, 500.0, &p).0, 500.0);
+    let bad = balance::DampingParams { floor: 0.0, ..p };
+    let err = bad.validate().unwrap_err().to_string();
+    assert!(err.contains("balance.damping.floor"), "{err}");
+}
+
+/// A camera whose own law wants `E0` (`R = E0/E`) while its neighbours want
+/// it at `4·E0`: Eq. 5 and 6 have a fixed point at `1.5·E0` (`R = 2/3`,
+/// `α = 5/6`), but there `d ln E*/d ln E = 1 − (6R − ½)·R = −4/3`, so the
+/// plain iteration circles it. The damped one settles on it.
+#[test]
+fn damping_settles_a_two_step_cycle_on_the_balanced_fixed_point() {
+    let e0: f64 = 1000.0;
+    let run = |params: balance::DampingParams| {
+        let mut d = balance::Damping::default();
+        let mut e: f64 = 1400.0;
+        let mut path = Vec::new();
+        for _ in 0..60 {
+            let unary = e * (e0 / e).clamp(0.5, 2.0);
+            let b = balance::balance(unary, e, &[4.0 * e0 / e]);
+            e = d.apply(e, b.exposure, &params).0;
+            path.push(e);
+        }
+        path
+    };
+    let band = |p: &[f64]| {
+        let tail = &p[p.len() - 10..];
+        (tail.iter().cloned().fold(f64::MIN, f64::max)
+            / tail.iter().cloned().fold(f64::MAX, f64::min))
+        .log2()
+    };
+    let plain = run(balance::DampingParams {
+        floor: 1.0,
+        ..Default::default()
+    });
+    assert!(band(&plain) > 0.3, "the plain iteration: {plain:?}");
+    let damped = run(balance::DampingParams::default());
+    assert!(band(&damped) < 0.01, "damped: {damped:?}");
+    let last = damped[damped.len() - 1];
+    assert!((last / (1.5 * e0)).log2().abs() < 0.01, "settled at {last}");
+    // It is Eq. 5's own fixed point.
+    let b = balance::balance(e0, last, &[4.0 * e0 / last]);
+    assert!((b.exposure / last).log2().abs() < 0.01);
+}
+
 // ---------- split ----------
 
 #[test]

@@ -12,6 +12,26 @@
 //!
 //! Patches in which either camera is saturated or nearly black say nothing
 //! about the brightness ratio and are left out.
+//!
+//! ## Damping a circling camera
+//!
+//! Eq. 6's α is smallest (½) where the unary ratio `R` is 1 and grows on
+//! either side, so near a camera's own fixed point a small change of `R`
+//! moves the balanced step a lot: `d(E*/E)/dR = 1.5 − 2R + mean_j r_ij` for
+//! `R < 1`, about 4 for a camera whose neighbours want it 2 EV brighter.
+//! Fed back through a unary law that answers a change of exposure with a
+//! change of `R` of the same order, the loop gain exceeds 1 and the camera
+//! circles the balanced fixed point every two steps (on the simulated rig's
+//! front camera, 0.6 EV) instead of settling on it.
+//!
+//! [`Damping`] takes only a fraction `κ` of each balanced step, in log
+//! exposure: `E_{t+1} = E_t·(E*_{t+1}/E_t)^κ`. `κ` halves each time the
+//! step changes direction (both steps larger than a dead band, so noise at
+//! rest does not count) down to a floor, and doubles back towards 1 on
+//! each step that keeps the direction. A camera that follows its scene
+//! (a tunnel, a step of light) keeps `κ = 1` and Eq. 5 as written; one that
+//! circles is slowed until the loop gain is below 1. The fixed points are
+//! Eq. 5's: `E*_{t+1} = E_t` is a fixed point for every `κ`.
 
 use serde::{Deserialize, Serialize};
 
@@ -28,6 +48,9 @@ pub struct BalanceParams {
     pub min_mean: f64,
     /// A pair needs at least this many usable patches to give `r_ij`.
     pub min_patches: usize,
+    /// How a circling camera's balanced step is damped ([`Damping`]).
+    #[serde(default)]
+    pub damping: DampingParams,
 }
 
 impl Default for BalanceParams {
@@ -37,6 +60,7 @@ impl Default for BalanceParams {
             max_saturated: 0.05,
             min_mean: 0.01,
             min_patches: 1,
+            damping: DampingParams::default(),
         }
     }
 }
@@ -72,7 +96,7 @@ impl BalanceParams {
                 expected: "at least 1",
             });
         }
-        Ok(())
+        self.damping.validate()
     }
 }
 
@@ -165,6 +189,98 @@ pub fn balance(unary: f64, current: f64, ratios: &[f64]) -> Balanced {
         exposure: a * unary + (1.0 - a) * mean_ratio * current,
         alpha: a,
         mean_ratio,
+    }
+}
+
+/// How [`Damping`] adapts.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct DampingParams {
+    /// Steps smaller than this (|log2 of the step|, EV) neither shrink nor
+    /// grow `κ`.
+    pub dead_band_ev: f64,
+    /// The smallest `κ`.
+    pub floor: f64,
+}
+
+impl Default for DampingParams {
+    fn default() -> Self {
+        Self {
+            dead_band_ev: 0.05,
+            floor: 1.0 / 16.0,
+        }
+    }
+}
+
+impl DampingParams {
+    /// Checks the parameters.
+    pub fn validate(&self) -> Result<()> {
+        check_range(
+            "balance.damping.dead_band_ev",
+            self.dead_band_ev,
+            0.0,
+            1.0,
+            "an exposure step in EV in [0, 1]",
+        )?;
+        check_range(
+            "balance.damping.floor",
+            self.floor,
+            1e-3,
+            1.0,
+            "a fraction in [0.001, 1]",
+        )?;
+        Ok(())
+    }
+}
+
+/// The step-size adaptation of the balanced step of one camera (module
+/// documentation).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Damping {
+    kappa: f64,
+    /// log2 of the last balanced step outside the dead band.
+    last: Option<f64>,
+}
+
+impl Default for Damping {
+    fn default() -> Self {
+        Self {
+            kappa: 1.0,
+            last: None,
+        }
+    }
+}
+
+impl Damping {
+    /// The fraction of the balanced step the next call takes, before it
+    /// adapts.
+    pub fn kappa(&self) -> f64 {
+        self.kappa
+    }
+
+    /// Forgets the history (`κ = 1`): for a step that did not balance.
+    pub fn reset(&mut self) {
+        *self = Self::default();
+    }
+
+    /// The exposure to command for the balanced target `target` of a frame
+    /// taken at `current`, and the `κ` used.
+    pub fn apply(&mut self, current: f64, target: f64, params: &DampingParams) -> (f64, f64) {
+        if !(current > 0.0 && target > 0.0 && current.is_finite() && target.is_finite()) {
+            return (target, self.kappa);
+        }
+        let step = (target / current).log2();
+        if step.abs() > params.dead_band_ev {
+            match self.last {
+                Some(last) if last * step < 0.0 => {
+                    self.kappa = (self.kappa * 0.5).max(params.floor);
+                }
+                Some(_) => self.kappa = (self.kappa * 2.0).min(1.0),
+                None => {}
+            }
+            self.last = Some(step);
+        }
+        let kappa = self.kappa;
+        (current * (kappa * step).exp2(), kappa)
     }
 }
 

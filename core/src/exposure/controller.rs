@@ -186,6 +186,7 @@ pub struct CameraController {
     pending: Option<Pending>,
     last_frame: Option<u64>,
     manual: Option<f64>,
+    damping: balance::Damping,
 }
 
 impl CameraController {
@@ -199,6 +200,7 @@ impl CameraController {
             pending: None,
             last_frame: None,
             manual: None,
+            damping: balance::Damping::default(),
         })
     }
 
@@ -367,6 +369,9 @@ pub struct CameraStep {
     pub unary: f64,
     /// α of Eq. 6, when balancing applied.
     pub alpha: Option<f64>,
+    /// The fraction `κ` of the balanced step taken, when balancing applied
+    /// (1 unless the camera has been circling: [`balance::Damping`]).
+    pub damping: Option<f64>,
     /// The exposure after balancing.
     pub target: f64,
     /// The setting sent, if any.
@@ -537,7 +542,8 @@ impl RigController {
             let balancing_applies = config.balancing.is_some()
                 && cam.manual.is_none()
                 && config.mode != ControlMode::Fixed;
-            let (target, alpha) = if balancing_applies {
+            let params = config.balancing.unwrap_or_default();
+            let (target, alpha, damping) = if balancing_applies {
                 let neighbour: Vec<f64> = self
                     .graph
                     .neighbours(i)
@@ -549,13 +555,20 @@ impl RigController {
                     })
                     .collect();
                 if neighbour.is_empty() {
-                    (u.desired, None)
+                    cam.damping.reset();
+                    (u.desired, None, None)
                 } else {
                     let b = balance::balance(u.desired, u.taken, &neighbour);
-                    (b.exposure, Some(b.alpha))
+                    if u.hold.is_some() {
+                        (b.exposure, Some(b.alpha), Some(cam.damping.kappa()))
+                    } else {
+                        let (e, kappa) = cam.damping.apply(u.taken, b.exposure, &params.damping);
+                        (e, Some(b.alpha), Some(kappa))
+                    }
                 }
             } else {
-                (u.desired, None)
+                cam.damping.reset();
+                (u.desired, None, None)
             };
             let (command, clamped, hold) = if u.hold.is_some() {
                 (None, None, u.hold)
@@ -576,6 +589,7 @@ impl RigController {
                 mean: input.metered.stats().mean,
                 unary: u.desired,
                 alpha,
+                damping,
                 target,
                 command,
                 hold,
