@@ -341,9 +341,15 @@ fn balancing_adds_no_cycle_in_the_default_mode() {
 ///   s = 0.526: pixels away from saturation agree (384 and 384), the
 ///   saturated pixels on a saturation boundary nearly agree (truth 2217,
 ///   held 2172), and the interior of saturated areas is where the truth
-///   gains (222, from sunlit asphalt whose texture comes back). The assumed
-///   recovery credits nothing there: no surface near saturation has texture
-///   to borrow in this frame.
+///   gains (222). Those pixels lie one pixel inside the white squares of
+///   the sunlit mat: the squares stay saturated, but the anti-aliased pixels
+///   on their edges are only a little above saturation and come back, so
+///   each edge moves a pixel inwards. The simulation holds them saturated
+///   and credits nothing. Declipping them from the histogram just below
+///   saturation, or log-uniformly over 2–6 EV, was tried on every camera
+///   from 2^7 to 2^12.5 and predicted worse than holding: what darkening
+///   does there depends on how far above saturation the plateau behind
+///   the edge lies, which one frame does not show.
 /// - **Right (+0.22 EV).** `M` is flat to 0.2 % from 2^10.9 to 2^11.2,
 ///   and the same under-credited interior (truth 140, assumed 6 at s =
 ///   0.526) puts the fixed point at the bright end of the plateau.
