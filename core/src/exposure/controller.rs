@@ -539,12 +539,11 @@ impl RigController {
         let mut steps = Vec::with_capacity(inputs.len());
         for (i, (u, input)) in unary.into_iter().zip(inputs).enumerate() {
             let cam = &mut self.cameras[i];
-            let balancing_applies = config.balancing.is_some()
-                && cam.manual.is_none()
-                && config.mode != ControlMode::Fixed;
-            let params = config.balancing.unwrap_or_default();
-            let (target, alpha, damping) = if balancing_applies {
-                let neighbour: Vec<f64> = self
+            let balancing = config
+                .balancing
+                .filter(|_| cam.manual.is_none() && config.mode != ControlMode::Fixed);
+            let neighbour: Vec<f64> = match balancing {
+                Some(_) => self
                     .graph
                     .neighbours(i)
                     .filter_map(|j| {
@@ -553,22 +552,23 @@ impl RigController {
                             .find(|r| r.i == i && r.j == j)
                             .and_then(|r| r.r_ij)
                     })
-                    .collect();
-                if neighbour.is_empty() {
+                    .collect(),
+                None => Vec::new(),
+            };
+            let (target, alpha, damping) = match balancing.filter(|_| !neighbour.is_empty()) {
+                Some(params) => {
+                    let b = balance::balance(u.desired, u.taken, &neighbour);
+                    let (e, kappa) = if u.hold.is_some() {
+                        (b.exposure, cam.damping.kappa())
+                    } else {
+                        cam.damping.apply(u.taken, b.exposure, &params.damping)
+                    };
+                    (e, Some(b.alpha), Some(kappa))
+                }
+                None => {
                     cam.damping.reset();
                     (u.desired, None, None)
-                } else {
-                    let b = balance::balance(u.desired, u.taken, &neighbour);
-                    if u.hold.is_some() {
-                        (b.exposure, Some(b.alpha), Some(cam.damping.kappa()))
-                    } else {
-                        let (e, kappa) = cam.damping.apply(u.taken, b.exposure, &params.damping);
-                        (e, Some(b.alpha), Some(kappa))
-                    }
                 }
-            } else {
-                cam.damping.reset();
-                (u.desired, None, None)
             };
             let (command, clamped, hold) = if u.hold.is_some() {
                 (None, None, u.hold)
