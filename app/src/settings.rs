@@ -261,4 +261,34 @@ mod tests {
         let msg = format!("{:#}", Settings::parse(&text, "s.yaml").unwrap_err());
         assert!(msg.contains("s.yaml") && msg.contains("delta"), "{msg}");
     }
+
+    #[test]
+    fn a_file_from_before_probing_probes_and_null_turns_it_off() {
+        let text = Settings::default().to_yaml().unwrap();
+        let block: String = text
+            .lines()
+            .skip_while(|l| *l != "    probe:")
+            .take_while(|l| *l == "    probe:" || l.starts_with("      "))
+            .map(|l| format!("{l}\n"))
+            .collect();
+        assert!(block.contains("step_ev:"), "{text}");
+        let before = text.replacen(&block, "", 1);
+        let old = Settings::parse(&before, "old.yaml").unwrap();
+        assert_eq!(old, Settings::default(), "a file without `probe` probes");
+        let off = Settings::parse(
+            &before.replacen("  controller:\n", "  controller:\n    probe: null\n", 1),
+            "off.yaml",
+        )
+        .unwrap();
+        assert_eq!(off.processing.controller.probe, None);
+        let bad = text.replacen("      step_ev: 0.9", "      step_ev: 9", 1);
+        let msg = format!("{:#}", Settings::parse(&bad, "bad.yaml").unwrap_err());
+        assert!(
+            msg.contains("bad.yaml") && msg.contains("controller.probe.step_ev"),
+            "{msg}"
+        );
+        let typo = text.replacen("      step_ev:", "      stepev:", 1);
+        let msg = format!("{:#}", Settings::parse(&typo, "typo.yaml").unwrap_err());
+        assert!(msg.contains("typo.yaml") && msg.contains("stepev"), "{msg}");
+    }
 }

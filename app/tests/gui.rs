@@ -174,6 +174,13 @@ fn switching_the_strategy_and_parameters_changes_the_controller() {
                 && o.settings.controller.law.kind == LawKind::Fast
         })
     });
+    // Probing darker is on by default; its check box turns it off.
+    assert!(h.state().settings().processing.controller.probe.is_some());
+    h.get_by_label("probe darker under saturation").click();
+    step_until(&mut h, 60.0, "probe setting reaches processing", |a| {
+        a.latest()
+            .is_some_and(|o| o.settings.controller.probe.is_none())
+    });
     // The gradient controller moves the cameras off the manual level.
     step_until(&mut h, 60.0, "gradient control moves a camera", |a| {
         a.latest().is_some_and(|o| {
@@ -191,6 +198,7 @@ fn switching_the_strategy_and_parameters_changes_the_controller() {
         again.settings().processing.controller.law.kind,
         LawKind::Fast
     );
+    assert_eq!(again.settings().processing.controller.probe, None);
 }
 
 #[test]

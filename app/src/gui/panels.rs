@@ -3,7 +3,7 @@
 use egui::{
     Align2, Color32, ColorImage, FontId, Rect, RichText, Sense, Stroke, StrokeKind, Ui, Vec2,
 };
-use rigview_core::exposure::{LawKind, Simulation};
+use rigview_core::exposure::{LawKind, ProbeEvent, ProbeParams, Simulation};
 use rigview_core::pipeline::{CameraOutput, MeterRoi, Strategy};
 use rigview_core::source::StreamState;
 use rigview_core::surround::BlendMode;
@@ -245,6 +245,17 @@ fn controls_inner(app: &mut RigviewApp, ui: &mut Ui) {
             })
             .response
             .labelled_by(sim_label.id);
+        let mut probe = p.controller.probe.is_some();
+        let r = ui
+            .checkbox(&mut probe, "probe darker under saturation")
+            .on_hover_text(
+                "single mode: a settled camera with saturated pixels takes one frame \
+                 0.93 EV darker and stays there if M measures higher",
+            );
+        if r.changed() {
+            p.controller.probe = probe.then(ProbeParams::default);
+            changed = true;
+        }
         egui::Grid::new("params").num_columns(2).show(ui, |ui| {
             let m = &mut p.controller.estimator.metric;
             changed |= drag_row(ui, "δ", &mut m.delta, 0.001..=0.5, 0.001);
@@ -419,7 +430,7 @@ pub fn camera_card(
             .as_ref()
             .map_or((f64::NAN, f64::NAN), |e| (e.gamma_hat, e.m_current));
         ui.label(format!(
-            "t {:.0} µs · gain {:.1} dB\nγ est. {g:.2} · M {m:.0} · mean {:.2}{}",
+            "t {:.0} µs · gain {:.1} dB\nγ est. {g:.2} · M {m:.0} · mean {:.2}{}{}",
             cam.taken.shutter_us,
             cam.taken.gain_db,
             cam.mean,
@@ -427,9 +438,25 @@ pub fn camera_card(
                 " · manual"
             } else {
                 ""
-            }
+            },
+            cam.last_probe.map_or(String::new(), probe_text)
         ));
     });
+}
+
+/// The latest probe darker, for the camera's label: what `M` did there.
+fn probe_text(p: ProbeEvent) -> String {
+    match p {
+        ProbeEvent::Taken { gain } => format!("\nprobe darker: M {:+.1} %, taken", gain * 100.0),
+        ProbeEvent::Rejected { gain } => {
+            format!("\nprobe darker: M {:+.1} %, stayed", gain * 100.0)
+        }
+        ProbeEvent::Known { gain } => {
+            format!("\ndarker seen: M {:+.1} %, no probe", gain * 100.0)
+        }
+        ProbeEvent::Abandoned => "\nprobe darker: abandoned".into(),
+        ProbeEvent::Sent { .. } => String::new(),
+    }
 }
 
 fn histogram(ui: &mut Ui, bins: &[u32], width: f32) {

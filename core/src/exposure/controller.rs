@@ -16,6 +16,7 @@ use super::baselines::{MeanIntensityParams, PidParams, PidState};
 use super::estimator::{Estimate, Estimator, EstimatorConfig};
 use super::laws::{LawKind, LawParams};
 use super::metering::Metered;
+use super::probe::{ProbeEvent, ProbeInput, ProbeParams, Prober};
 use super::split::{Clamped, ExposureRange, ExposureSetting, SplitParams, Splitter};
 use crate::error::{check_range, Error, Result};
 
@@ -67,6 +68,16 @@ pub struct ControllerConfig {
     pub fixed_exposure: f64,
     /// Frames to wait for a command to show before reacting anyway.
     pub latency_timeout_frames: u32,
+    /// Probing darker where saturation hides what darkening would show
+    /// ([`super::probe`]), for cameras under their own gradient law
+    /// (`None`: never).
+    #[serde(default = "default_probe")]
+    pub probe: Option<ProbeParams>,
+}
+
+/// A configuration written before probing existed probes (`null`: never).
+fn default_probe() -> Option<ProbeParams> {
+    Some(ProbeParams::default())
 }
 
 impl Default for ControllerConfig {
@@ -81,6 +92,7 @@ impl Default for ControllerConfig {
             balancing: Some(BalanceParams::default()),
             fixed_exposure: 5_000.0,
             latency_timeout_frames: 4,
+            probe: default_probe(),
         }
     }
 }
@@ -95,6 +107,9 @@ impl ControllerConfig {
         self.split.validate()?;
         if let Some(b) = &self.balancing {
             b.validate()?;
+        }
+        if let Some(p) = &self.probe {
+            p.validate()?;
         }
         check_range(
             "fixed_exposure",
@@ -175,6 +190,9 @@ pub struct UnaryStep {
     /// [`SATURATED_FALLBACK`] saturated) and a mean-intensity step was taken
     /// instead.
     pub fallback: bool,
+    /// What a darker probe did on this frame ([`super::probe`]); when set,
+    /// `desired` is the probe's or the settled exposure, not the law's.
+    pub probe: Option<ProbeEvent>,
 }
 
 /// One camera's controller.
@@ -187,6 +205,8 @@ pub struct CameraController {
     last_frame: Option<u64>,
     manual: Option<f64>,
     damping: balance::Damping,
+    prober: Prober,
+    last_probe: Option<ProbeEvent>,
 }
 
 impl CameraController {
@@ -201,6 +221,8 @@ impl CameraController {
             last_frame: None,
             manual: None,
             damping: balance::Damping::default(),
+            prober: Prober::default(),
+            last_probe: None,
         })
     }
 
@@ -224,12 +246,19 @@ impl CameraController {
         self.manual
     }
 
+    /// The outcome of this camera's latest probe ([`super::probe`]): taken,
+    /// rejected, abandoned or known without a probe.
+    pub fn last_probe(&self) -> Option<ProbeEvent> {
+        self.last_probe
+    }
+
     /// Tells the controller the camera's current setting (e.g. after the
     /// camera's built-in auto-exposure ran) and forgets the history.
     pub fn sync(&mut self, current: ExposureSetting) {
         self.splitter.sync(current);
         self.pid.reset();
         self.pending = None;
+        self.prober.reset();
     }
 
     /// The camera's own desired exposure for this frame.
@@ -286,16 +315,47 @@ impl CameraController {
                 .bound(self.pid.update(&config.pid, 1.0 - e.gamma_hat)),
             _ => 1.0,
         };
-        let desired = match self.manual {
+        let mut desired = match self.manual {
             Some(m) => m,
             None => taken * ratio,
         };
+        // Probes belong to a camera under its own gradient law; frames it
+        // does not react to leave the prober as it is.
+        let probe_params = config.probe.filter(|_| {
+            config.mode == ControlMode::Gradient
+                && config.balancing.is_none()
+                && self.manual.is_none()
+                && !fallback
+        });
+        let mut probe = None;
+        match (probe_params, &estimate) {
+            (Some(params), Some(e)) => {
+                if hold.is_none() {
+                    let (d, event) = self.prober.step(
+                        &params,
+                        ProbeInput {
+                            taken,
+                            m: e.m_current,
+                            saturated: f64::from(stats.saturated_fraction),
+                            desired,
+                        },
+                    );
+                    desired = d;
+                    probe = event;
+                    if let Some(e) = event.filter(|e| !matches!(e, ProbeEvent::Sent { .. })) {
+                        self.last_probe = Some(e);
+                    }
+                }
+            }
+            _ => self.prober.reset(),
+        }
         Ok(UnaryStep {
             estimate,
             taken,
             desired,
             hold,
             fallback,
+            probe,
         })
     }
 
@@ -382,6 +442,8 @@ pub struct CameraStep {
     pub clamped: Option<Clamped>,
     /// Whether the mean-intensity fallback replaced an empty metric.
     pub fallback: bool,
+    /// What a darker probe did on this frame ([`super::probe`]).
+    pub probe: Option<ProbeEvent>,
 }
 
 /// The outcome of one rig step.
@@ -595,6 +657,7 @@ impl RigController {
                 hold,
                 clamped,
                 fallback: u.fallback,
+                probe: u.probe,
             });
         }
         Ok(RigStep {

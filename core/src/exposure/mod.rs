@@ -21,6 +21,7 @@ mod kernel;
 pub mod laws;
 pub mod metering;
 pub mod metric;
+pub mod probe;
 pub mod split;
 
 pub use balance::{BalanceParams, NeighbourGraph, PatchPair};
@@ -35,4 +36,5 @@ pub use kernel::Isa;
 pub use laws::{LawKind, LawParams};
 pub use metering::{CameraMasks, ImageStats, Meter, Metered, MeteringConfig, PreparedMask};
 pub use metric::{GradientMetric, MetricParams};
+pub use probe::{ProbeEvent, ProbeParams};
 pub use split::{ExposureRange, ExposureSetting, SplitParams, Splitter};

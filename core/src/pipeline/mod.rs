@@ -46,7 +46,7 @@ use crate::error::{Error, Result};
 use crate::exposure::{
     BalanceParams, CameraMasks, ControlMode, ControllerConfig, Estimate, Estimator,
     ExposureSetting, FrameView, Meter, Metered, MeteringConfig, NeighbourGraph, PixelFormat,
-    RigController,
+    ProbeEvent, RigController,
 };
 use crate::source::{
     CameraInfo, ExposureCommand, FrameSet, FrameSource, SourceError, StreamHealth,
@@ -316,6 +316,9 @@ pub struct CameraOutput {
     pub command: Option<ExposureSetting>,
     /// The manual override in force.
     pub manual: Option<f64>,
+    /// The outcome of the camera's latest probe darker
+    /// ([`crate::exposure::probe`]).
+    pub last_probe: Option<ProbeEvent>,
 }
 
 /// One overlap in one processed set.
@@ -582,7 +585,8 @@ impl Processor {
                     None => None,
                 },
             };
-            let manual = self.controller.camera_mut(k)?.manual();
+            let camera = self.controller.camera_mut(k)?;
+            let (manual, last_probe) = (camera.manual(), camera.last_probe());
             cameras.push(camera_output(
                 f.meta.taken,
                 m,
@@ -593,6 +597,7 @@ impl Processor {
                     cs.and_then(|c| c.command)
                 },
                 manual,
+                last_probe,
             ));
         }
         let pairs: Vec<PairOutput> = self
@@ -671,6 +676,7 @@ fn camera_output(
     estimate: Option<Estimate>,
     command: Option<ExposureSetting>,
     manual: Option<f64>,
+    last_probe: Option<ProbeEvent>,
 ) -> CameraOutput {
     let thumb = m
         .luma()
@@ -691,6 +697,7 @@ fn camera_output(
         estimate,
         command,
         manual,
+        last_probe,
     }
 }
 

@@ -1,0 +1,405 @@
+//! Probing darker where saturation hides what darkening would show.
+//!
+//! Neither exposure simulation can look under saturated pixels: a frame
+//! does not say how far above full well a saturated region lies, so what
+//! darkening would bring back is unknown. Scale-and-clip holds saturated
+//! pixels saturated and credits darkening with nothing there; the
+//! γ-mapping maps them to a flat plateau too. Where `M(E)` has several
+//! local maxima, one before each saturation event, a camera coming down
+//! from bright settles on the first fixed point it meets, and the
+//! estimator cannot see the better one further down.
+//!
+//! A [`Prober`] finds out by measuring instead of simulating. When a
+//! camera's own law has settled (its step within `settle_ev` for
+//! `settle_frames` frames) and at least `min_saturated` of its metered
+//! pixels are saturated, it takes one frame `step_ev` darker and compares
+//! `M` measured there with `M` measured at the settled exposure:
+//!
+//! - better by more than `accept_gain` (relative): the probe is taken and
+//!   the law goes on from the probe frame, towards the estimator's fixed
+//!   point nearest it;
+//! - otherwise: the camera goes back to the settled exposure and rests
+//!   there: it probes again only after the scene has changed (`M` moved
+//!   by more than `rearm_change`, or the law moved the camera more than
+//!   half a probe step away).
+//!
+//! A frame the camera took recently in the probe's range (a camera that
+//! climbed from dark passed through it) answers without a probe; so does
+//! the probe frame itself when the law brings the camera back after a
+//! probe that measured better (the estimator then disagrees with the
+//! measurement, as the γ-mapping's biased fixed points do, and a second
+//! round trip would end the same way). After a probe that found nothing,
+//! `cooldown_frames` must pass before the next.
+//!
+//! A camera so ends at a fixed point of its estimator where a probe
+//! `step_ev` darker measures no better. The cost is one darker frame each
+//! time a camera settles with saturation in view. The rig controller
+//! probes only for cameras under their own gradient law: balancing's
+//! targets are not maxima of the camera's own `M`, and a manual or fixed
+//! exposure is the operator's.
+
+use std::collections::VecDeque;
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::{check_range, Result};
+
+/// When and how far a settled camera probes (module documentation).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ProbeParams {
+    /// How much darker the probe frame is, in EV. The default,
+    /// `log2 1.9 ≈ 0.93`, is as far as the estimator's darkest anchor
+    /// looks.
+    pub step_ev: f64,
+    /// The saturated fraction of the metered pixels from which darkening
+    /// is uncertain enough to probe.
+    pub min_saturated: f64,
+    /// The law's steps (|log2 E_{t+1}/E_t|, EV) at most this small count
+    /// as settled.
+    pub settle_ev: f64,
+    /// Settled frames (frames the camera reacts to) before a probe.
+    pub settle_frames: u32,
+    /// The relative gain in measured `M` a probe must show to be taken.
+    pub accept_gain: f64,
+    /// The relative change of `M` at the exposure a camera rests at that
+    /// counts as a new scene and allows probing again.
+    pub rearm_change: f64,
+    /// Frames the camera reacts to after a probe that found nothing before
+    /// it may probe again, however the scene changes: on a moving vehicle
+    /// this bounds the darker frames to one in so many.
+    pub cooldown_frames: u32,
+}
+
+impl Default for ProbeParams {
+    fn default() -> Self {
+        Self {
+            step_ev: 1.9f64.log2(),
+            min_saturated: 0.01,
+            settle_ev: 0.05,
+            settle_frames: 2,
+            accept_gain: 0.005,
+            rearm_change: 0.02,
+            cooldown_frames: 40,
+        }
+    }
+}
+
+impl ProbeParams {
+    /// Checks the parameters.
+    pub fn validate(&self) -> Result<()> {
+        check_range(
+            "controller.probe.step_ev",
+            self.step_ev,
+            0.1,
+            4.0,
+            "an exposure step in EV in [0.1, 4]",
+        )?;
+        check_range(
+            "controller.probe.min_saturated",
+            self.min_saturated,
+            0.0,
+            1.0,
+            "a fraction of pixels in [0, 1]",
+        )?;
+        check_range(
+            "controller.probe.settle_ev",
+            self.settle_ev,
+            0.0,
+            0.5,
+            "an exposure step in EV in [0, 0.5]",
+        )?;
+        check_range(
+            "controller.probe.settle_frames",
+            f64::from(self.settle_frames),
+            1.0,
+            1000.0,
+            "a number of frames in [1, 1000]",
+        )?;
+        check_range(
+            "controller.probe.accept_gain",
+            self.accept_gain,
+            0.0,
+            1.0,
+            "a relative gain of M in [0, 1]",
+        )?;
+        check_range(
+            "controller.probe.rearm_change",
+            self.rearm_change,
+            1e-4,
+            1.0,
+            "a relative change of M in [0.0001, 1]",
+        )?;
+        check_range(
+            "controller.probe.cooldown_frames",
+            f64::from(self.cooldown_frames),
+            0.0,
+            1e6,
+            "a number of frames in [0, 1000000]",
+        )?;
+        Ok(())
+    }
+}
+
+/// What a probe did on one frame (telemetry).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub enum ProbeEvent {
+    /// A probe frame was commanded: from the settled exposure to a darker
+    /// one.
+    Sent {
+        /// The settled exposure.
+        from: f64,
+        /// The probe's exposure.
+        to: f64,
+    },
+    /// The probe frame measured better: the law goes on from it.
+    Taken {
+        /// `M_probe / M_settled − 1`.
+        gain: f64,
+    },
+    /// The probe frame measured no better: back to the settled exposure.
+    Rejected {
+        /// `M_probe / M_settled − 1`.
+        gain: f64,
+    },
+    /// The probe frame did not come (the exposure range ends, or the
+    /// command did not show in time): back to the settled exposure.
+    Abandoned,
+    /// No probe was sent: a recent frame lies in the probe's range. A
+    /// camera that climbed from dark passed through it; a camera whose law
+    /// brought it back from a probe that measured better has an estimator
+    /// that disagrees with the measurement, and probing again would only
+    /// repeat the round trip.
+    Known {
+        /// The best `M` measured there over `M_settled`, minus 1.
+        gain: f64,
+    },
+}
+
+/// One frame the camera reacts to, as the prober sees it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ProbeInput {
+    /// The exposure the frame was taken with.
+    pub taken: f64,
+    /// `M` measured on the frame.
+    pub m: f64,
+    /// The saturated fraction of its metered pixels.
+    pub saturated: f64,
+    /// The exposure the camera's own law wants next.
+    pub desired: f64,
+}
+
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+enum State {
+    /// Counting settled frames at `home`.
+    #[default]
+    Watching,
+    Settling {
+        home: f64,
+        m_sum: f64,
+        frames: u32,
+    },
+    /// A probe frame at `probe` was commanded.
+    Probing {
+        home: f64,
+        home_m: f64,
+        probe: f64,
+    },
+    /// A probe from `home` measured no better `frames` frames ago; no
+    /// probing until the scene changes.
+    Resting {
+        home: f64,
+        home_m: f64,
+        frames: u32,
+    },
+}
+
+/// How many of the latest frames a camera reacted to a [`Prober`]
+/// remembers.
+const MEMORY: usize = 16;
+
+/// The probing state of one camera (module documentation).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Prober {
+    state: State,
+    /// `(exposure, M)` of the latest frames the camera reacted to, in this
+    /// scene.
+    recent: VecDeque<(f64, f64)>,
+}
+
+/// |log2 a/b|.
+fn ev(a: f64, b: f64) -> f64 {
+    (a / b).log2().abs()
+}
+
+impl Prober {
+    /// Forgets everything (the camera left its own law's control).
+    pub fn reset(&mut self) {
+        self.state = State::Watching;
+        self.recent.clear();
+    }
+
+    /// The exposure to command for a frame the camera reacts to, and what
+    /// the probe did. Frames with a non-finite or non-positive `m` or
+    /// exposure reset the prober and pass `desired` through.
+    pub fn step(&mut self, params: &ProbeParams, input: ProbeInput) -> (f64, Option<ProbeEvent>) {
+        let ProbeInput {
+            taken, m, desired, ..
+        } = input;
+        let valid =
+            [taken, desired].iter().all(|v| v.is_finite() && *v > 0.0) && m.is_finite() && m >= 0.0;
+        if !valid {
+            self.reset();
+            return (desired, None);
+        }
+        let out = self.react(params, input);
+        if self.recent.len() == MEMORY {
+            self.recent.pop_front();
+        }
+        self.recent.push_back((taken, m));
+        out
+    }
+
+    fn react(&mut self, params: &ProbeParams, input: ProbeInput) -> (f64, Option<ProbeEvent>) {
+        let ProbeInput {
+            taken, m, desired, ..
+        } = input;
+        match self.state {
+            State::Probing {
+                home,
+                home_m,
+                probe,
+            } => {
+                // The pending-command logic lets this frame through once it
+                // shows the probe, or once the wait timed out; where the
+                // exposure range ends, the probe may be shallower. Half the
+                // step is still a probe.
+                let darker = (home / taken).log2();
+                if !(darker >= 0.5 * params.step_ev
+                    && darker <= (home / probe).log2() + params.settle_ev)
+                {
+                    self.state = State::Resting {
+                        home,
+                        home_m,
+                        frames: 0,
+                    };
+                    return (home, Some(ProbeEvent::Abandoned));
+                }
+                let gain = if home_m > 0.0 {
+                    m / home_m - 1.0
+                } else if m > 0.0 {
+                    f64::INFINITY
+                } else {
+                    0.0
+                };
+                if gain > params.accept_gain {
+                    self.state = State::Watching;
+                    (desired, Some(ProbeEvent::Taken { gain }))
+                } else {
+                    self.state = State::Resting {
+                        home,
+                        home_m,
+                        frames: 0,
+                    };
+                    (home, Some(ProbeEvent::Rejected { gain }))
+                }
+            }
+            State::Resting {
+                home,
+                home_m,
+                frames,
+            } => {
+                // A law still creeping towards its fixed point does not
+                // re-arm; a camera that has moved half a probe step has
+                // found another scene.
+                let moved = ev(taken, home) > 0.5 * params.step_ev;
+                let changed =
+                    (m - home_m).abs() > params.rearm_change * home_m.max(f64::MIN_POSITIVE);
+                if frames >= params.cooldown_frames && (moved || changed) {
+                    self.state = State::Watching;
+                    if changed {
+                        self.recent.clear();
+                    }
+                    self.watch(params, input)
+                } else {
+                    self.state = State::Resting {
+                        home,
+                        home_m,
+                        frames: frames.saturating_add(1),
+                    };
+                    (desired, None)
+                }
+            }
+            State::Watching | State::Settling { .. } => self.watch(params, input),
+        }
+    }
+
+    /// Counts settled frames and sends a probe when there are enough.
+    fn watch(&mut self, params: &ProbeParams, input: ProbeInput) -> (f64, Option<ProbeEvent>) {
+        let ProbeInput {
+            taken,
+            m,
+            saturated,
+            desired,
+        } = input;
+        if ev(desired, taken) > params.settle_ev {
+            self.state = State::Watching;
+            return (desired, None);
+        }
+        let (home, m_sum, frames) = match self.state {
+            State::Settling {
+                home,
+                m_sum,
+                frames,
+            } if ev(taken, home) <= params.settle_ev => (home, m_sum + m, frames + 1),
+            _ => (taken, m, 1),
+        };
+        if frames >= params.settle_frames && saturated >= params.min_saturated {
+            let probe = home * (-params.step_ev).exp2();
+            let home_m = m_sum / f64::from(frames);
+            // What a probe would show, if a recent frame shows it already.
+            let known = self
+                .recent
+                .iter()
+                .filter(|(e, _)| {
+                    let darker = (home / e).log2();
+                    darker >= 0.5 * params.step_ev && darker <= params.step_ev + params.settle_ev
+                })
+                .map(|(_, m)| *m)
+                .fold(None, |best: Option<f64>, m| {
+                    Some(best.map_or(m, |b| b.max(m)))
+                });
+            if let Some(best) = known {
+                self.state = State::Resting {
+                    home,
+                    home_m,
+                    frames: 0,
+                };
+                let gain = if home_m > 0.0 {
+                    best / home_m - 1.0
+                } else {
+                    0.0
+                };
+                return (desired, Some(ProbeEvent::Known { gain }));
+            }
+            self.state = State::Probing {
+                home,
+                home_m,
+                probe,
+            };
+            return (
+                probe,
+                Some(ProbeEvent::Sent {
+                    from: home,
+                    to: probe,
+                }),
+            );
+        }
+        self.state = State::Settling {
+            home,
+            m_sum,
+            frames,
+        };
+        (desired, None)
+    }
+}
