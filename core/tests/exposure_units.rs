@@ -191,14 +191,17 @@ fn scale_clip_reference(image: &Metered, s: f64) -> (f64, f64) {
 fn scale_clip_darkening_matches_its_definition() {
     let mut est = scale_clip_estimator();
     // A bright exposure of the synthetic scene: textured patches saturate.
-    let image = metered_scene(30_000.0);
+    // Its luminance as single samples (the definition above; blocks with
+    // saturated samples have their own rule, tested below).
+    let blocks = metered_scene(30_000.0);
+    let (w, h) = (blocks.width(), blocks.height());
+    let image = Metered::from_luma(w, h, blocks.luma().to_vec(), None).unwrap();
     let saturated = image.stats().saturated_fraction;
     assert!(
         saturated > 0.05 && saturated < 0.6,
         "precondition: partly saturated ({saturated})"
     );
     // And with a metering mask (the lower two thirds).
-    let (w, h) = (image.width(), image.height());
     let mask: Vec<f32> = (0..w * h).map(|i| f32::from(i / w >= h / 3)).collect();
     let masked = Metered::from_luma(w, h, image.luma().to_vec(), Some(mask)).unwrap();
     for image in [&image, &masked] {
@@ -929,4 +932,68 @@ fn bad_input_gives_errors_not_panics() {
     };
     let m = Metered::from_luma(4, 4, vec![0.5; 16], None).unwrap();
     assert!(cam.unary(&config, &bad, &m).is_err());
+}
+
+/// A 16-bit frame of `w×h` sensor pixels of a piecewise-constant scene
+/// (squares of 13 pixels, which straddle the 4×4 metering blocks): five
+/// radiance levels, the brightest 4× above full well at exposure 1.
+fn block_scene_frame(exposure: f64, w: usize, h: usize) -> Vec<u8> {
+    const LEVELS: [f64; 5] = [0.05, 0.12, 0.3, 0.5, 4.0];
+    let mut out = Vec::with_capacity(w * h * 2);
+    for y in 0..h {
+        for x in 0..w {
+            let level = LEVELS[(x / 13 + 7 * (y / 13)) % LEVELS.len()];
+            let v = (level * exposure).min(1.0);
+            out.extend_from_slice(&((v * 65535.0).round() as u16).to_le_bytes());
+        }
+    }
+    out
+}
+
+#[test]
+fn scale_clip_on_metered_blocks_scales_only_their_unsaturated_samples() {
+    let (w, h) = (320, 240);
+    let meter = Meter::new(MeteringConfig {
+        target_width: 80,
+        target_height: 60,
+    })
+    .unwrap();
+    let metered = |e: f64| {
+        let data = block_scene_frame(e, w, h);
+        meter
+            .meter(
+                &FrameView::new(PixelFormat::Mono16, w, h, &data).unwrap(),
+                None,
+            )
+            .unwrap()
+    };
+    let now = metered(1.0);
+    assert_eq!((now.width(), now.height(), now.scale()), (80, 60, 4));
+    let plane = now.saturated_samples().expect("saturated samples");
+    // A block is saturated in whole, in part or not at all.
+    assert!(plane.contains(&1.0));
+    assert!(plane.iter().any(|&f| f > 0.0 && f < 1.0));
+    assert!(plane.contains(&0.0));
+    // The same luminance without the plane: every block scaled whole.
+    let whole = Metered::from_luma(now.width(), now.height(), now.luma().to_vec(), None).unwrap();
+    let mut est = scale_clip_estimator();
+    let truth_est = |m: &Metered| Estimator::new(EstimatorConfig::default()).unwrap().score(m);
+    for s in [1.0 / 1.9, 1.0 / 1.5, 1.0 / 1.2, 1.2, 1.5, 1.9] {
+        let truth = truth_est(&metered(s));
+        let blocks = est.score_at(&now, s);
+        let scaled_whole = est.score_at(&whole, s);
+        let (e_blocks, e_whole) = ((blocks - truth) / truth, (scaled_whole - truth) / truth);
+        println!("s {s:.3}: truth {truth:.0}, blocks {blocks:.0} ({e_blocks:+.4}), whole {scaled_whole:.0} ({e_whole:+.4})");
+        // The brightest squares stay saturated at every anchor and the
+        // others are flat, so brightening is exact up to rounding; a
+        // darkening counts only the pixels that carry information now.
+        let tolerance = if s > 1.0 { 1e-3 } else { 1e-2 };
+        assert!(e_blocks.abs() < tolerance, "s={s}: {blocks} vs {truth}");
+        if (s.ln().abs() - 1.9f64.ln()).abs() < 1e-9 {
+            assert!(
+                e_whole.abs() > 5.0 * e_blocks.abs() && e_whole.abs() > 0.02,
+                "s={s}: scaling whole blocks is off by only {e_whole:+.4}"
+            );
+        }
+    }
 }

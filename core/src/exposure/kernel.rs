@@ -114,6 +114,14 @@ pub(crate) enum Source<'a> {
     /// Scale-and-hold: `s·I` below `level`, `I` (held) at or above it: a
     /// darkening `s < 1` that leaves saturated pixels saturated.
     Hold { luma: &'a [f32], s: f32, level: f32 },
+    /// Scale-and-clip of a block average whose fraction `f` of samples is
+    /// saturated: those are held at 1 and the rest, `I − f`, scaled and
+    /// clipped as a block, `f + min(1 − f, s·(I − f))`.
+    Blocks {
+        luma: &'a [f32],
+        saturated: &'a [f32],
+        s: f32,
+    },
 }
 
 /// The per-pixel constants of Eq. 1: `q = max(|∇'| + offset, 1)`, where the
@@ -527,6 +535,9 @@ impl Source<'_> {
             Source::Plain(v) => v.len() >= len,
             Source::Gamma { log2, .. } => log2.len() >= len,
             Source::Scale { luma, .. } | Source::Hold { luma, .. } => luma.len() >= len,
+            Source::Blocks {
+                luma, saturated, ..
+            } => luma.len() >= len && saturated.len() >= len,
         }
     }
 
@@ -558,6 +569,16 @@ impl Source<'_> {
                 for (o, &v) in out.iter_mut().zip(&luma[span]) {
                     let k = if v >= level { scale } else { s };
                     *o = (k * v).clamp(0.0, scale);
+                }
+            }
+            Source::Blocks { luma, saturated, s } => {
+                for ((o, &v), &f) in out
+                    .iter_mut()
+                    .zip(&luma[span.clone()])
+                    .zip(&saturated[span])
+                {
+                    let rest = (s * (v - f).max(0.0)).min(1.0 - f);
+                    *o = (scale * (f + rest)).clamp(0.0, scale);
                 }
             }
         }

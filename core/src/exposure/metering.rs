@@ -8,6 +8,13 @@
 //! needed. Downsampling averages `k×k` blocks with one integer factor `k`,
 //! the largest that keeps the result at least as large as the target: a
 //! 1288×964 frame with the default 320×240 target gives 322×241.
+//!
+//! A block average mixes saturated samples with unsaturated ones: a
+//! metered pixel on the edge of a saturated area is below saturation,
+//! but only its unsaturated samples would follow an exposure change. The
+//! metered image therefore also carries, per pixel, the part of its
+//! luminance that saturated samples carry ([`Metered::saturated_samples`]),
+//! so that scale-and-clip can scale only the rest.
 
 use serde::{Deserialize, Serialize};
 
@@ -138,6 +145,7 @@ pub struct Metered {
     height: usize,
     luma: Vec<f32>,
     weight: Option<Vec<f32>>,
+    saturated: Option<Vec<f32>>,
     scale: usize,
     stats: ImageStats,
 }
@@ -195,6 +203,7 @@ impl Metered {
             height,
             luma,
             weight,
+            saturated: None,
             scale: 1,
             stats,
         })
@@ -216,6 +225,15 @@ impl Metered {
     /// interior pixel counts.
     pub fn weight(&self) -> Option<&[f32]> {
         self.weight.as_deref()
+    }
+    /// Per metered pixel, the part of its luminance (in [0, 1], like the
+    /// luminance) that saturated samples carry: for a grey frame the
+    /// fraction of the samples averaged into it that were at or above
+    /// [`SATURATED_LEVEL`]; a saturated colour channel counts with its
+    /// luminance weight. `None` when every metered pixel is one sample, or
+    /// when no sample was saturated.
+    pub fn saturated_samples(&self) -> Option<&[f32]> {
+        self.saturated.as_deref()
     }
     /// Full-frame pixels per metered pixel along each axis.
     pub fn scale(&self) -> usize {
@@ -382,23 +400,42 @@ impl Meter {
             _ => None,
         };
         let mut bytes = vec![0u32; if channels.is_some() { gw * 3 } else { 0 }];
+        // The luminance of saturated samples, summed per metered pixel (only
+        // when a block averages several samples), and the saturated bytes
+        // per sample column of the current block row.
+        let blocks = k > 1;
+        let mut sat_sums = vec![0.0f32; if blocks { ow * oh } else { 0 }];
+        let mut sat_scratch = SaturationScratch::default();
+        let mut sat_row = vec![0.0f32; if blocks { gw } else { 0 }];
         for oy in 0..oh {
             let out = &mut luma[oy * ow..(oy + 1) * ow];
             if let Some(c) = channels {
-                block_sums_8bit(frame, oy * k..(oy + 1) * k, c, k, &mut bytes, out);
+                let rows = oy * k..(oy + 1) * k;
+                block_sums_8bit(frame, rows.clone(), c, k, &mut bytes, out);
+                if blocks {
+                    let sums = &mut sat_sums[oy * ow..(oy + 1) * ow];
+                    saturated_sums_8bit(frame, rows, c, k, &mut sat_scratch, sums);
+                }
             } else {
                 for gy in oy * k..(oy + 1) * k {
                     if bayer {
-                        bayer_luma_row(
-                            frame.format(),
-                            frame.row(2 * gy),
-                            frame.row(2 * gy + 1),
-                            &mut row,
-                        );
+                        let (top, bottom) = (frame.row(2 * gy), frame.row(2 * gy + 1));
+                        bayer_luma_row(frame.format(), top, bottom, &mut row);
+                        if blocks {
+                            bayer_saturated_row(frame.format(), top, bottom, &mut sat_row);
+                        }
                     } else {
                         luma_row(frame.format(), frame.row(gy), &mut row);
+                        if blocks {
+                            for (s, &v) in sat_row.iter_mut().zip(&row) {
+                                *s = if v >= SATURATED_LEVEL { 1.0 } else { 0.0 };
+                            }
+                        }
                     }
                     add_block_sums(out, &row, k);
+                    if blocks {
+                        add_block_sums(&mut sat_sums[oy * ow..(oy + 1) * ow], &sat_row, k);
+                    }
                 }
             }
             for o in out.iter_mut() {
@@ -417,11 +454,18 @@ impl Meter {
             ),
             None => (None, ImageStats::from_pixels(luma.iter())),
         };
+        let saturated = sat_sums.iter().any(|&c| c > 0.0).then(|| {
+            sat_sums
+                .iter()
+                .map(|&c| (c * inv_block).clamp(0.0, 1.0))
+                .collect()
+        });
         Metered {
             width: ow,
             height: oh,
             luma,
             weight,
+            saturated,
             scale: if bayer { 2 * k } else { k },
             stats,
         }
@@ -569,6 +613,103 @@ fn block_sums_8bit(
     }
 }
 
+/// The byte at or above which an 8-bit sample is saturated
+/// ([`SATURATED_LEVEL`] of 255, rounded up).
+const SATURATED_BYTE: u8 = 250;
+
+/// The luminance of the saturated samples of `k×k` blocks of an 8-bit
+/// frame with `c` channels (1: mono, 3: RGB) over the frame rows `rows`,
+/// into `out` (in samples: a saturated grey sample counts 1, a saturated
+/// red channel `W_R`). The counts per sample column are kept in bytes
+/// while a block is at most 255 rows tall (16 columns per SSE2 operation),
+/// in 16-bit words beyond.
+fn saturated_sums_8bit(
+    frame: &FrameView<'_>,
+    rows: std::ops::Range<usize>,
+    c: usize,
+    k: usize,
+    scratch: &mut SaturationScratch,
+    out: &mut [f32],
+) {
+    if rows.len() <= usize::from(u8::MAX) {
+        saturated_sums_in(frame, rows, c, k, &mut scratch.bytes, out);
+    } else {
+        saturated_sums_in(frame, rows, c, k, &mut scratch.words, out);
+    }
+}
+
+/// The per-column counters of [`saturated_sums_8bit`].
+#[derive(Default)]
+struct SaturationScratch {
+    bytes: Vec<u8>,
+    words: Vec<u16>,
+}
+
+fn saturated_sums_in<T>(
+    frame: &FrameView<'_>,
+    rows: std::ops::Range<usize>,
+    c: usize,
+    k: usize,
+    counts: &mut Vec<T>,
+    out: &mut [f32],
+) where
+    T: Copy + Default + std::ops::AddAssign + From<bool> + Into<u32>,
+{
+    let n = frame.width() * c;
+    counts.clear();
+    counts.resize(n, T::default());
+    for y in rows {
+        for (a, &b) in counts.iter_mut().zip(&frame.row(y)[..n]) {
+            *a += T::from(b >= SATURATED_BYTE);
+        }
+    }
+    if counts.iter().all(|&v| v.into() == 0) {
+        out.fill(0.0);
+        return;
+    }
+    if c == 1 {
+        /// With the block size known at compile time, the sums vectorise.
+        fn fixed<const K: usize, T: Copy + Into<u32>>(out: &mut [f32], counts: &[T]) {
+            let (blocks, _) = counts.as_chunks::<K>();
+            for (o, b) in out.iter_mut().zip(blocks) {
+                *o = b.iter().map(|&v| v.into()).sum::<u32>() as f32;
+            }
+        }
+        match k {
+            2 => fixed::<2, T>(out, counts),
+            4 => fixed::<4, T>(out, counts),
+            8 => fixed::<8, T>(out, counts),
+            _ => {
+                for (o, block) in out.iter_mut().zip(counts.chunks_exact(k)) {
+                    *o = block.iter().map(|&v| v.into()).sum::<u32>() as f32;
+                }
+            }
+        }
+    } else {
+        for (o, block) in out.iter_mut().zip(counts.chunks_exact(3 * k)) {
+            let (pixels, _) = block.as_chunks::<3>();
+            let [r, g, b] = pixels.iter().fold([0u32; 3], |[r, g, b], p| {
+                [r + p[0].into(), g + p[1].into(), b + p[2].into()]
+            });
+            *o = W_R * r as f32 + W_G * g as f32 + W_B * b as f32;
+        }
+    }
+}
+
+/// The luminance of the saturated samples of a row of 2×2 Bayer quads (a
+/// quad whose samples are all saturated counts 1).
+fn bayer_saturated_row(format: PixelFormat, top: &[u8], bottom: &[u8], dst: &mut [f32]) {
+    let w = bayer_weights(format);
+    let sat = |v: u8| if v >= SATURATED_BYTE { 1.0 } else { 0.0 };
+    for ((d, t), b) in dst
+        .iter_mut()
+        .zip(top.chunks_exact(2))
+        .zip(bottom.chunks_exact(2))
+    {
+        *d = w[0] * sat(t[0]) + w[1] * sat(t[1]) + w[2] * sat(b[0]) + w[3] * sat(b[1]);
+    }
+}
+
 /// Adds the sums of `row`'s consecutive blocks of `k` to `out`.
 fn add_block_sums(out: &mut [f32], row: &[f32], k: usize) {
     /// With the block size known at compile time, the sums vectorise.
@@ -632,18 +773,21 @@ fn luma_row(format: PixelFormat, src: &[u8], dst: &mut [f32]) {
     }
 }
 
-/// Luminance of a row of 2×2 Bayer quads, from the quad's two source rows.
-fn bayer_luma_row(format: PixelFormat, top: &[u8], bottom: &[u8], dst: &mut [f32]) {
-    // Weights of the quad positions (top-left, top-right, bottom-left,
-    // bottom-right); the two greens share W_G.
+/// The luminance weights of a Bayer quad's positions (top-left, top-right,
+/// bottom-left, bottom-right); the two greens share `W_G`.
+fn bayer_weights(format: PixelFormat) -> [f32; 4] {
     let g = W_G * 0.5;
-    let w = match format {
+    match format {
         PixelFormat::BayerRg8 => [W_R, g, g, W_B],
         PixelFormat::BayerGr8 => [g, W_R, W_B, g],
         PixelFormat::BayerGb8 => [g, W_B, W_R, g],
         _ => [W_B, g, g, W_R],
-    };
-    let w = w.map(|v| v * (1.0 / 255.0));
+    }
+}
+
+/// Luminance of a row of 2×2 Bayer quads, from the quad's two source rows.
+fn bayer_luma_row(format: PixelFormat, top: &[u8], bottom: &[u8], dst: &mut [f32]) {
+    let w = bayer_weights(format).map(|v| v * (1.0 / 255.0));
     for ((d, t), b) in dst
         .iter_mut()
         .zip(top.chunks_exact(2))
@@ -659,6 +803,104 @@ fn bayer_luma_row(format: PixelFormat, top: &[u8], bottom: &[u8], dst: &mut [f32
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A 12×12 frame of `format` (Bayer: 24×24 sensor pixels, 12×12 quads)
+    /// at grey level `base` with the samples at `hot` set to `value`.
+    fn frame_with(format: PixelFormat, base: u8, hot: &[(usize, usize)], value: u8) -> Vec<u8> {
+        let side = if format.is_bayer() { 24 } else { 12 };
+        let bpp = format.bytes_per_pixel();
+        let mut data = vec![0u8; side * side * bpp];
+        let put = |data: &mut [u8], x: usize, y: usize, v: u8| {
+            let i = (y * side + x) * bpp;
+            match format {
+                PixelFormat::Mono12 => {
+                    let w = u16::from(v) * 16 + u16::from(v) / 16;
+                    data[i..i + 2].copy_from_slice(&w.to_le_bytes());
+                }
+                PixelFormat::Mono16 => {
+                    data[i..i + 2].copy_from_slice(&(u16::from(v) * 257).to_le_bytes());
+                }
+                _ => data[i..i + bpp].fill(v),
+            }
+        };
+        for y in 0..side {
+            for x in 0..side {
+                put(&mut data, x, y, base);
+            }
+        }
+        for &(x, y) in hot {
+            if format.is_bayer() {
+                // The whole quad.
+                for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+                    put(&mut data, 2 * x + dx, 2 * y + dy, value);
+                }
+            } else {
+                put(&mut data, x, y, value);
+            }
+        }
+        data
+    }
+
+    #[test]
+    fn metered_blocks_carry_the_fraction_of_their_saturated_samples() {
+        let meter = Meter::new(MeteringConfig {
+            target_width: 3,
+            target_height: 3,
+        })
+        .unwrap();
+        for format in [
+            PixelFormat::Mono8,
+            PixelFormat::Mono12,
+            PixelFormat::Mono16,
+            PixelFormat::Rgb8,
+            PixelFormat::BayerRg8,
+        ] {
+            let side = if format.is_bayer() { 24 } else { 12 };
+            // Block (0, 0) gets three saturated samples, block (2, 1) one
+            // just below the level (249/255 < 0.98) and one at it (250).
+            let hot = [(0, 0), (3, 1), (2, 3)];
+            let mut data = frame_with(format, 100, &hot, 255);
+            let edge = frame_with(format, 100, &[(9, 5)], 249);
+            let at = frame_with(format, 100, &[(10, 6)], 250);
+            // Copy the two single samples into the frame.
+            for other in [&edge, &at] {
+                for (d, (&o, &b)) in
+                    data.iter_mut()
+                        .zip(other.iter().zip(&frame_with(format, 100, &[], 0)))
+                {
+                    if o != b {
+                        *d = o;
+                    }
+                }
+            }
+            let frame = FrameView::new(format, side, side, &data).unwrap();
+            let m = meter.meter(&frame, None).unwrap();
+            assert_eq!((m.width(), m.height()), (3, 3), "{format:?}");
+            let plane = m.saturated_samples().unwrap();
+            let want = [3.0 / 16.0, 0.0, 0.0, 0.0, 0.0, 1.0 / 16.0, 0.0, 0.0, 0.0];
+            assert_eq!(plane, want, "{format:?}");
+            // Nothing saturated: no plane; one sample per metered pixel: no
+            // plane (the pixel itself says it).
+            let plain = frame_with(format, 100, &[], 0);
+            let frame = FrameView::new(format, side, side, &plain).unwrap();
+            assert!(meter
+                .meter(&frame, None)
+                .unwrap()
+                .saturated_samples()
+                .is_none());
+            let one = Meter::new(MeteringConfig {
+                target_width: 12,
+                target_height: 12,
+            })
+            .unwrap();
+            let frame = FrameView::new(format, side, side, &data).unwrap();
+            assert!(one
+                .meter(&frame, None)
+                .unwrap()
+                .saturated_samples()
+                .is_none());
+        }
+    }
 
     fn frame_and_mask(format: PixelFormat) -> (Vec<u8>, RoiMask, usize, usize) {
         let (w, h) = (644, 482);
