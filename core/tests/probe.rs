@@ -23,12 +23,13 @@ fn settled(e: f64, m: f64) -> ProbeInput {
 
 fn params() -> ProbeParams {
     ProbeParams {
+        settle_frames: 2,
         cooldown_frames: 3,
         ..ProbeParams::default()
     }
 }
 
-/// Settles at 1000 for the two frames the defaults ask and returns the
+/// Settles at 1000 for the two frames [`params`] asks and returns the
 /// probe's exposure.
 fn settle_and_probe(p: &mut Prober, params: &ProbeParams, m: f64) -> f64 {
     let (d, e) = p.step(params, settled(1000.0, m));
@@ -92,7 +93,7 @@ fn a_probe_that_measures_no_better_goes_back_and_rests_until_the_scene_changes()
 fn the_cooldown_holds_off_a_new_probe_however_the_scene_changes() {
     let params = ProbeParams {
         cooldown_frames: 5,
-        ..ProbeParams::default()
+        ..params()
     };
     let mut p = Prober::default();
     let probe = settle_and_probe(&mut p, &params, 100.0);
@@ -134,6 +135,33 @@ fn a_camera_without_saturation_or_still_moving_does_not_probe() {
         assert_eq!(e, None, "probed while moving");
         assert!((d / e0 - 0.1f64.exp2()).abs() < 1e-9);
     }
+}
+
+#[test]
+fn a_law_creeping_in_small_steps_has_not_settled() {
+    let params = ProbeParams::default();
+    assert_eq!((params.settle_frames, params.settle_ev), (3, 0.03));
+    let mut p = Prober::default();
+    // Steps of 0.02 EV, each within `settle_ev`, drift 0.04 EV in three
+    // frames: no probe.
+    for k in 0..20 {
+        let e0 = 1000.0 * (0.02 * f64::from(k)).exp2();
+        let (_, e) = p.step(&params, frame(e0, 100.0, e0 * 0.02f64.exp2()));
+        assert_eq!(e, None, "frame {k}: probed while creeping");
+    }
+    // Steps of 0.005 EV: settled after three frames.
+    let mut p = Prober::default();
+    let events: Vec<_> = (0..3)
+        .map(|k| {
+            let e0 = 1000.0 * (0.005 * f64::from(k)).exp2();
+            p.step(&params, frame(e0, 100.0, e0 * 0.005f64.exp2())).1
+        })
+        .collect();
+    assert_eq!(&events[..2], &[None, None]);
+    assert!(
+        matches!(events[2], Some(ProbeEvent::Sent { .. })),
+        "{events:?}"
+    );
 }
 
 #[test]

@@ -10,8 +10,10 @@
 //! estimator cannot see the better one further down.
 //!
 //! A [`Prober`] finds out by measuring instead of simulating. When a
-//! camera's own law has settled (its step within `settle_ev` for
-//! `settle_frames` frames) and at least `min_saturated` of its metered
+//! camera's own law has settled (for `settle_frames` frames, its steps and
+//! its exposure's drift from the first of them within `settle_ev`: a law
+//! still creeping towards its fixed point has not) and at least
+//! `min_saturated` of its metered
 //! pixels are saturated, it takes one frame `step_ev` darker and compares
 //! `M` measured there with `M` measured at the settled exposure:
 //!
@@ -76,8 +78,8 @@ impl Default for ProbeParams {
         Self {
             step_ev: 1.9f64.log2(),
             min_saturated: 0.01,
-            settle_ev: 0.05,
-            settle_frames: 2,
+            settle_ev: 0.03,
+            settle_frames: 3,
             accept_gain: 0.005,
             rearm_change: 0.02,
             cooldown_frames: 40,
