@@ -7,8 +7,11 @@
 //!
 //! Two constant-light presets: `reference` (sun and a building's shadow:
 //! sunlit and shadowed ground in the same view) and `overcast` (soft light).
-//! The renders are a quarter of the resolution (322×241), which the metering
-//! sees 1:1, as it sees a full frame after its 4× downsampling.
+//! Two resolutions: the product's (1288×964, which the metering averages
+//! in 4×4 blocks to 322×241) and a quarter of it (322×241, metered 1:1,
+//! so that a metered pixel is a sensor pixel and scale-and-clip is exact
+//! below saturation). They differ where a block straddles the edge of a
+//! saturated area.
 //!
 //! Run with `--nocapture` for the table of figures.
 
@@ -22,13 +25,40 @@ use rigview_core::sim::truth::{self, FixedPoint, FixedPointSearch, Sweep, SweepO
 use rigview_core::sim::{ClosedLoop, SimConfig, SimRender, SimRig, SimRigOptions};
 use rigview_core::surround::{CanvasSpec, SurroundOptions, SurroundView};
 
-const FRAMES: usize = 80;
+const FRAMES: usize = 100;
 /// The frames over which a loop is judged settled.
 const TAIL: usize = 20;
 
-fn render(preset: &str) -> Arc<SimRender> {
+/// The product's resolution (1288×964, metered as 322×241 blocks of 4×4)
+/// and a quarter of it (322×241, metered 1:1).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Res {
+    Full,
+    Quarter,
+}
+use Res::{Full as FULL, Quarter as QUARTER};
+
+impl Res {
+    fn scale(self) -> f64 {
+        match self {
+            Res::Full => 1.0,
+            Res::Quarter => 0.25,
+        }
+    }
+}
+
+impl std::fmt::Display for Res {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.pad(match self {
+            Res::Full => "full",
+            Res::Quarter => "1/4",
+        })
+    }
+}
+
+fn render(preset: &str, res: Res) -> Arc<SimRender> {
     let config = SimConfig {
-        scale: 0.25,
+        scale: res.scale(),
         ..SimConfig::preset(preset).unwrap()
     };
     Arc::new(SimRender::new(&config).unwrap())
@@ -54,10 +84,9 @@ fn config(simulation: Simulation) -> ControllerConfig {
     }
 }
 
-/// log2 of the exposure each camera's frames were taken with, frame by
-/// frame.
-fn run(render: &Arc<SimRender>, view: SurroundView, simulation: Simulation) -> Vec<Vec<f64>> {
-    run_with(render, view, config(simulation), &[]).log2_e
+/// What each camera did alone under `simulation`.
+fn run(render: &Arc<SimRender>, view: SurroundView, simulation: Simulation) -> Trace {
+    run_with(render, view, config(simulation), &[])
 }
 
 /// What a closed loop did, per camera.
@@ -66,6 +95,39 @@ struct Trace {
     log2_e: Vec<Vec<f64>>,
     /// The probe events, with the frame they came with.
     probes: Vec<Vec<(usize, ProbeEvent)>>,
+}
+
+impl Trace {
+    /// Camera `cam`'s log2 E without the frames of probes it came back
+    /// from (a probe is a deliberate one-set excursion; it is counted
+    /// apart).
+    fn steady(&self, cam: usize) -> Vec<f64> {
+        let mut back_from = Vec::new();
+        let mut sent = None;
+        for (_, e) in &self.probes[cam] {
+            match e {
+                ProbeEvent::Sent { to, .. } => sent = Some(to.log2()),
+                ProbeEvent::Rejected { .. } | ProbeEvent::Abandoned => {
+                    back_from.extend(sent.take());
+                }
+                _ => sent = None,
+            }
+        }
+        self.log2_e[cam]
+            .iter()
+            .copied()
+            .filter(|l| back_from.iter().all(|p| (l - p).abs() > 0.02))
+            .collect()
+    }
+
+    /// The probe frames camera `cam` sent.
+    fn sent(&self, cam: usize) -> Vec<usize> {
+        self.probes[cam]
+            .iter()
+            .filter(|(_, e)| matches!(e, ProbeEvent::Sent { .. }))
+            .map(|(f, _)| *f)
+            .collect()
+    }
 }
 
 /// [`run`] with any controller configuration and neighbour edges.
@@ -104,6 +166,7 @@ fn run_with(
 #[derive(Debug)]
 struct Outcome {
     preset: &'static str,
+    scale: Res,
     simulation: Simulation,
     camera: String,
     /// The range of log2 E over the last [`TAIL`] frames.
@@ -117,6 +180,8 @@ struct Outcome {
     m_ratio: f64,
     /// The first frame from which the exposure stays in its final band.
     settled_after: usize,
+    /// Probe frames sent.
+    probes: usize,
 }
 
 impl Outcome {
@@ -147,14 +212,18 @@ fn sweeps(render: &SimRender, surround: &SurroundView) -> Vec<Sweep> {
         .collect()
 }
 
-fn evaluate(preset: &'static str) -> Vec<Outcome> {
-    let render = render(preset);
+/// Both simulations on `preset` at `scale`: each camera alone, probes
+/// on (the default). The band a loop ends in leaves out the frames of
+/// probes it came back from.
+fn evaluate(preset: &'static str, scale: Res) -> Vec<Outcome> {
+    let render = render(preset, scale);
     let surround = view(&render);
     let sweeps = sweeps(&render, &surround);
     let mut out = Vec::new();
     for simulation in [Simulation::ScaleClip, Simulation::Gamma] {
-        let traj = run(&render, view(&render), simulation);
-        for (cam, t) in traj.iter().enumerate() {
+        let trace = run(&render, view(&render), simulation);
+        for (cam, sweep) in sweeps.iter().enumerate() {
+            let t = trace.steady(cam);
             let tail = &t[t.len() - TAIL..];
             let lo = tail.iter().copied().fold(f64::MAX, f64::min);
             let hi = tail.iter().copied().fold(f64::MIN, f64::max);
@@ -176,13 +245,13 @@ fn evaluate(preset: &'static str) -> Vec<Outcome> {
                 .map(|f| (f.exposure.log2(), f.jump))
                 .filter(|(f, _)| *f >= lo - 0.15 && *f <= hi + 0.15)
                 .min_by(|a, b| (a.0 - mean).abs().total_cmp(&(b.0 - mean).abs()));
-            let sweep = &sweeps[cam];
             let settled_after = t
                 .iter()
                 .rposition(|l| *l < lo - 0.05 || *l > hi + 0.05)
                 .map_or(0, |k| k + 1);
             out.push(Outcome {
                 preset,
+                scale,
                 simulation,
                 camera: render.cameras()[cam].name.clone(),
                 lo,
@@ -191,6 +260,7 @@ fn evaluate(preset: &'static str) -> Vec<Outcome> {
                 best: sweep.best.log2(),
                 m_ratio: fixed.map_or(0.0, |(f, _)| sweep.score_at(f.exp2()) / sweep.best_score),
                 settled_after,
+                probes: trace.sent(cam).len(),
             });
         }
     }
@@ -199,7 +269,8 @@ fn evaluate(preset: &'static str) -> Vec<Outcome> {
 
 fn print(outcomes: &[Outcome]) {
     println!(
-        "{:>9} {:>10} {:>6} | {:>13} | {:>15} | {:>6} {:>7} | {:>7} | {:>7}",
+        "{:>5} {:>9} {:>10} {:>6} | {:>13} | {:>15} | {:>6} {:>7} | {:>7} | {:>7} | {:>6}",
+        "scale",
         "preset",
         "simulation",
         "camera",
@@ -208,12 +279,14 @@ fn print(outcomes: &[Outcome]) {
         "sweep",
         "gap EV",
         "M/M_max",
-        "settled"
+        "settled",
+        "probes"
     );
     for o in outcomes {
         let (f, j) = o.fixed.unwrap_or((f64::NAN, f64::NAN));
         println!(
-            "{:>9} {:>10} {:>6} | {:>6.2}–{:<6.2} | {f:>7.3} ({j:>5.2}) | {:>6.2} {:>+7.2} | {:>7.3} | {:>7}",
+            "{:>5} {:>9} {:>10} {:>6} | {:>6.2}–{:<6.2} | {f:>7.3} ({j:>5.2}) | {:>6.2} {:>+7.2} | {:>7.3} | {:>7} | {:>6}",
+            o.scale,
             o.preset,
             o.simulation.name(),
             o.camera,
@@ -226,39 +299,57 @@ fn print(outcomes: &[Outcome]) {
                 format!("{} fr", o.settled_after)
             } else {
                 "cycle".into()
-            }
+            },
+            o.probes
         );
     }
 }
 
 /// Every camera ends at a fixed point of its estimator: converged onto it
-/// (its last 20 exposures within 0.25 EV, their middle within 0.15 EV of
-/// the fixed point)
-/// or, where γ̂ jumps across 1 there, circling it in a band of at most 1 EV;
-/// and that fixed point keeps at least 90 % of the best `M` of the dense
-/// sweep. With scale-and-clip no camera circles: every one converges.
+/// (its last 20 exposures, probe frames left out, within 0.25 EV, their
+/// middle within 0.15 EV of the fixed point) or, where γ̂ jumps across 1
+/// there, circling it in a band of at most 1 EV. At a quarter of the
+/// resolution, no scale-and-clip camera circles and every fixed point
+/// keeps at least 99 % of the best `M` of the dense sweep; at full
+/// resolution two overcast cameras circle a jump of ŝ and every fixed
+/// point keeps at least 97 %. The γ-mapping's keep at least 90 % at a
+/// quarter and 85 % at full resolution, where its fixed points lie up to
+/// 2.1 EV below the optimum. Both resolutions, both constant-light
+/// presets.
 #[test]
 fn constant_light_settles_every_camera_at_its_fixed_point() {
-    let outcomes: Vec<Outcome> = ["reference", "overcast"]
+    let outcomes: Vec<Outcome> = [FULL, QUARTER]
         .into_iter()
-        .flat_map(evaluate)
+        .flat_map(|scale| {
+            ["reference", "overcast"]
+                .into_iter()
+                .flat_map(move |p| evaluate(p, scale))
+        })
         .collect();
     print(&outcomes);
-    for s in [Simulation::ScaleClip, Simulation::Gamma] {
-        let gaps: Vec<f64> = outcomes
-            .iter()
-            .filter(|o| o.simulation == s)
-            .filter_map(Outcome::gap)
-            .collect();
-        let worst = gaps.iter().copied().fold(0.0, |a: f64, g| a.max(g.abs()));
-        let mean = gaps.iter().sum::<f64>() / gaps.len() as f64;
-        println!(
-            "{}: fixed point − sweep optimum: mean {mean:+.2} EV, largest |gap| {worst:.2} EV",
-            s.name()
-        );
+    for scale in [FULL, QUARTER] {
+        for s in [Simulation::ScaleClip, Simulation::Gamma] {
+            let gaps: Vec<f64> = outcomes
+                .iter()
+                .filter(|o| o.simulation == s && o.scale == scale)
+                .filter_map(Outcome::gap)
+                .collect();
+            let worst = gaps.iter().copied().fold(0.0, |a: f64, g| a.max(g.abs()));
+            let mean = gaps.iter().sum::<f64>() / gaps.len() as f64;
+            println!(
+                "scale {scale}, {}: fixed point − sweep optimum: mean {mean:+.2} EV, largest |gap| {worst:.2} EV",
+                s.name()
+            );
+        }
     }
     for o in &outcomes {
-        let what = format!("{} {} {}", o.preset, o.simulation.name(), o.camera);
+        let what = format!(
+            "scale {} {} {} {}",
+            o.scale,
+            o.preset,
+            o.simulation.name(),
+            o.camera
+        );
         let (f, jump) = o.fixed.unwrap_or_else(|| {
             panic!(
                 "{what}: no fixed point of the estimator near {:.2}–{:.2}",
@@ -285,12 +376,18 @@ fn constant_light_settles_every_camera_at_its_fixed_point() {
                 o.hi
             );
         }
+        let floor = match (o.simulation, o.scale == FULL) {
+            (Simulation::ScaleClip, false) => 0.99,
+            (Simulation::ScaleClip, true) => 0.97,
+            (Simulation::Gamma, false) => 0.9,
+            (Simulation::Gamma, true) => 0.85,
+        };
         assert!(
-            o.m_ratio >= 0.9,
+            o.m_ratio >= floor,
             "{what}: M at the fixed point is {:.3} of the best",
             o.m_ratio
         );
-        if o.simulation == Simulation::ScaleClip {
+        if o.simulation == Simulation::ScaleClip && o.scale == QUARTER {
             assert!(
                 o.converged(),
                 "{what}: circles {:.2}–{:.2} instead of settling",
@@ -308,16 +405,12 @@ fn tail_band(t: &[f64]) -> f64 {
 }
 
 /// The app's default mode (γ-mapping, nonlinear law, balancing over the
-/// rig's overlaps) on the reference preset: balancing adds no cycle of its
-/// own. Every camera's last exposures lie in a band at most 0.15 EV wider
-/// than the same camera's alone. Without the damping of the balanced step
-/// (`balance::Damping`) the front camera, on the sunlit mat about 2 EV
-/// darker than its neighbours want, circles 0.6 EV every two steps around
-/// the balanced fixed point.
-#[test]
-fn balancing_adds_no_cycle_in_the_default_mode() {
-    let render = render("reference");
-    let alone = run(&render, view(&render), Simulation::Gamma);
+/// rig's overlaps) on the reference preset at `scale`: balancing adds no
+/// cycle of its own. Every camera's last exposures lie in a band at most
+/// 0.15 EV wider than the same camera's alone.
+fn check_balancing_adds_no_cycle(scale: Res) {
+    let render = render("reference", scale);
+    let alone = run(&render, view(&render), Simulation::Gamma).log2_e;
     let balanced = run_with(
         &render,
         view(&render),
@@ -345,124 +438,156 @@ fn balancing_adds_no_cycle_in_the_default_mode() {
     }
 }
 
-/// Probing darker (`exposure::probe`, on by default for a camera under its
-/// own law) takes the reference preset's front camera past the fixed
-/// points that saturation hides the better one behind. Without probes the
-/// loop, coming down from 2000 µs, stops at the first fixed point it meets
-/// (2^9.83, more than 1 EV above the dense-sweep optimum, 96 % of its `M`);
-/// with them it ends within 0.2 EV of the optimum. No camera ends with less
-/// `M` than without probes, every camera stops probing (at most three probe
-/// frames, none in the last 20 frames), and every probe frame is at most
-/// one anchor step (`1/1.9`) darker than the exposure it left.
+/// [`check_balancing_adds_no_cycle`] at a quarter of the resolution.
+/// Without the damping of the balanced step (`balance::Damping`) the front
+/// camera, on the sunlit mat about 2 EV darker than its neighbours want,
+/// circles 0.6 EV every two steps around the balanced fixed point.
 #[test]
-fn probing_darker_takes_the_front_camera_to_the_best_fixed_point() {
-    let render = render("reference");
-    let sweeps = sweeps(&render, &view(&render));
-    let with = run_with(&render, view(&render), config(Simulation::ScaleClip), &[]);
-    let without = run_with(
-        &render,
-        view(&render),
-        ControllerConfig {
-            probe: None,
-            ..config(Simulation::ScaleClip)
-        },
-        &[],
-    );
-    assert!(without.probes.iter().all(Vec::is_empty));
-    for (cam, name) in render.cameras().iter().map(|c| &c.name).enumerate() {
-        let sweep = &sweeps[cam];
-        let mid = |t: &[f64]| t[t.len() - TAIL..].iter().sum::<f64>() / TAIL as f64;
-        let (a, b) = (mid(&with.log2_e[cam]), mid(&without.log2_e[cam]));
-        let (ma, mb) = (
-            sweep.score_at(a.exp2()) / sweep.best_score,
-            sweep.score_at(b.exp2()) / sweep.best_score,
+fn balancing_adds_no_cycle_in_the_default_mode() {
+    check_balancing_adds_no_cycle(QUARTER);
+}
+
+/// [`check_balancing_adds_no_cycle`] at full resolution: not met. The
+/// front camera climbs in steps of 0.03–0.13 EV for four sets and drops
+/// 0.30 EV on the fifth (9.75 → 10.05 → 9.75), a saw-tooth that the
+/// damping, which halves the step on each reversal, does not see as a
+/// cycle: three of four steps keep their direction.
+#[test]
+#[ignore = "not met: the front camera saw-tooths 0.30 EV at full resolution"]
+fn balancing_adds_no_cycle_in_the_default_mode_at_full_resolution() {
+    check_balancing_adds_no_cycle(FULL);
+}
+
+/// Probing darker (`exposure::probe`, on by default for a camera under its
+/// own law) takes a camera past the fixed points that saturation hides a
+/// better one behind. On the reference preset, without probes, the loop
+/// coming down from 2000 µs stops at the first fixed point it meets: at a
+/// quarter of the resolution the front camera's (2^9.83, +1.44 EV from
+/// the dense-sweep optimum, 96 % of its `M`), at full resolution the left
+/// camera's (2^11.33, +0.73 EV, 95 %). With probes every camera more than
+/// 0.5 EV from the optimum without them ends within 0.2 EV of it. No
+/// camera ends with less `M` than without probes, every camera stops
+/// probing (at most three probe frames, none in the last 20 frames), and
+/// every probe frame is at most one anchor step (`1/1.9`) darker than the
+/// exposure it left.
+#[test]
+fn probing_darker_takes_a_camera_to_the_best_fixed_point() {
+    for scale in [QUARTER, FULL] {
+        let render = render("reference", scale);
+        let sweeps = sweeps(&render, &view(&render));
+        let with = run_with(&render, view(&render), config(Simulation::ScaleClip), &[]);
+        let without = run_with(
+            &render,
+            view(&render),
+            ControllerConfig {
+                probe: None,
+                ..config(Simulation::ScaleClip)
+            },
+            &[],
         );
-        let best = sweep.best.log2();
-        let sent: Vec<usize> = with.probes[cam]
-            .iter()
-            .filter(|(_, e)| matches!(e, ProbeEvent::Sent { .. }))
-            .map(|(f, _)| *f)
-            .collect();
-        println!(
-            "{name:>6}: with probes {a:.2} (gap {:+.2} EV, M {ma:.3} of the best), without {b:.2} (gap {:+.2} EV, M {mb:.3}); probes sent at frames {sent:?}; events {:?}",
-            a - best,
-            b - best,
-            with.probes[cam].iter().map(|(_, e)| e).collect::<Vec<_>>()
-        );
-        assert!(
-            tail_band(&with.log2_e[cam]) <= 0.25,
-            "{name}: not settled with probes"
-        );
-        assert!(
-            ma >= mb - 0.001,
-            "{name}: probing lost M ({ma:.4} < {mb:.4})"
-        );
-        assert!(sent.len() <= 3, "{name}: {} probes", sent.len());
-        assert!(
-            sent.iter().all(|&f| f < FRAMES - TAIL),
-            "{name}: probed in the last {TAIL} frames: {sent:?}"
-        );
-        for (_, e) in &with.probes[cam] {
-            if let ProbeEvent::Sent { from, to } = e {
+        assert!(without.probes.iter().all(Vec::is_empty));
+        let mut helped = 0;
+        for (cam, name) in render.cameras().iter().map(|c| &c.name).enumerate() {
+            let sweep = &sweeps[cam];
+            let mid = |t: &[f64]| t[t.len() - TAIL..].iter().sum::<f64>() / TAIL as f64;
+            let steady = with.steady(cam);
+            let (a, b) = (mid(&steady), mid(&without.log2_e[cam]));
+            let (ma, mb) = (
+                sweep.score_at(a.exp2()) / sweep.best_score,
+                sweep.score_at(b.exp2()) / sweep.best_score,
+            );
+            let best = sweep.best.log2();
+            let sent = with.sent(cam);
+            println!(
+                "scale {scale} {name:>6}: with probes {a:.2} (gap {:+.2} EV, M {ma:.3} of the best), without {b:.2} (gap {:+.2} EV, M {mb:.3}); probes sent at frames {sent:?}; events {:?}",
+                a - best,
+                b - best,
+                with.probes[cam].iter().map(|(_, e)| e).collect::<Vec<_>>()
+            );
+            assert!(
+                tail_band(&steady) <= 0.25,
+                "{name}: not settled with probes"
+            );
+            assert!(
+                ma >= mb - 0.001,
+                "{name}: probing lost M ({ma:.4} < {mb:.4})"
+            );
+            assert!(sent.len() <= 3, "{name}: {} probes", sent.len());
+            assert!(
+                sent.iter().all(|&f| f < FRAMES - TAIL),
+                "{name}: probed in the last {TAIL} frames: {sent:?}"
+            );
+            for (_, e) in &with.probes[cam] {
+                if let ProbeEvent::Sent { from, to } = e {
+                    assert!(
+                        (from / to).log2() <= 1.9f64.log2() + 1e-9,
+                        "{name}: probe {from} → {to}"
+                    );
+                }
+            }
+            if b - best > 0.5 {
+                helped += 1;
                 assert!(
-                    (from / to).log2() <= 1.9f64.log2() + 1e-9,
-                    "{name}: probe {from} → {to}"
+                    (a - best).abs() <= 0.2,
+                    "scale {scale} {name}: with probes at {a:.2}, the optimum at {best:.2}"
                 );
             }
         }
-        if cam == 0 {
-            assert!(b - best > 1.0, "{name}: without probes at {b:.2}");
-            assert!(
-                (a - best).abs() <= 0.2,
-                "{name}: with probes at {a:.2}, the optimum at {best:.2}"
-            );
-        }
+        assert!(
+            helped > 0,
+            "scale {scale}: no camera was more than 0.5 EV above the optimum without probes"
+        );
     }
 }
 
 /// The acceptance figure as first stated: the scale-and-clip fixed point
 /// the loop settles on within 0.2 EV of the dense-sweep optimum, on the
-/// reference preset. Met on the front, left and back cameras; not on the
-/// right camera (+0.22 EV).
+/// reference preset, at full resolution and at a quarter of it. Met on
+/// three cameras of four at each: not on the back camera at full
+/// resolution (−0.25 EV, 99.9 % of the best `M`), nor on the right camera
+/// at a quarter (+0.22 EV, 99.8 %).
 ///
-/// - **Front (−0.06 EV with probes, +1.43 EV without).** `M(E)` of the
-///   noise-free render has three local maxima, one before each saturation
-///   event: 2^8.35 (the best), 2^9.10 (2 % lower) and 2^9.82 (3.7 %
-///   lower). Scale-and-clip has a fixed point at each (2^8.34, 2^9.02,
-///   2^9.83), and darkening cannot see under saturation: at 2^9.83 the
-///   truth gains 3.7 % by darkening to 0.667 and the simulation predicts a
-///   loss of 1 %. The pixels it misses lie one pixel inside the white
-///   squares of the sunlit mat: the squares stay saturated, but the
-///   anti-aliased pixels on their edges are only a little above saturation
-///   and come back. Declipping them from the histogram just below
-///   saturation, or log-uniformly over 2–6 EV, was tried on every camera
-///   from 2^7 to 2^12.5 and predicted worse than holding. The loop, coming
-///   down from 2000 µs, stopped at 2^9.83; probing darker
-///   ([`probing_darker_takes_the_front_camera_to_the_best_fixed_point`])
-///   measures instead of simulating and takes it to 2^8.34.
-/// - **Right (+0.22 EV).** `M` is flat to 0.2 % from 2^10.9 to 2^11.2 (to
-///   0.03 % from 2^10.95 to 2^11.1), and the under-credited interior (truth
-///   140, assumed 6 at s = 0.526) puts the estimator's fixed point at the
-///   bright end of that plateau, 2^11.22. A probe 0.93 EV darker measures
-///   4 % less, so the camera rightly stays: the fixed point itself is off,
-///   by 0.02 EV more than the target allows, at 99.8 % of the best `M`.
+/// - **Full resolution.** A metered pixel averages 4×4 sensor pixels, and
+///   on the edges of saturated areas some of them are saturated: the
+///   metering says how much of each block they carry, and scale-and-clip
+///   scales only the rest (`Metered::saturated_samples`). Without that,
+///   brightening was predicted 2–5 % too low wherever a surface saturated,
+///   and the fixed points lay from −0.74 to +0.68 EV from the optimum
+///   (overcast: down to −1.82 EV). The back camera's `M` is flat to 0.1 %
+///   from 2^12.25 to 2^12.6.
+/// - **Quarter resolution, front (−0.06 EV with probes, +1.43 EV
+///   without).** `M(E)` has three local maxima, one before each saturation
+///   event: 2^8.35 (the best), 2^9.10 and 2^9.82. Scale-and-clip has a
+///   fixed point at each, and darkening cannot see under saturation: the
+///   anti-aliased pixels on the edges of the sunlit mat's white squares
+///   are only a little above saturation and come back when darkened; the
+///   simulation holds them saturated. Declipping them from the histogram
+///   just below saturation, or log-uniformly over 2–6 EV, was tried on
+///   every camera from 2^7 to 2^12.5 and predicted worse than holding.
+///   Probing darker
+///   ([`probing_darker_takes_a_camera_to_the_best_fixed_point`]) measures
+///   instead and takes the camera to 2^8.34.
+/// - **Quarter resolution, right (+0.22 EV).** `M` is flat to 0.2 % from
+///   2^10.9 to 2^11.2, and the same under-credit puts the fixed point at
+///   the bright end of that plateau, 2^11.22. A probe 0.93 EV darker
+///   measures 4 % less, so the camera stays.
 ///
 /// Run with `--ignored --nocapture` to see the gaps.
 #[test]
-#[ignore = "not met: reference right +0.22 EV (a plateau of M flat to 0.2 %)"]
+#[ignore = "not met: back −0.25 EV at full resolution, right +0.22 EV at a quarter (plateaus of M)"]
 fn scale_clip_fixed_points_lie_within_0_2_ev_of_the_sweep_optimum() {
-    let outcomes: Vec<Outcome> = evaluate("reference")
+    let outcomes: Vec<Outcome> = [FULL, QUARTER]
         .into_iter()
+        .flat_map(|scale| evaluate("reference", scale))
         .filter(|o| o.simulation == Simulation::ScaleClip)
         .collect();
     print(&outcomes);
-    for o in &outcomes {
-        let gap = o.gap().unwrap_or(f64::INFINITY);
-        assert!(
-            gap.abs() <= 0.2,
-            "{} {}: gap {gap:+.2} EV",
-            o.preset,
-            o.camera
-        );
-    }
+    let missed: Vec<String> = outcomes
+        .iter()
+        .filter_map(|o| {
+            let gap = o.gap().unwrap_or(f64::INFINITY);
+            (gap.abs() > 0.2).then(|| format!("scale {} {}: gap {gap:+.2} EV", o.scale, o.camera))
+        })
+        .collect();
+    assert!(missed.is_empty(), "{missed:?}");
 }
