@@ -540,6 +540,45 @@ fn probing_darker_takes_a_camera_to_the_best_fixed_point() {
     }
 }
 
+/// A camera that leaves its own law (here: balancing is switched on) forgets
+/// its probes: the operator's camera card no longer shows one.
+#[test]
+fn a_camera_that_leaves_its_own_law_forgets_its_probe() {
+    let render = render("reference", QUARTER);
+    let n = render.cameras().len();
+    let ranges: Vec<_> = render.cameras().iter().map(|c| c.range).collect();
+    let graph = NeighbourGraph::new(n, &render.rig().neighbours).unwrap();
+    let controller = RigController::new(config(Simulation::ScaleClip), &ranges, graph).unwrap();
+    let source = SimRig::new(render.clone(), SimRigOptions::default()).unwrap();
+    let meter = Meter::new(MeteringConfig::default()).unwrap();
+    let mut lp = ClosedLoop::new(source, controller, meter, Some(view(&render))).unwrap();
+    for _ in 0..30 {
+        lp.step().unwrap();
+    }
+    let front = lp.controller_mut().camera_mut(0).unwrap().last_probe();
+    assert!(
+        matches!(
+            front,
+            Some(ProbeEvent::Taken { .. } | ProbeEvent::Rejected { .. })
+        ),
+        "{front:?}"
+    );
+    let balanced = ControllerConfig {
+        balancing: Some(Default::default()),
+        ..config(Simulation::ScaleClip)
+    };
+    lp.controller_mut().set_config(balanced).unwrap();
+    for _ in 0..3 {
+        lp.step().unwrap();
+    }
+    for cam in 0..n {
+        assert_eq!(
+            lp.controller_mut().camera_mut(cam).unwrap().last_probe(),
+            None
+        );
+    }
+}
+
 /// The acceptance figure as first stated: the scale-and-clip fixed point
 /// the loop settles on within 0.2 EV of the dense-sweep optimum, on the
 /// reference preset, at full resolution and at a quarter of it. Met on

@@ -247,7 +247,9 @@ impl CameraController {
     }
 
     /// The outcome of this camera's latest probe ([`super::probe`]): taken,
-    /// rejected, abandoned or known without a probe.
+    /// rejected, abandoned or known without a probe; `None` once the camera
+    /// is no longer under its own gradient law (balanced, manual, another
+    /// mode).
     pub fn last_probe(&self) -> Option<ProbeEvent> {
         self.last_probe
     }
@@ -347,7 +349,10 @@ impl CameraController {
                     }
                 }
             }
-            _ => self.prober.reset(),
+            _ => {
+                self.prober.reset();
+                self.last_probe = None;
+            }
         }
         Ok(UnaryStep {
             estimate,

@@ -193,27 +193,16 @@ pub struct ProbeInput {
 
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 enum State {
-    /// Counting settled frames at `home`.
+    /// The law is moving the camera.
     #[default]
     Watching,
-    Settling {
-        home: f64,
-        m_sum: f64,
-        frames: u32,
-    },
+    /// `frames` settled frames at `home`, with their `M` summed.
+    Settling { home: f64, m_sum: f64, frames: u32 },
     /// A probe frame at `probe` was commanded.
-    Probing {
-        home: f64,
-        home_m: f64,
-        probe: f64,
-    },
+    Probing { home: f64, home_m: f64, probe: f64 },
     /// A probe from `home` measured no better `frames` frames ago; no
     /// probing until the scene changes.
-    Resting {
-        home: f64,
-        home_m: f64,
-        frames: u32,
-    },
+    Resting { home: f64, home_m: f64, frames: u32 },
 }
 
 /// How many of the latest frames a camera reacted to a [`Prober`]
