@@ -534,7 +534,11 @@ fn damping_keeps_a_steady_direction_and_halves_on_reversals() {
     let tiny = 2f64.powf(0.5 * p.dead_band_ev);
     assert_eq!(d.apply(e2, e2 / tiny, &p).1, 0.25);
     assert_eq!(d.apply(e2, e2 * tiny, &p).1, 0.25);
-    // Keeping the direction doubles κ back to 1, not beyond.
+    // Keeping the direction doubles κ back to 1, not beyond, once the
+    // camera has moved `recover_ev` (0.5 EV) since the reversal: 0.25 EV
+    // after the reversal, then 0.5.
+    assert_eq!(p.recover_ev, 0.5);
+    assert_eq!(d.apply(e2, 2.0 * e2, &p).1, 0.25);
     assert_eq!(d.apply(e2, 2.0 * e2, &p).1, 0.5);
     assert_eq!(d.apply(e2, 2.0 * e2, &p).1, 1.0);
     assert_eq!(d.apply(e2, 2.0 * e2, &p).1, 1.0);
@@ -551,6 +555,48 @@ fn damping_keeps_a_steady_direction_and_halves_on_reversals() {
     let bad = balance::DampingParams { floor: 0.0, ..p };
     let err = bad.validate().unwrap_err().to_string();
     assert!(err.contains("balance.damping.floor"), "{err}");
+    let bad = balance::DampingParams {
+        recover_ev: -1.0,
+        ..p
+    };
+    let err = bad.validate().unwrap_err().to_string();
+    assert!(err.contains("balance.damping.recover_ev"), "{err}");
+}
+
+/// A balanced target that jumps: 0.1 EV above the camera's exposure below
+/// 2^10, 2^9.7 above it (as when γ̂ jumps to the end of the anchors). The
+/// camera climbs and drops, a saw-tooth with one reversal every few steps.
+/// Letting `κ` grow on every step that keeps the direction
+/// (`recover_ev = 0`) gives it back before each drop; waiting for 0.5 EV of
+/// travel settles it at the jump.
+#[test]
+fn damping_settles_a_saw_tooth() {
+    let target = |e: f64| {
+        if e.log2() < 10.0 {
+            e * 0.1f64.exp2()
+        } else {
+            9.7f64.exp2()
+        }
+    };
+    let run = |params: balance::DampingParams| {
+        let mut d = balance::Damping::default();
+        let mut e = 9.5f64.exp2();
+        let mut path = Vec::new();
+        for _ in 0..200 {
+            e = d.apply(e, target(e), &params).0;
+            path.push(e.log2());
+        }
+        let tail = &path[path.len() - 30..];
+        tail.iter().cloned().fold(f64::MIN, f64::max)
+            - tail.iter().cloned().fold(f64::MAX, f64::min)
+    };
+    let eager = run(balance::DampingParams {
+        recover_ev: 0.0,
+        ..Default::default()
+    });
+    assert!(eager > 0.1, "κ regained on every step: band {eager:.3} EV");
+    let patient = run(balance::DampingParams::default());
+    assert!(patient < 0.05, "band {patient:.3} EV");
 }
 
 /// A camera whose own law wants `E0` (`R = E0/E`) while its neighbours want
