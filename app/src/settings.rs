@@ -275,6 +275,15 @@ mod tests {
         let before = text.replacen(&block, "", 1);
         let old = Settings::parse(&before, "old.yaml").unwrap();
         assert_eq!(old, Settings::default(), "a file without `probe` probes");
+        // Nor did the damping have `recover_ev`.
+        assert!(before.contains("recover_ev: 0.5\n"), "{before}");
+        let older: String = before
+            .lines()
+            .filter(|l| !l.trim_start().starts_with("recover_ev:"))
+            .map(|l| format!("{l}\n"))
+            .collect();
+        let older = Settings::parse(&older, "older.yaml").unwrap();
+        assert_eq!(older, Settings::default(), "a damping without `recover_ev`");
         let off = Settings::parse(
             &before.replacen("  controller:\n", "  controller:\n    probe: null\n", 1),
             "off.yaml",
