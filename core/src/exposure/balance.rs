@@ -304,12 +304,10 @@ impl Damping {
                     self.kappa = (self.kappa * 0.5).max(params.floor);
                     self.travel = 0.0;
                 }
-                Some(_) => {
-                    if self.travel >= params.recover_ev {
-                        self.kappa = (self.kappa * 2.0).min(1.0);
-                    }
+                Some(_) if self.travel >= params.recover_ev => {
+                    self.kappa = (self.kappa * 2.0).min(1.0);
                 }
-                None => {}
+                _ => {}
             }
             self.last = Some(step);
         }
