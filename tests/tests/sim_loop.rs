@@ -36,7 +36,6 @@ enum Res {
     Full,
     Quarter,
 }
-use Res::{Full as FULL, Quarter as QUARTER};
 
 impl Res {
     fn scale(self) -> f64 {
@@ -318,7 +317,7 @@ fn print(outcomes: &[Outcome]) {
 /// presets.
 #[test]
 fn constant_light_settles_every_camera_at_its_fixed_point() {
-    let outcomes: Vec<Outcome> = [FULL, QUARTER]
+    let outcomes: Vec<Outcome> = [Res::Full, Res::Quarter]
         .into_iter()
         .flat_map(|scale| {
             ["reference", "overcast"]
@@ -327,7 +326,7 @@ fn constant_light_settles_every_camera_at_its_fixed_point() {
         })
         .collect();
     print(&outcomes);
-    for scale in [FULL, QUARTER] {
+    for scale in [Res::Full, Res::Quarter] {
         for s in [Simulation::ScaleClip, Simulation::Gamma] {
             let gaps: Vec<f64> = outcomes
                 .iter()
@@ -376,7 +375,7 @@ fn constant_light_settles_every_camera_at_its_fixed_point() {
                 o.hi
             );
         }
-        let floor = match (o.simulation, o.scale == FULL) {
+        let floor = match (o.simulation, o.scale == Res::Full) {
             (Simulation::ScaleClip, false) => 0.99,
             (Simulation::ScaleClip, true) => 0.97,
             (Simulation::Gamma, false) => 0.9,
@@ -387,7 +386,7 @@ fn constant_light_settles_every_camera_at_its_fixed_point() {
             "{what}: M at the fixed point is {:.3} of the best",
             o.m_ratio
         );
-        if o.simulation == Simulation::ScaleClip && o.scale == QUARTER {
+        if o.simulation == Simulation::ScaleClip && o.scale == Res::Quarter {
             assert!(
                 o.converged(),
                 "{what}: circles {:.2}–{:.2} instead of settling",
@@ -444,7 +443,7 @@ fn check_balancing_adds_no_cycle(scale: Res) {
 /// circles 0.6 EV every two steps around the balanced fixed point.
 #[test]
 fn balancing_adds_no_cycle_in_the_default_mode() {
-    check_balancing_adds_no_cycle(QUARTER);
+    check_balancing_adds_no_cycle(Res::Quarter);
 }
 
 /// [`check_balancing_adds_no_cycle`] at full resolution. There the front
@@ -457,7 +456,7 @@ fn balancing_adds_no_cycle_in_the_default_mode() {
 /// at the jump.
 #[test]
 fn balancing_adds_no_cycle_in_the_default_mode_at_full_resolution() {
-    check_balancing_adds_no_cycle(FULL);
+    check_balancing_adds_no_cycle(Res::Full);
 }
 
 /// Probing darker (`exposure::probe`, on by default for a camera under its
@@ -474,7 +473,7 @@ fn balancing_adds_no_cycle_in_the_default_mode_at_full_resolution() {
 /// exposure it left.
 #[test]
 fn probing_darker_takes_a_camera_to_the_best_fixed_point() {
-    for scale in [QUARTER, FULL] {
+    for scale in [Res::Quarter, Res::Full] {
         let render = render("reference", scale);
         let sweeps = sweeps(&render, &view(&render));
         let with = run_with(&render, view(&render), config(Simulation::ScaleClip), &[]);
@@ -546,7 +545,7 @@ fn probing_darker_takes_a_camera_to_the_best_fixed_point() {
 /// its probes: the operator's camera card no longer shows one.
 #[test]
 fn a_camera_that_leaves_its_own_law_forgets_its_probe() {
-    let render = render("reference", QUARTER);
+    let render = render("reference", Res::Quarter);
     let n = render.cameras().len();
     let ranges: Vec<_> = render.cameras().iter().map(|c| c.range).collect();
     let graph = NeighbourGraph::new(n, &render.rig().neighbours).unwrap();
@@ -617,7 +616,7 @@ fn a_camera_that_leaves_its_own_law_forgets_its_probe() {
 #[test]
 #[ignore = "not met: back −0.25 EV at full resolution, right +0.22 EV at a quarter (plateaus of M)"]
 fn scale_clip_fixed_points_lie_within_0_2_ev_of_the_sweep_optimum() {
-    let outcomes: Vec<Outcome> = [FULL, QUARTER]
+    let outcomes: Vec<Outcome> = [Res::Full, Res::Quarter]
         .into_iter()
         .flat_map(|scale| evaluate("reference", scale))
         .filter(|o| o.simulation == Simulation::ScaleClip)

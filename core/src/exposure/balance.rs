@@ -310,11 +310,9 @@ impl Damping {
                 _ => {}
             }
             self.last = Some(step);
+            self.travel += (self.kappa * step).abs();
         }
         let kappa = self.kappa;
-        if step.abs() > params.dead_band_ev {
-            self.travel += (kappa * step).abs();
-        }
         (current * (kappa * step).exp2(), kappa)
     }
 }
