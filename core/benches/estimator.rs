@@ -9,6 +9,8 @@
 //!   rigview's own polynomial fit and argmax. `rigview_gamma_with_info`
 //!   also forms the information-weighted intensity (`estimate_with_info`,
 //!   which the fast law asks for), work the peer does not do.
+//!   `rigview_scale_clip_declipped` reads the saturated pixels from a frame
+//!   1.9× darker (`EstimateOptions::darker`, as after a probe).
 //! - `meter_and_estimate_1288x964`: from a full 1288×964 frame (Mono8 and
 //!   RGB8): rigview's `Meter::meter` + `Estimator::estimate` against OpenCV
 //!   (`cvtColor RGB2GRAY` for RGB8) → `resize INTER_AREA` to 322×241 → the
@@ -26,8 +28,8 @@ use opencv::core::{self, Mat, MatTraitConst, MatTraitManual, Rect, Size};
 use opencv::imgproc;
 use rigview_core::exposure::estimator::{fit, AnchorScore};
 use rigview_core::exposure::{
-    Estimator, EstimatorConfig, FrameView, Isa, Meter, MeteringConfig, MetricParams, PixelFormat,
-    Simulation, DEFAULT_ANCHORS,
+    Darker, EstimateOptions, Estimator, EstimatorConfig, FrameView, Isa, Meter, MeteringConfig,
+    MetricParams, PixelFormat, Simulation, DEFAULT_ANCHORS,
 };
 use rigview_core::synth::{HdrScene, Illumination, LinearCamera};
 
@@ -239,6 +241,38 @@ fn estimate_320x240(c: &mut Criterion) {
     });
     group.bench_function("rigview_scale_clip", |b| {
         b.iter(|| scale_clip.estimate(black_box(&metered)).unwrap().gamma_hat);
+    });
+    // Reading the saturated pixels from a frame 1.9× darker (as after a
+    // probe): the check that it is the same scene and the split of every
+    // pixel, instead of the held weights and the assumed recovery.
+    let dark_frame = scene_frame(w, h, EXPOSURE / 1.9);
+    let darker = Meter::new(MeteringConfig::default())
+        .unwrap()
+        .meter(
+            &FrameView::new(PixelFormat::Mono8, w, h, &dark_frame).unwrap(),
+            None,
+        )
+        .unwrap();
+    let options = EstimateOptions {
+        darker: Some(Darker {
+            image: &darker,
+            ratio: 1.0 / 1.9,
+        }),
+        ..Default::default()
+    };
+    assert!(
+        scale_clip
+            .estimate_with(&metered, options)
+            .unwrap()
+            .declipped
+    );
+    group.bench_function("rigview_scale_clip_declipped", |b| {
+        b.iter(|| {
+            scale_clip
+                .estimate_with(black_box(&metered), options)
+                .unwrap()
+                .gamma_hat
+        });
     });
     // The same kernels compiled for narrower instruction sets than the
     // detected one (chosen at run time; see `Isa`).

@@ -1043,3 +1043,151 @@ fn scale_clip_on_metered_blocks_scales_only_their_unsaturated_samples() {
         }
     }
 }
+
+/// A 16-bit frame of `w×h` sensor pixels at `exposure`, the scene shifted
+/// `dx` pixels: squares of 13 pixels at six radiance levels, two of them
+/// above full well at exposure 1 (1.3× and 4×), each with a texture of
+/// ±25 % that carries gradient information wherever it is not clipped.
+fn textured_square_frame(exposure: f64, w: usize, h: usize, dx: usize) -> Vec<u8> {
+    const LEVELS: [f64; 6] = [0.05, 0.12, 0.3, 1.3, 0.5, 4.0];
+    let mut out = Vec::with_capacity(w * h * 2);
+    for y in 0..h {
+        for x in (0..w).map(|x| x + dx) {
+            let level = LEVELS[(x / 13 + 7 * (y / 13)) % LEVELS.len()];
+            let texture = 1.0 + 0.25 * (0.9 * x as f64).sin() * (0.7 * y as f64).cos();
+            let v = (level * texture * exposure).min(1.0);
+            out.extend_from_slice(&((v * 65535.0).round() as u16).to_le_bytes());
+        }
+    }
+    out
+}
+
+/// Given a darker frame of the same scene, scale-and-clip reads what the
+/// saturated pixels hide and predicts every darkening anchor to within
+/// 1 % (the textured squares 1.3× above full well come back at
+/// `s < 1/1.3`), where holding them misses by more: metered 1:1 and in
+/// 4×4 blocks, with the darker frame at the smallest anchor and beyond it.
+/// Brightening is unchanged. A darker frame that is not the same scene
+/// (shifted, other light, too near, another size) is not read, and the
+/// γ-mapping ignores one.
+#[test]
+fn a_darker_frame_tells_scale_clip_what_saturation_hides() {
+    for (w, h, scale) in [(80, 60, 1), (320, 240, 4)] {
+        let meter = Meter::new(MeteringConfig {
+            target_width: 80,
+            target_height: 60,
+        })
+        .unwrap();
+        let metered_shifted = |e: f64, dx: usize| {
+            let data = textured_square_frame(e, w, h, dx);
+            meter
+                .meter(
+                    &FrameView::new(PixelFormat::Mono16, w, h, &data).unwrap(),
+                    None,
+                )
+                .unwrap()
+        };
+        let metered = |e: f64| metered_shifted(e, 0);
+        let now = metered(1.0);
+        assert_eq!(now.scale(), scale);
+        let truth = |s: f64| {
+            Estimator::new(EstimatorConfig::default())
+                .unwrap()
+                .score(&metered(s))
+        };
+        let mut est = scale_clip_estimator();
+        let plain = est.estimate(&now).unwrap();
+        assert!(!plain.declipped);
+        for ratio in [1.0 / 1.9, 0.4] {
+            let darker = metered(ratio);
+            let declipped = est
+                .estimate_with(
+                    &now,
+                    EstimateOptions {
+                        darker: Some(Darker {
+                            image: &darker,
+                            ratio,
+                        }),
+                        ..Default::default()
+                    },
+                )
+                .unwrap();
+            assert!(declipped.declipped, "{w}×{h}: the same scene was not read");
+            for (p, d) in plain.anchors.iter().zip(&declipped.anchors) {
+                let t = truth(p.x);
+                let (ep, ed) = ((p.m - t) / t, (d.m - t) / t);
+                println!(
+                    "{w}×{h}, darker frame at {ratio:.3}: s {:.3}: truth {t:.1}, held {:.1} ({ep:+.4}), declipped {:.1} ({ed:+.4})",
+                    p.x, p.m, d.m
+                );
+                if p.x < 1.0 {
+                    assert!(ed.abs() <= 0.01, "{w}×{h} s={}: {ed:+.4}", p.x);
+                } else {
+                    assert!((d.m - p.m).abs() <= 1e-5 * p.m, "{w}×{h} s={}", p.x);
+                }
+                if (p.x - 1.0 / 1.9).abs() < 1e-9 {
+                    assert!(
+                        ep.abs() > 0.02 && ep.abs() > 3.0 * ed.abs(),
+                        "{w}×{h}: holding is off by only {ep:+.4} at s={}",
+                        p.x
+                    );
+                }
+            }
+        }
+        // Not the same scene: the estimate is the plain one.
+        let shifted = metered_shifted(1.0 / 1.9, 13);
+        let brighter_light = metered(1.2 / 1.9);
+        let other_size = Meter::new(MeteringConfig {
+            target_width: 40,
+            target_height: 30,
+        })
+        .unwrap()
+        .meter(
+            &FrameView::new(
+                PixelFormat::Mono16,
+                w,
+                h,
+                &textured_square_frame(1.0 / 1.9, w, h, 0),
+            )
+            .unwrap(),
+            None,
+        )
+        .unwrap();
+        let near = metered(0.97);
+        for (what, image, ratio) in [
+            ("shifted", &shifted, 1.0 / 1.9),
+            ("other light", &brighter_light, 1.0 / 1.9),
+            ("other size", &other_size, 1.0 / 1.9),
+            ("too near", &near, 0.97),
+            ("not darker", &now, 1.0),
+        ] {
+            let e = est
+                .estimate_with(
+                    &now,
+                    EstimateOptions {
+                        darker: Some(Darker { image, ratio }),
+                        ..Default::default()
+                    },
+                )
+                .unwrap();
+            assert!(!e.declipped, "{w}×{h}: a darker frame {what} was read");
+            assert_eq!(e.anchors, plain.anchors, "{w}×{h}: {what}");
+        }
+        let mut gamma = Estimator::new(EstimatorConfig::default()).unwrap();
+        let darker = metered(1.0 / 1.9);
+        let g = gamma
+            .estimate_with(
+                &now,
+                EstimateOptions {
+                    darker: Some(Darker {
+                        image: &darker,
+                        ratio: 1.0 / 1.9,
+                    }),
+                    ..Default::default()
+                },
+            )
+            .unwrap();
+        assert!(!g.declipped);
+        assert_eq!(g, gamma.estimate(&now).unwrap());
+    }
+}

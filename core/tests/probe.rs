@@ -13,6 +13,8 @@ fn frame(taken: f64, m: f64, desired: f64) -> ProbeInput {
         m,
         saturated: 0.3,
         desired,
+        wants_frame: false,
+        read_probe_frame: false,
     }
 }
 
@@ -181,6 +183,122 @@ fn a_recent_frame_in_the_probes_range_answers_without_a_probe() {
     for _ in 0..5 {
         assert_eq!(p.step(&params, settled(1000.0, 100.0)).1, None);
     }
+}
+
+/// A camera whose estimator reads probe frames (scale-and-clip) probes
+/// even where a recent frame measured worse: the probe is for its frame.
+/// A recent frame that measured better still answers, as before.
+#[test]
+fn a_camera_that_reads_probe_frames_probes_past_a_frame_that_measured_worse() {
+    let params = params();
+    // Climbed from a frame 0.7 EV darker that measured `m_dark`, settled at
+    // 1000 with M 100: what the second settled frame does.
+    let settle_after = |m_dark: f64| {
+        let reading = |i: ProbeInput| ProbeInput {
+            wants_frame: true,
+            ..i
+        };
+        let mut p = Prober::default();
+        p.step(
+            &params,
+            reading(frame(1000.0 / 0.7f64.exp2(), m_dark, 1000.0)),
+        );
+        p.step(&params, reading(settled(1000.0, 100.0)));
+        p.step(&params, reading(settled(1000.0, 100.0))).1
+    };
+    let e = settle_after(90.0);
+    assert!(matches!(e, Some(ProbeEvent::Sent { .. })), "{e:?}");
+    let e = settle_after(110.0);
+    assert!(
+        matches!(e, Some(ProbeEvent::Known { gain }) if (gain - 0.1).abs() < 1e-9),
+        "{e:?}"
+    );
+}
+
+/// A law that circles (up, up, down, over and over, as around a jump of its
+/// estimate) never settles; the prober recognises the circle after three
+/// turns and probes from where the camera is (for its frame: the frames of
+/// the circle measured no better). Without saturation it does
+/// not, nor does a law that climbs in steps or zig-zags while it drifts.
+#[test]
+fn a_circling_law_probes_from_where_it_is() {
+    let params = params();
+    let circle = [1000.0, 1300.0, 1600.0];
+    let run = |saturated: f64, at: &dyn Fn(usize) -> f64| {
+        let mut p = Prober::default();
+        for k in 0..30 {
+            let (taken, next) = (at(k), at(k + 1));
+            let (d, e) = p.step(
+                &params,
+                ProbeInput {
+                    saturated,
+                    wants_frame: true,
+                    ..frame(taken, 100.0, next)
+                },
+            );
+            if let Some(ProbeEvent::Sent { from, to }) = e {
+                assert!((from - taken).abs() < 1e-9 && (d - to).abs() < 1e-9);
+                return Some((k, from));
+            }
+        }
+        None
+    };
+    let circling = |k: usize| circle[k % 3];
+    assert_eq!(run(0.3, &circling), Some((8, circle[8 % 3])));
+    assert_eq!(run(0.0, &circling), None, "probed without saturation");
+    let climbing = |k: usize| 1000.0 * (0.2 * k as f64).exp2();
+    assert_eq!(run(0.3, &climbing), None, "probed while climbing");
+    // Up 0.3 EV, down 0.2 EV: drifts 0.3 EV in nine frames.
+    let drifting = |k: usize| {
+        1000.0 * (0.3 * (k / 2) as f64 - 0.2 * (k / 2) as f64 + 0.3 * (k % 2) as f64).exp2()
+    };
+    assert_eq!(run(0.3, &drifting), None, "probed while drifting");
+}
+
+/// While the estimate reads the frame of the probe the camera rests after
+/// (the scene is the probe's), the rest goes on however far the law moves
+/// the camera and `M` with it; once it no longer does, the moved camera
+/// re-arms after the cooldown and probes again.
+#[test]
+fn a_camera_reading_its_probe_frame_rests_on() {
+    let params = params();
+    let mut p = Prober::default();
+    let probe = settle_and_probe(&mut p, &params, 100.0);
+    let (_, e) = p.step(&params, frame(probe, 90.0, 1000.0));
+    assert!(matches!(e, Some(ProbeEvent::Rejected { .. })), "{e:?}");
+    assert!(p.resting());
+    // The law moves the camera 0.6 EV up (beyond half a probe step) and M
+    // 8 % with it, for longer than the cooldown.
+    let moved = 1000.0 * 0.6f64.exp2();
+    for k in 0..10 {
+        let (_, e) = p.step(
+            &params,
+            ProbeInput {
+                read_probe_frame: true,
+                ..settled(moved, 108.0)
+            },
+        );
+        assert_eq!(e, None, "frame {k}: probed while reading its probe frame");
+        assert!(p.resting());
+    }
+    // The frame no longer matches: the camera settles there (two frames)
+    // and probes.
+    let events: Vec<_> = (0..2)
+        .map(|_| {
+            p.step(
+                &params,
+                ProbeInput {
+                    wants_frame: true,
+                    ..settled(moved, 108.0)
+                },
+            )
+            .1
+        })
+        .collect();
+    assert!(
+        matches!(events[..], [None, Some(ProbeEvent::Sent { from, .. })] if (from - moved).abs() < 1e-9),
+        "{events:?}"
+    );
 }
 
 #[test]

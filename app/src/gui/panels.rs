@@ -439,23 +439,34 @@ pub fn camera_card(
             } else {
                 ""
             },
-            cam.last_probe.map_or(String::new(), probe_text)
+            probe_text(
+                cam.last_probe,
+                cam.estimate.as_ref().is_some_and(|e| e.declipped)
+            )
         ));
     });
 }
 
-/// The latest probe darker, for the camera's label: what `M` did there.
-fn probe_text(p: ProbeEvent) -> String {
-    match p {
-        ProbeEvent::Taken { gain } => format!("\nprobe darker: M {:+.1} %, taken", gain * 100.0),
-        ProbeEvent::Rejected { gain } => {
+/// The latest probe darker, for the camera's label: what `M` did there,
+/// and whether the estimate read the probe's frame (`read`).
+fn probe_text(p: Option<ProbeEvent>, read: bool) -> String {
+    let outcome = match p {
+        Some(ProbeEvent::Taken { gain }) => {
+            format!("\nprobe darker: M {:+.1} %, taken", gain * 100.0)
+        }
+        Some(ProbeEvent::Rejected { gain }) => {
             format!("\nprobe darker: M {:+.1} %, stayed", gain * 100.0)
         }
-        ProbeEvent::Known { gain } => {
+        Some(ProbeEvent::Known { gain }) => {
             format!("\ndarker seen: M {:+.1} %, no probe", gain * 100.0)
         }
-        ProbeEvent::Abandoned => "\nprobe darker: abandoned".into(),
-        ProbeEvent::Sent { .. } => String::new(),
+        Some(ProbeEvent::Abandoned) => "\nprobe darker: abandoned".into(),
+        Some(ProbeEvent::Sent { .. }) | None => String::new(),
+    };
+    if read {
+        outcome + "\nsaturation read from the probe frame"
+    } else {
+        outcome
     }
 }
 
@@ -553,4 +564,27 @@ pub(super) fn central(app: &mut RigviewApp, ui: &mut Ui) {
             ui.centered_and_justified(|ui| ui.label("the panorama view is not built yet"));
         }
     });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_probe_text_says_what_the_probe_did_and_whether_its_frame_is_read() {
+        let stayed = Some(ProbeEvent::Rejected { gain: -0.027 });
+        assert_eq!(
+            probe_text(stayed, false),
+            "\nprobe darker: M -2.7 %, stayed"
+        );
+        assert_eq!(
+            probe_text(stayed, true),
+            "\nprobe darker: M -2.7 %, stayed\nsaturation read from the probe frame"
+        );
+        assert_eq!(probe_text(None, false), "");
+        assert_eq!(
+            probe_text(Some(ProbeEvent::Taken { gain: 0.016 }), false),
+            "\nprobe darker: M +1.6 %, taken"
+        );
+    }
 }

@@ -122,6 +122,17 @@ pub(crate) enum Source<'a> {
         saturated: &'a [f32],
         s: f32,
     },
+    /// Scale-and-clip of a pixel whose saturated part is known from a
+    /// darker frame: the part below saturation `u` scales, the saturated
+    /// part `f` (the fraction of samples at full well) comes back below it
+    /// once its true level `t` (what those samples sum to without the
+    /// clip) scaled falls under it: `s·u + min(f, s·t)`.
+    Declipped {
+        unsaturated: &'a [f32],
+        saturated: &'a [f32],
+        hidden: &'a [f32],
+        s: f32,
+    },
 }
 
 /// The per-pixel constants of Eq. 1: `q = max(|∇'| + offset, 1)`, where the
@@ -538,6 +549,12 @@ impl Source<'_> {
             Source::Blocks {
                 luma, saturated, ..
             } => luma.len() >= len && saturated.len() >= len,
+            Source::Declipped {
+                unsaturated,
+                saturated,
+                hidden,
+                ..
+            } => unsaturated.len() >= len && saturated.len() >= len && hidden.len() >= len,
         }
     }
 
@@ -579,6 +596,21 @@ impl Source<'_> {
                 {
                     let rest = (s * (v - f).max(0.0)).min(1.0 - f);
                     *o = (scale * (f + rest)).clamp(0.0, scale);
+                }
+            }
+            Source::Declipped {
+                unsaturated,
+                saturated,
+                hidden,
+                s,
+            } => {
+                for (((o, &u), &f), &t) in out
+                    .iter_mut()
+                    .zip(&unsaturated[span.clone()])
+                    .zip(&saturated[span.clone()])
+                    .zip(&hidden[span])
+                {
+                    *o = (scale * (s * u + f.min(s * t))).clamp(0.0, scale);
                 }
             }
         }
@@ -1282,6 +1314,39 @@ mod tests {
                 assert!(
                     (got - want).abs() <= 1e-5 * want,
                     "{isa:?} hold s={s}: {got} vs {want}"
+                );
+            }
+            // Declipped: a part below saturation and a saturated part whose
+            // true level is known, some of it far above saturation.
+            let unsaturated: Vec<f32> = img.iter().map(|&v| 0.5 * v).collect();
+            let saturated: Vec<f32> = (0..w * h).map(|i| (i % 3) as f32 / 4.0).collect();
+            let hidden: Vec<f32> = saturated
+                .iter()
+                .zip(&img)
+                .map(|(&f, &v)| f * (1.0 + 3.0 * v))
+                .collect();
+            for s in [0.4f32, 0.8] {
+                let mapped: Vec<f32> = (0..w * h)
+                    .map(|i| (s * unsaturated[i] + saturated[i].min(s * hidden[i])).min(1.0))
+                    .collect();
+                let want = reference(&mapped, w, h, Some(&weight), 1000.0);
+                let got = sum_ln_q(
+                    isa,
+                    Source::Declipped {
+                        unsaturated: &unsaturated,
+                        saturated: &saturated,
+                        hidden: &hidden,
+                        s,
+                    },
+                    w,
+                    h,
+                    Some(&weight),
+                    p,
+                    &mut Rows::default(),
+                );
+                assert!(
+                    (got - want).abs() <= 1e-5 * want,
+                    "{isa:?} declipped s={s}: {got} vs {want}"
                 );
             }
         }

@@ -30,7 +30,10 @@ pub use controller::{
     CameraController, CameraInput, CameraStep, ControlMode, ControllerConfig, FrameInfo, Hold,
     PairObservation, PairRatio, RigController, RigStep,
 };
-pub use estimator::{Estimate, Estimator, EstimatorConfig, Simulation, DEFAULT_ANCHORS};
+pub use estimator::{
+    Darker, Estimate, EstimateOptions, Estimator, EstimatorConfig, Simulation, DARKER_MIN_EV,
+    DEFAULT_ANCHORS,
+};
 pub use frame::{FrameView, PixelFormat, RoiMask};
 pub use kernel::Isa;
 pub use laws::{LawKind, LawParams};

@@ -33,9 +33,24 @@
 //! round trip would end the same way). After a probe that found nothing,
 //! `cooldown_frames` must pass before the next.
 //!
+//! A law that circles (a jump of its estimate across 1, where a finite
+//! step cannot settle) never settles; the prober recognises the circle
+//! (up and down at least twice each within 1 EV, ending where it began,
+//! over nine frames) and probes from where the camera is.
+//!
+//! For scale-and-clip the probe's frame is worth keeping: the estimator
+//! reads from it what the saturated pixels hide
+//! ([`super::estimator::Darker`]), which moves the camera's fixed point to
+//! where the measurement says. The controller keeps the frame of a probe
+//! that measured no better while the camera rests after it and the frame
+//! still matches the scene; such a camera therefore does not let a recent
+//! frame that measured no better answer for a probe (it probes for the
+//! frame), and its rest does not end while the estimate reads the frame,
+//! however far the law moves it: the frame says the scene is the same.
+//!
 //! A camera so ends at a fixed point of its estimator where a probe
 //! `step_ev` darker measures no better. The cost is one darker frame each
-//! time a camera settles with saturation in view. The rig controller
+//! time a camera settles (or circles) with saturation in view. The rig controller
 //! probes only for cameras under their own gradient law: balancing's
 //! targets are not maxima of the camera's own `M`, and a manual or fixed
 //! exposure is the operator's.
@@ -189,6 +204,15 @@ pub struct ProbeInput {
     pub saturated: f64,
     /// The exposure the camera's own law wants next.
     pub desired: f64,
+    /// Whether the estimator reads saturated pixels from a probe frame
+    /// (scale-and-clip): then a recent frame does not answer for a probe
+    /// unless it measured better, and the probe is sent for its frame.
+    pub wants_frame: bool,
+    /// Whether this frame's estimate read the frame of the probe the camera
+    /// rests after (it matched this frame where neither is saturated): the
+    /// scene is still the probe's, however far the law has moved the camera
+    /// or `M` with it, so the rest goes on.
+    pub read_probe_frame: bool,
 }
 
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -209,6 +233,14 @@ enum State {
 /// remembers.
 const MEMORY: usize = 16;
 
+/// The frames over which a circling law is recognised (three turns of the
+/// shortest circle, up-up-down).
+const CIRCLE_FRAMES: usize = 9;
+/// The widest band a circling law is recognised in, EV.
+const CIRCLE_BAND_EV: f64 = 1.0;
+/// How far the circle may drift over [`CIRCLE_FRAMES`], EV.
+const CIRCLE_DRIFT_EV: f64 = 0.1;
+
 /// The probing state of one camera (module documentation).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Prober {
@@ -224,6 +256,12 @@ fn ev(a: f64, b: f64) -> f64 {
 }
 
 impl Prober {
+    /// Whether the camera rests after a probe that measured no better (or
+    /// one that did not come), until the scene changes.
+    pub fn resting(&self) -> bool {
+        matches!(self.state, State::Resting { .. })
+    }
+
     /// Forgets everything (the camera left its own law's control).
     pub fn reset(&mut self) {
         self.state = State::Watching;
@@ -306,7 +344,8 @@ impl Prober {
                 let moved = ev(taken, home) > 0.5 * params.step_ev;
                 let changed =
                     (m - home_m).abs() > params.rearm_change * home_m.max(f64::MIN_POSITIVE);
-                if frames >= params.cooldown_frames && (moved || changed) {
+                if frames >= params.cooldown_frames && (moved || changed) && !input.read_probe_frame
+                {
                     self.state = State::Watching;
                     if changed {
                         self.recent.clear();
@@ -325,6 +364,34 @@ impl Prober {
         }
     }
 
+    /// Whether the law circles: over the latest [`CIRCLE_FRAMES`] frames
+    /// (this one, taken at `taken`, included) the exposure went up and down
+    /// by more than `settle_ev` at least twice each, within a band of at
+    /// most [`CIRCLE_BAND_EV`], and ended where it began (the first and the
+    /// last third within `CIRCLE_DRIFT_EV` of each other on average).
+    fn circling(&self, params: &ProbeParams, taken: f64) -> bool {
+        if self.recent.len() + 1 < CIRCLE_FRAMES {
+            return false;
+        }
+        let l: Vec<f64> = self
+            .recent
+            .iter()
+            .skip(self.recent.len() + 1 - CIRCLE_FRAMES)
+            .map(|(e, _)| e.log2())
+            .chain([taken.log2()])
+            .collect();
+        let (lo, hi) = l
+            .iter()
+            .fold((f64::MAX, f64::MIN), |(a, b), &v| (a.min(v), b.max(v)));
+        let steps = l.windows(2).map(|w| w[1] - w[0]);
+        let up = steps.clone().filter(|d| *d > params.settle_ev).count();
+        let down = steps.filter(|d| *d < -params.settle_ev).count();
+        let third = CIRCLE_FRAMES / 3;
+        let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+        let drift = (mean(&l[l.len() - third..]) - mean(&l[..third])).abs();
+        hi - lo <= CIRCLE_BAND_EV && up >= 2 && down >= 2 && drift <= CIRCLE_DRIFT_EV
+    }
+
     /// Counts settled frames and sends a probe when there are enough.
     fn watch(&mut self, params: &ProbeParams, input: ProbeInput) -> (f64, Option<ProbeEvent>) {
         let ProbeInput {
@@ -332,12 +399,28 @@ impl Prober {
             m,
             saturated,
             desired,
+            wants_frame,
+            ..
         } = input;
-        if ev(desired, taken) > params.settle_ev {
+        let circling = saturated >= params.min_saturated && self.circling(params, taken);
+        if circling {
+            // A law that circles a jump of its estimate never settles: it
+            // probes from where it is.
+            self.state = State::Settling {
+                home: taken,
+                m_sum: m * f64::from(params.settle_frames),
+                frames: params.settle_frames,
+            };
+        } else if ev(desired, taken) > params.settle_ev {
             self.state = State::Watching;
             return (desired, None);
         }
         let (home, m_sum, frames) = match self.state {
+            State::Settling {
+                home,
+                m_sum,
+                frames,
+            } if circling => (home, m_sum, frames),
             State::Settling {
                 home,
                 m_sum,
@@ -360,16 +443,18 @@ impl Prober {
                 .fold(None, |best: Option<f64>, m| {
                     Some(best.map_or(m, |b| b.max(m)))
                 });
-            if let Some(best) = known {
+            let known = known.map(|best| {
+                if home_m > 0.0 {
+                    best / home_m - 1.0
+                } else {
+                    0.0
+                }
+            });
+            if let Some(gain) = known.filter(|&g| !wants_frame || g > params.accept_gain) {
                 self.state = State::Resting {
                     home,
                     home_m,
                     frames: 0,
-                };
-                let gain = if home_m > 0.0 {
-                    best / home_m - 1.0
-                } else {
-                    0.0
                 };
                 return (desired, Some(ProbeEvent::Known { gain }));
             }

@@ -19,8 +19,8 @@ use super::render::{FillRequest, SimRender};
 use crate::error::{Error, Result};
 use crate::exposure::balance::median;
 use crate::exposure::{
-    Estimator, EstimatorConfig, ExposureSetting, FrameView, Meter, Metered, MeteringConfig,
-    MetricParams, RoiMask,
+    Darker, EstimateOptions, Estimator, EstimatorConfig, ExposureSetting, FrameView, Meter,
+    Metered, MeteringConfig, MetricParams, RoiMask,
 };
 use crate::surround::SurroundView;
 
@@ -165,6 +165,10 @@ pub struct FixedPointSearch {
     pub hi: f64,
     /// Scan step, EV.
     pub step_ev: f64,
+    /// The exposure of a darker frame of the same moment the estimator
+    /// reads saturated pixels from ([`crate::exposure::Darker`]; as after a
+    /// probe that measured no better), if any.
+    pub darker: Option<f64>,
 }
 
 impl Default for FixedPointSearch {
@@ -176,6 +180,7 @@ impl Default for FixedPointSearch {
             lo: 16.0,
             hi: 1_048_576.0,
             step_ev: 0.1,
+            darker: None,
         }
     }
 }
@@ -211,9 +216,21 @@ pub fn fixed_points(
     }
     let meter = Meter::new(search.metering)?;
     let mut est = Estimator::new(search.estimator.clone())?;
+    let darker = search
+        .darker
+        .map(|e| meter_noise_free(render, camera, t, e, &meter, mask))
+        .transpose()?;
     let mut g = |l: f64| -> Result<f64> {
-        let m = meter_noise_free(render, camera, t, l.exp2(), &meter, mask)?;
-        Ok(est.estimate(&m)?.gamma_hat - 1.0)
+        let e = l.exp2();
+        let m = meter_noise_free(render, camera, t, e, &meter, mask)?;
+        let options = EstimateOptions {
+            darker: darker.as_ref().zip(search.darker).map(|(image, d)| Darker {
+                image,
+                ratio: d / e,
+            }),
+            ..Default::default()
+        };
+        Ok(est.estimate_with(&m, options)?.gamma_hat - 1.0)
     };
     let (l0, l1) = (search.lo.log2(), search.hi.log2());
     let n = ((l1 - l0) / search.step_ev).ceil().max(1.0) as usize;
