@@ -627,12 +627,13 @@ impl Estimator {
 
     /// Splits every metered pixel of `image` into its part below saturation
     /// and its saturated part, and reads the saturated part's true level
-    /// from `darker` (see [`Source::Declipped`]); `false`, with nothing
-    /// split, when `darker` is not the same scene (its size differs, it is
-    /// less than [`DARKER_MIN_EV`] darker, or its pixels below saturation in both frames
-    /// disagree with the current ones beyond [`DARKER_LEVEL_TOLERANCE`] or
-    /// [`DARKER_MISMATCH_TOLERANCE`]). A sample saturated in the darker
-    /// frame too counts at saturation there: a lower bound.
+    /// from `darker` (see [`Source::Declipped`]). `false` when `darker` is
+    /// not the same scene: its size differs, it is less than
+    /// [`DARKER_MIN_EV`] darker, or its pixels below saturation in both
+    /// frames disagree with the current ones beyond
+    /// [`DARKER_LEVEL_TOLERANCE`] or [`DARKER_MISMATCH_TOLERANCE`]. A sample
+    /// saturated in the darker frame too counts at saturation there: a
+    /// lower bound.
     fn declip(&mut self, image: &Metered, darker: Darker<'_>) -> bool {
         let (d, r) = (darker.image, darker.ratio);
         let n = image.luma().len();
