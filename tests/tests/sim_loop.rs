@@ -133,6 +133,22 @@ impl Trace {
     }
 }
 
+/// The closed loop of `render` under `config`, balancing over `edges`,
+/// metering the surround view's ground masks.
+fn closed_loop(
+    render: &Arc<SimRender>,
+    view: SurroundView,
+    config: ControllerConfig,
+    edges: &[(usize, usize)],
+) -> ClosedLoop<SimRig> {
+    let ranges: Vec<_> = render.cameras().iter().map(|c| c.range).collect();
+    let graph = NeighbourGraph::new(render.cameras().len(), edges).unwrap();
+    let controller = RigController::new(config, &ranges, graph).unwrap();
+    let source = SimRig::new(render.clone(), SimRigOptions::default()).unwrap();
+    let meter = Meter::new(MeteringConfig::default()).unwrap();
+    ClosedLoop::new(source, controller, meter, Some(view)).unwrap()
+}
+
 /// [`run`] with any controller configuration and neighbour edges.
 fn run_with(
     render: &Arc<SimRender>,
@@ -141,12 +157,7 @@ fn run_with(
     edges: &[(usize, usize)],
 ) -> Trace {
     let n = render.cameras().len();
-    let ranges: Vec<_> = render.cameras().iter().map(|c| c.range).collect();
-    let graph = NeighbourGraph::new(n, edges).unwrap();
-    let controller = RigController::new(config, &ranges, graph).unwrap();
-    let source = SimRig::new(render.clone(), SimRigOptions::default()).unwrap();
-    let meter = Meter::new(MeteringConfig::default()).unwrap();
-    let mut lp = ClosedLoop::new(source, controller, meter, Some(view)).unwrap();
+    let mut lp = closed_loop(render, view, config, edges);
     let mut out = Trace {
         log2_e: vec![Vec::new(); n],
         probes: vec![Vec::new(); n],
@@ -202,10 +213,10 @@ impl Outcome {
     }
 }
 
-/// The dense sweep of `M` of every camera on the noise-free render
-/// (141 exposures from 16 µs to 2^18 µs, 0.1 EV apart), over its ground
-/// mask.
-fn sweeps(render: &SimRender, surround: &SurroundView) -> Vec<Sweep> {
+/// The dense sweep of `M` of every camera on the noise-free render at `t`
+/// seconds (141 exposures from 16 µs to 2^18 µs, 0.1 EV apart), over its
+/// ground mask.
+fn sweeps(render: &SimRender, surround: &SurroundView, t: f64) -> Vec<Sweep> {
     let options = SweepOptions {
         lo: 16.0,
         hi: 262_144.0,
@@ -214,7 +225,7 @@ fn sweeps(render: &SimRender, surround: &SurroundView) -> Vec<Sweep> {
     };
     (0..render.cameras().len())
         .map(|cam| {
-            truth::sweep(render, cam, 0.0, &options, surround.ground_masks().get(cam)).unwrap()
+            truth::sweep(render, cam, t, &options, surround.ground_masks().get(cam)).unwrap()
         })
         .collect()
 }
@@ -225,7 +236,7 @@ fn sweeps(render: &SimRender, surround: &SurroundView) -> Vec<Sweep> {
 fn evaluate(preset: &'static str, scale: Res) -> Vec<Outcome> {
     let render = render(preset, scale);
     let surround = view(&render);
-    let sweeps = sweeps(&render, &surround);
+    let sweeps = sweeps(&render, &surround, 0.0);
     let mut out = Vec::new();
     for simulation in [Simulation::ScaleClip, Simulation::Gamma] {
         let trace = run(&render, view(&render), simulation);
@@ -481,7 +492,7 @@ fn balancing_adds_no_cycle_in_the_default_mode_at_full_resolution() {
 fn probing_darker_takes_a_camera_to_the_best_fixed_point() {
     for scale in [Res::Quarter, Res::Full] {
         let render = render("reference", scale);
-        let sweeps = sweeps(&render, &view(&render));
+        let sweeps = sweeps(&render, &view(&render), 0.0);
         let with = run_with(
             &render,
             view(&render),
@@ -559,12 +570,12 @@ fn probing_darker_takes_a_camera_to_the_best_fixed_point() {
 fn a_camera_that_leaves_its_own_law_forgets_its_probe() {
     let render = render("reference", Res::Quarter);
     let n = render.cameras().len();
-    let ranges: Vec<_> = render.cameras().iter().map(|c| c.range).collect();
-    let graph = NeighbourGraph::new(n, &render.rig().neighbours).unwrap();
-    let controller = RigController::new(config_for(Simulation::ScaleClip), &ranges, graph).unwrap();
-    let source = SimRig::new(render.clone(), SimRigOptions::default()).unwrap();
-    let meter = Meter::new(MeteringConfig::default()).unwrap();
-    let mut lp = ClosedLoop::new(source, controller, meter, Some(view(&render))).unwrap();
+    let mut lp = closed_loop(
+        &render,
+        view(&render),
+        config_for(Simulation::ScaleClip),
+        &render.rig().neighbours,
+    );
     for _ in 0..30 {
         lp.step().unwrap();
     }
@@ -674,16 +685,12 @@ fn a_change_of_light_retires_the_probe_frame() {
     config.duration_s = 10.0;
     let render = Arc::new(SimRender::new(&config).unwrap());
     let n = render.cameras().len();
-    let ranges: Vec<_> = render.cameras().iter().map(|c| c.range).collect();
-    let controller = RigController::new(
+    let mut lp = closed_loop(
+        &render,
+        view(&render),
         config_for(Simulation::ScaleClip),
-        &ranges,
-        NeighbourGraph::new(n, &[]).unwrap(),
-    )
-    .unwrap();
-    let source = SimRig::new(render.clone(), SimRigOptions::default()).unwrap();
-    let meter = Meter::new(MeteringConfig::default()).unwrap();
-    let mut lp = ClosedLoop::new(source, controller, meter, Some(view(&render))).unwrap();
+        &[],
+    );
     let mut log2_e = vec![Vec::new(); n];
     // The exposures each camera took frames with after the step.
     let mut after: Vec<Vec<f64>> = vec![Vec::new(); n];
@@ -721,18 +728,17 @@ fn a_change_of_light_retires_the_probe_frame() {
     );
     let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
     let surround = view(&render);
-    let options = SweepOptions {
-        lo: 16.0,
-        hi: 262_144.0,
-        steps: 141,
-        ..Default::default()
-    };
+    let (old_light, new_light) = (
+        sweeps(&render, &surround, 0.0),
+        sweeps(&render, &surround, 8.0),
+    );
     let k = STEP_AT as usize;
     for (cam, l) in log2_e.iter().enumerate() {
-        let mask = surround.ground_masks().get(cam);
         let (before, end) = (&l[k - TAIL..k], &l[l.len() - TAIL..]);
-        for (what, tail, t) in [("before", before, 0.0), ("after", end, 8.0)] {
-            let sweep = truth::sweep(&render, cam, t, &options, mask).unwrap();
+        for (what, tail, sweep) in [
+            ("before", before, &old_light[cam]),
+            ("after", end, &new_light[cam]),
+        ] {
             let ratio = sweep.score_at(mean(tail).exp2()) / sweep.best_score;
             println!(
                 "camera {cam} {what} the step: log2 E {:.3} (sweep optimum {:.2}), M {ratio:.4} of the best, band {:.3} EV",

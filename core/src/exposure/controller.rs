@@ -333,7 +333,6 @@ impl CameraController {
                 ratio,
             })
         });
-        let mut estimate_read_probe_frame = false;
         let estimate = if needs_estimate {
             let e = self.estimator.estimate_with(
                 metered,
@@ -347,7 +346,6 @@ impl CameraController {
                 // The scene is no longer the probe frame's.
                 self.darker = None;
             }
-            estimate_read_probe_frame = e.declipped;
             Some(e)
         } else {
             None
@@ -387,7 +385,7 @@ impl CameraController {
                             saturated: f64::from(stats.saturated_fraction),
                             desired,
                             wants_frame: keeps_frames,
-                            read_probe_frame: estimate_read_probe_frame,
+                            read_probe_frame: e.declipped,
                         },
                     );
                     desired = d;

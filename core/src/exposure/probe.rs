@@ -402,32 +402,28 @@ impl Prober {
             wants_frame,
             ..
         } = input;
-        let circling = saturated >= params.min_saturated && self.circling(params, taken);
-        if circling {
-            // A law that circles a jump of its estimate never settles: it
-            // probes from where it is.
-            self.state = State::Settling {
-                home: taken,
-                m_sum: m * f64::from(params.settle_frames),
-                frames: params.settle_frames,
+        let (home, m_sum, frames) =
+            if saturated >= params.min_saturated && self.circling(params, taken) {
+                // A law that circles a jump of its estimate never settles:
+                // it counts as settled where it is, and probes from there.
+                (
+                    taken,
+                    m * f64::from(params.settle_frames),
+                    params.settle_frames,
+                )
+            } else if ev(desired, taken) > params.settle_ev {
+                self.state = State::Watching;
+                return (desired, None);
+            } else {
+                match self.state {
+                    State::Settling {
+                        home,
+                        m_sum,
+                        frames,
+                    } if ev(taken, home) <= params.settle_ev => (home, m_sum + m, frames + 1),
+                    _ => (taken, m, 1),
+                }
             };
-        } else if ev(desired, taken) > params.settle_ev {
-            self.state = State::Watching;
-            return (desired, None);
-        }
-        let (home, m_sum, frames) = match self.state {
-            State::Settling {
-                home,
-                m_sum,
-                frames,
-            } if circling => (home, m_sum, frames),
-            State::Settling {
-                home,
-                m_sum,
-                frames,
-            } if ev(taken, home) <= params.settle_ev => (home, m_sum + m, frames + 1),
-            _ => (taken, m, 1),
-        };
         if frames >= params.settle_frames && saturated >= params.min_saturated {
             let probe = home * (-params.step_ev).exp2();
             let home_m = m_sum / f64::from(frames);
