@@ -297,7 +297,7 @@ mod tests {
     }
 
     fn data() -> PathBuf {
-        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/data")
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../tests/data")
     }
 
     fn tmp(name: &str) -> PathBuf {

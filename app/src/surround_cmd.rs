@@ -253,7 +253,7 @@ mod tests {
     use super::*;
 
     fn data() -> PathBuf {
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/surround-nz")
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/data/surround-nz")
     }
 
     fn args(images: Vec<String>, out: PathBuf) -> SurroundArgs {

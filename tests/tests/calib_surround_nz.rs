@@ -1,4 +1,4 @@
-//! The four real fisheye cameras of `shared/data/surround-nz` become one rig:
+//! The four real fisheye cameras of `tests/data/surround-nz` become one rig:
 //! poses recovered from each camera's bird's-eye homography, checked for
 //! plausibility and against the homographies themselves.
 

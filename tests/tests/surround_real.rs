@@ -1,5 +1,5 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
-//! The surround view of the real four-fisheye rig in `shared/data/surround-nz`:
+//! The surround view of the real four-fisheye rig in `tests/data/surround-nz`:
 //! imported through the calibration importer, composed, and checked for
 //! geometric agreement in the four overlaps, against a deliberately
 //! misaligned copy of the rig that must fail the same check.
@@ -17,7 +17,7 @@ use rigview_core::surround::{
 };
 
 fn data() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/surround-nz")
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("data/surround-nz")
 }
 
 /// The source project's canvas (16 m × 12 m around the car, whose rectangle

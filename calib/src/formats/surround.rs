@@ -1,6 +1,6 @@
 //! The four-fisheye surround-view layout of the public
 //! `surround-view-system-introduction` project (its data is in
-//! `shared/data/surround-nz`): one OpenCV FileStorage file per camera
+//! `tests/data/surround-nz`): one OpenCV FileStorage file per camera
 //! (`front`, `left`, `back`, `right`) with the fisheye intrinsics and
 //!
 //! - `scale_xy`, `shift_xy`: the undistorted image uses the camera matrix

@@ -2,12 +2,12 @@
 
 use std::path::PathBuf;
 
-/// The shared real data (`shared/data` beside the repository).
+/// The real test data (`tests/data`, with its licences).
 pub fn data_dir() -> PathBuf {
-    let d = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/data");
+    let d = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("data");
     assert!(
         d.is_dir(),
-        "the shared data folder is missing: {}",
+        "the test data folder is missing: {}",
         d.display()
     );
     d
