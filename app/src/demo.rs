@@ -11,51 +11,12 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use anyhow::{Context, Result};
-use clap::{Args, ValueEnum};
-use rigview_core::exposure::{
-    ControllerConfig, EstimatorConfig, LawKind, LawParams, Meter, MeteringConfig, NeighbourGraph,
-    RigController, Simulation,
-};
-use rigview_core::sim::{truth, ClosedLoop, Pacing, SimConfig, SimRender, SimRig, SimRigOptions};
+use clap::Args;
+use rigview::run_cmd::ProcessingArgs;
+use rigview_core::exposure::{LawKind, NeighbourGraph, Simulation};
+use rigview_core::pipeline::{LockStep, MeterRoi, ProcessingSettings, Processor, Strategy};
+use rigview_core::sim::{truth, Pacing, SimConfig, SimRender, SimRig, SimRigOptions};
 use rigview_core::surround::{CanvasSpec, SurroundOptions, SurroundView};
-
-/// Single-camera or balanced control.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum Mode {
-    /// Each camera alone.
-    Single,
-    /// Balanced with its neighbours (Eq. 5/6).
-    Multi,
-}
-
-/// The update law.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum Law {
-    /// Eq. 3.
-    Linear,
-    /// Eq. 4.
-    Nonlinear,
-    /// rigview's Newton-step law.
-    Fast,
-}
-
-/// The exposure simulation of the estimator.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum Sim {
-    /// The paper's γ-mapping.
-    Gamma,
-    /// Scale-and-clip.
-    ScaleClip,
-}
-
-/// Which pixels are metered.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum Roi {
-    /// The ground that reaches the bird's-eye view (as the paper meters it).
-    Ground,
-    /// Whole frames.
-    Full,
-}
 
 /// Options of `rigview demo`.
 #[derive(Clone, Debug, Args)]
@@ -71,18 +32,18 @@ pub struct DemoArgs {
     /// Print every K-th frame set.
     #[arg(long, default_value_t = 1)]
     pub every: u64,
-    /// Single-camera or balanced control.
-    #[arg(long, value_enum, default_value_t = Mode::Multi)]
-    pub mode: Mode,
-    /// Update law.
-    #[arg(long, value_enum, default_value_t = Law::Nonlinear)]
-    pub law: Law,
-    /// Exposure simulation of the estimator.
-    #[arg(long, value_enum, default_value_t = Sim::Gamma)]
-    pub simulation: Sim,
-    /// Which pixels are metered.
-    #[arg(long, value_enum, default_value_t = Roi::Ground)]
-    pub roi: Roi,
+    /// How exposure is decided [default: multi, balanced gradient AE].
+    #[arg(long, value_enum)]
+    pub strategy: Option<Strategy>,
+    /// Update law [default: nonlinear].
+    #[arg(long, value_enum)]
+    pub law: Option<LawKind>,
+    /// Exposure simulation of the estimator [default: gamma].
+    #[arg(long, value_enum)]
+    pub simulation: Option<Simulation>,
+    /// Which pixels are metered [default: ground].
+    #[arg(long, value_enum, value_name = "ROI")]
+    pub meter: Option<MeterRoi>,
     /// Frames between a command and the first frame that shows it, 0 to 2
     /// [default: the scenario's].
     #[arg(long)]
@@ -110,10 +71,10 @@ impl Default for DemoArgs {
             scenario: "reference".into(),
             frames: None,
             every: 1,
-            mode: Mode::Multi,
-            law: Law::Nonlinear,
-            simulation: Sim::Gamma,
-            roi: Roi::Ground,
+            strategy: None,
+            law: None,
+            simulation: None,
+            meter: None,
             latency: None,
             start_us: None,
             scale: 1.0,
@@ -124,9 +85,20 @@ impl Default for DemoArgs {
     }
 }
 
-fn name<T: ValueEnum>(v: T) -> String {
-    v.to_possible_value()
-        .map_or("?".into(), |p| p.get_name().to_owned())
+impl DemoArgs {
+    /// The processing settings: the defaults, with the options given.
+    pub fn settings(&self) -> ProcessingSettings {
+        let mut s = ProcessingSettings::default();
+        ProcessingArgs {
+            strategy: self.strategy,
+            law: self.law,
+            simulation: self.simulation,
+            meter: self.meter,
+            blend: None,
+        }
+        .apply(&mut s);
+        s
+    }
 }
 
 /// The simulation the options ask for.
@@ -175,31 +147,8 @@ pub fn run_to(args: &DemoArgs, out: &mut impl Write) -> Result<()> {
         .frames
         .unwrap_or_else(|| (config.duration_s * config.trigger_hz).round().max(1.0) as u64);
 
-    let controller_config = ControllerConfig {
-        estimator: EstimatorConfig {
-            simulation: match args.simulation {
-                Sim::Gamma => Simulation::Gamma,
-                Sim::ScaleClip => Simulation::ScaleClip,
-            },
-            ..Default::default()
-        },
-        law: LawParams {
-            kind: match args.law {
-                Law::Linear => LawKind::Linear,
-                Law::Nonlinear => LawKind::Nonlinear,
-                Law::Fast => LawKind::Fast,
-            },
-            ..Default::default()
-        },
-        balancing: match args.mode {
-            Mode::Single => None,
-            Mode::Multi => Some(Default::default()),
-        },
-        ..Default::default()
-    };
-    let ranges: Vec<_> = cams.iter().map(|c| c.range).collect();
+    let settings = args.settings();
     let graph = NeighbourGraph::new(n, &render.rig().neighbours)?;
-    let controller = RigController::new(controller_config, &ranges, graph)?;
     let source = SimRig::new(
         render.clone(),
         SimRigOptions {
@@ -212,22 +161,9 @@ pub fn run_to(args: &DemoArgs, out: &mut impl Write) -> Result<()> {
             latency: None,
         },
     )?;
-    let meter = Meter::new(MeteringConfig::default())?;
-    let masked_view = match args.roi {
-        Roi::Ground => Some(view),
-        Roi::Full => None,
-    };
-    let mut lp = ClosedLoop::new(source, controller, meter, masked_view)?;
-    // The overlaps' ground truth needs the view even when whole frames are
-    // metered.
-    let truth_view = match lp.view() {
-        Some(_) => None,
-        None => Some(SurroundView::build(
-            render.rig(),
-            &CanvasSpec::default(),
-            &SurroundOptions::default(),
-        )?),
-    };
+    let mut processor = Processor::new(cams.to_vec(), Some(view), graph, settings.clone())?;
+    processor.set_compose(false);
+    let mut lp = LockStep::new(source, processor)?;
 
     let info = &cams[0];
     writeln!(
@@ -251,13 +187,13 @@ pub fn run_to(args: &DemoArgs, out: &mut impl Write) -> Result<()> {
     )?;
     writeln!(
         out,
-        "control: {} law, {} simulation, {} mode, metering {}; E = shutter_us · 10^(gain_dB/20)",
-        name(args.law),
-        name(args.simulation),
-        name(args.mode),
-        match args.roi {
-            Roi::Ground => "the surround view's ground",
-            Roi::Full => "whole frames",
+        "control: {}, {} law, {} simulation, metering {}; E = shutter_us · 10^(gain_dB/20)",
+        settings.strategy.label(),
+        settings.controller.law.kind.name(),
+        settings.controller.estimator.simulation.name(),
+        match settings.roi {
+            MeterRoi::Ground => "the surround view's ground",
+            MeterRoi::Full => "whole frames",
         }
     )?;
     writeln!(
@@ -282,7 +218,7 @@ pub fn run_to(args: &DemoArgs, out: &mut impl Write) -> Result<()> {
             break;
         };
         let t = step.set.timestamp_ns as f64 * 1e-9;
-        let Some(rig_step) = step.step else {
+        let Some(rig_step) = step.output.map(|o| o.step) else {
             writeln!(out, "{f:>5} {t:>6.2}  incomplete set, skipped")?;
             continue;
         };
@@ -307,10 +243,7 @@ pub fn run_to(args: &DemoArgs, out: &mut impl Write) -> Result<()> {
             write!(out, " | {:>15.0} {g:>5.2} {m:>6.0}", c.taken.exposure())?;
         }
         write!(out, " |")?;
-        let view = lp
-            .view()
-            .or(truth_view.as_ref())
-            .context("no surround view")?;
+        let view = lp.processor().view().context("no surround view")?;
         let truths = truth::overlap_ratios(&render, view, t)?;
         for &(i, j) in &pairs {
             let measured = rig_step

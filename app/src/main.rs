@@ -48,15 +48,13 @@ fn main() -> Result<()> {
         Some(Command::Demo(args)) => demo::run(&args),
         Some(Command::Calib(args)) => calib_cmd::run(&args, &mut std::io::stdout().lock()),
         Some(Command::Live(args)) if args.headless => {
-            live::cmd::run(&args, &mut std::io::stdout().lock())
+            let settings = run_cmd::load_settings(&cli.view, &args.processing);
+            live::cmd::run(&args, &settings.processing, &mut std::io::stdout().lock())
         }
-        Some(Command::Live(args)) => gui::run(AppOptions {
-            source: SourceSpec::Live(Box::new(args)),
-            settings: cli.view.settings.clone(),
-            quit_after: run_cmd::quit_after(&cli.view)?,
-            screenshot: run_cmd::screenshot(&cli.view)?,
-            pipeline: PipelineOptions::default(),
-        }),
+        Some(Command::Live(args)) => {
+            let processing = args.processing.clone();
+            run_cmd::window(&cli.view, &processing, SourceSpec::Live(Box::new(args)))
+        }
         Some(Command::Run(args)) => run_cmd::run(&args, &cli.view),
         Some(Command::Surround(args)) => surround_cmd::run(&args, &mut std::io::stdout().lock()),
         None => gui::run(AppOptions {

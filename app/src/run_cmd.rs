@@ -11,8 +11,8 @@ use std::time::Duration;
 use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
 use rigview_core::exposure::{LawKind, Simulation};
-use rigview_core::pipeline::{Output, PipelineOptions, Strategy};
-use rigview_core::surround::Canvas;
+use rigview_core::pipeline::{MeterRoi, Output, PipelineOptions, ProcessingSettings, Strategy};
+use rigview_core::surround::{BlendMode, Canvas};
 
 use crate::gui::AppOptions;
 use crate::live::cmd::LiveArgs;
@@ -29,54 +29,60 @@ pub enum SourceKind {
     Live,
 }
 
-/// The strategy, as named on the command line.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum StrategyArg {
-    /// Fixed manual exposure.
-    Manual,
-    /// The cameras' own auto-exposure (live cameras only).
-    CameraAuto,
-    /// Mean-intensity AE.
-    Mean,
-    /// Gradient AE, each camera alone.
-    Single,
-    /// Gradient AE with balancing.
-    Multi,
-    /// PID on γ̂ − 1.
-    Pid,
+/// Processing options that override the saved settings, for every command
+/// that runs the processor.
+#[derive(Clone, Debug, Default, Args)]
+pub struct ProcessingArgs {
+    /// How exposure is decided (overrides the saved strategy).
+    #[arg(long, value_enum)]
+    pub strategy: Option<Strategy>,
+    /// The update law (overrides the saved one).
+    #[arg(long, value_enum)]
+    pub law: Option<LawKind>,
+    /// The estimator's exposure simulation (overrides the saved one).
+    #[arg(long, value_enum)]
+    pub simulation: Option<Simulation>,
+    /// Which pixels are metered (overrides the saved choice).
+    #[arg(long, value_enum, value_name = "ROI")]
+    pub meter: Option<MeterRoi>,
+    /// How the overlaps of the view are blended (overrides the saved
+    /// choice).
+    #[arg(long, value_enum)]
+    pub blend: Option<BlendMode>,
 }
 
-impl From<StrategyArg> for Strategy {
-    fn from(s: StrategyArg) -> Self {
-        match s {
-            StrategyArg::Manual => Strategy::Manual,
-            StrategyArg::CameraAuto => Strategy::CameraAuto,
-            StrategyArg::Mean => Strategy::Mean,
-            StrategyArg::Single => Strategy::Single,
-            StrategyArg::Multi => Strategy::Multi,
-            StrategyArg::Pid => Strategy::Pid,
+impl ProcessingArgs {
+    /// Applies the options given to `p`.
+    pub fn apply(&self, p: &mut ProcessingSettings) {
+        if let Some(s) = self.strategy {
+            p.strategy = s;
+        }
+        if let Some(l) = self.law {
+            p.controller.law.kind = l;
+        }
+        if let Some(s) = self.simulation {
+            p.controller.estimator.simulation = s;
+        }
+        if let Some(m) = self.meter {
+            p.roi = m;
+        }
+        if let Some(b) = self.blend {
+            p.blend = b;
         }
     }
 }
 
-/// The update law.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum LawArg {
-    /// Eq. 3.
-    Linear,
-    /// Eq. 4.
-    Nonlinear,
-    /// rigview's fast law.
-    Fast,
-}
-
-/// The estimator's exposure simulation.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum SimulationArg {
-    /// The paper's γ-mapping.
-    Gamma,
-    /// Scale-and-clip.
-    ScaleClip,
+/// The saved settings (`--settings FILE` or the default file), with the
+/// command line's overrides applied; a settings file that cannot be read is
+/// reported on stderr and the defaults are used.
+pub fn load_settings(view: &ViewArgs, overrides: &ProcessingArgs) -> Settings {
+    let mut store = SettingsStore::new(view.settings.clone());
+    let (mut settings, err) = store.load();
+    if let Some(e) = err {
+        eprintln!("{e:#}");
+    }
+    overrides.apply(&mut settings.processing);
+    settings
 }
 
 /// Options of the window and of `rigview run`.
@@ -133,15 +139,9 @@ pub struct RunArgs {
     /// simulation.
     #[arg(long)]
     pub fake: bool,
-    /// Overrides the saved strategy.
-    #[arg(long, value_enum)]
-    pub strategy: Option<StrategyArg>,
-    /// Overrides the saved update law.
-    #[arg(long, value_enum)]
-    pub law: Option<LawArg>,
-    /// Overrides the saved exposure simulation.
-    #[arg(long, value_enum)]
-    pub simulation: Option<SimulationArg>,
+    /// Processing overrides.
+    #[command(flatten)]
+    pub processing: ProcessingArgs,
 }
 
 impl RunArgs {
@@ -177,26 +177,6 @@ impl RunArgs {
             }
         }
     }
-
-    fn apply_overrides(&self, settings: &mut Settings) {
-        let p = &mut settings.processing;
-        if let Some(s) = self.strategy {
-            p.strategy = s.into();
-        }
-        if let Some(l) = self.law {
-            p.controller.law.kind = match l {
-                LawArg::Linear => LawKind::Linear,
-                LawArg::Nonlinear => LawKind::Nonlinear,
-                LawArg::Fast => LawKind::Fast,
-            };
-        }
-        if let Some(s) = self.simulation {
-            p.controller.estimator.simulation = match s {
-                SimulationArg::Gamma => Simulation::Gamma,
-                SimulationArg::ScaleClip => Simulation::ScaleClip,
-            };
-        }
-    }
 }
 
 /// Runs `rigview run`.
@@ -210,22 +190,28 @@ pub fn run(args: &RunArgs, view: &ViewArgs) -> Result<()> {
         if args.out.is_some() {
             anyhow::bail!("--out is for --headless runs");
         }
-        let mut store = SettingsStore::new(view.settings.clone());
-        let (mut settings, err) = store.load();
-        if let Some(e) = err {
-            eprintln!("{e:#}");
-        } else {
-            args.apply_overrides(&mut settings);
-            store.save(&settings)?;
-        }
-        crate::gui::run(AppOptions {
-            source: args.source_spec(false)?,
-            settings: view.settings.clone(),
-            quit_after: quit_after(view)?,
-            screenshot: screenshot(view)?,
-            pipeline: PipelineOptions::default(),
-        })
+        window(view, &args.processing, args.source_spec(false)?)
     }
+}
+
+/// The window on `source`, with the command line's processing overrides
+/// saved into the settings it opens with.
+pub fn window(view: &ViewArgs, overrides: &ProcessingArgs, source: SourceSpec) -> Result<()> {
+    let mut store = SettingsStore::new(view.settings.clone());
+    let (mut settings, err) = store.load();
+    if let Some(e) = err {
+        eprintln!("{e:#}");
+    } else {
+        overrides.apply(&mut settings.processing);
+        store.save(&settings)?;
+    }
+    crate::gui::run(AppOptions {
+        source,
+        settings: view.settings.clone(),
+        quit_after: quit_after(view)?,
+        screenshot: screenshot(view)?,
+        pipeline: PipelineOptions::default(),
+    })
 }
 
 /// The screenshot options.
@@ -264,12 +250,7 @@ fn write_canvas(c: &Canvas, path: &Path) -> Result<()> {
 pub fn run_headless(args: &RunArgs, view: &ViewArgs, out: &Path, progress: bool) -> Result<String> {
     std::fs::create_dir_all(out.join("views"))
         .with_context(|| format!("creating the output folder {}", out.display()))?;
-    let mut store = SettingsStore::new(view.settings.clone());
-    let (mut settings, err) = store.load();
-    if let Some(e) = err {
-        eprintln!("{e:#}");
-    }
-    args.apply_overrides(&mut settings);
+    let settings = load_settings(view, &args.processing);
     let frames = args.frames.unwrap_or(100);
     let spec = args.source_spec(true)?;
     let lockstep = matches!(&spec, SourceSpec::Sim(s) if !s.realtime);

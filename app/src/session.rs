@@ -13,7 +13,7 @@ use rigview_core::pipeline::{
     check_view, Notify, Pipeline, PipelineOptions, ProcessingSettings, Processor,
 };
 use rigview_core::sim::{Pacing, SimConfig, SimRender, SimRig, SimRigOptions};
-use rigview_core::source::{CameraInfo, FrameSource};
+use rigview_core::source::{Budget, CameraInfo, FrameSource};
 use rigview_core::surround::{CanvasSpec, SurroundOptions, SurroundView};
 
 /// The simulated rig to run.
@@ -204,9 +204,15 @@ fn start_live(
             "none".into(),
         ),
     };
-    let processor = Processor::new(cameras.clone(), view, graph, processing.clone())?;
+    let mut processor = Processor::new(cameras.clone(), view, graph, processing.clone())?;
+    // The controller starts from where the cameras' own start-up
+    // auto-exposure left them.
+    processor.sync(source.start_settings())?;
     let camera_auto = source.has_camera_auto();
-    let pipeline = Pipeline::start(source, processor, options, notify)?;
+    let pipeline = match args.frames {
+        Some(n) => Pipeline::start(Budget::new(source, n), processor, options, notify)?,
+        None => Pipeline::start(source, processor, options, notify)?,
+    };
     Ok(Session {
         pipeline,
         source_name: format!("live: {} cameras ({what})", cameras.len()),

@@ -129,9 +129,9 @@ fn the_demo_takes_scenarios_and_options() {
         "12",
         "--law",
         "fast",
-        "--mode",
+        "--strategy",
         "single",
-        "--roi",
+        "--meter",
         "full",
     ]);
     assert!(ok, "{stderr}");

@@ -84,6 +84,29 @@ pub enum Error {
         /// What was found instead.
         found: String,
     },
+    /// A frame set that is not complete was given to processing, which
+    /// takes complete sets only.
+    #[error("frame set {trigger}: {complete} of {cameras} frames complete")]
+    IncompleteSet {
+        /// The set's trigger number.
+        trigger: u64,
+        /// Its complete frames.
+        complete: usize,
+        /// The cameras of the rig.
+        cameras: usize,
+    },
+    /// One of the pipeline's threads could not be started.
+    #[error("cannot start the pipeline's {thread} thread: {reason}")]
+    ThreadStart {
+        /// Which thread.
+        thread: &'static str,
+        /// What the system said.
+        reason: String,
+    },
+    /// The pipeline's processing thread has stopped and takes no more
+    /// changes.
+    #[error("the pipeline's processing thread has stopped")]
+    PipelineStopped,
 }
 
 /// `Result` with [`Error`].

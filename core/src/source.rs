@@ -155,6 +155,33 @@ pub enum StreamState {
     Reconnecting,
 }
 
+/// Counters of a source that assembles frame sets from cameras that
+/// deliver on their own (live cameras): how whole its sets were and how
+/// far apart their frames.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct SetCounters {
+    /// Sets with a whole frame from every camera.
+    pub complete: u64,
+    /// Sets with a frame missing or not whole (never fed to the controller).
+    pub incomplete: u64,
+    /// Frames that were not whole (missing packets or failed), over all sets.
+    pub broken_frames: u64,
+    /// Slots left empty (a camera sent nothing for that trigger).
+    pub missing_frames: u64,
+    /// A frame arrived too late for its set and was dropped.
+    pub late_frames: u64,
+    /// Frame ids skipped between consecutive frames of a camera in sets
+    /// (frames that were lost whole or dropped).
+    pub id_gaps: u64,
+    /// Timestamp skew of the last set with two or more frames, ns (camera
+    /// clocks).
+    pub last_skew_ns: u64,
+    /// Largest skew of a complete set so far, ns.
+    pub max_skew_ns: u64,
+    /// Arrival spread (host clock) of the last set, ns.
+    pub last_arrival_spread_ns: u64,
+}
+
 /// Counters of one camera's stream, since the source started.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct StreamHealth {
@@ -256,6 +283,12 @@ pub trait FrameSource: Send {
     /// Each camera's stream health, in rig order.
     fn health(&self) -> Vec<StreamHealth>;
 
+    /// How the source's sets were assembled, for a source that matches
+    /// frames into sets (`None`: sets come whole, as from a simulator).
+    fn set_counters(&self) -> Option<SetCounters> {
+        None
+    }
+
     /// Whether the source has no more sets to give (a replay at its end; a
     /// simulated rig with a frame budget). Live sources never finish.
     fn is_finished(&self) -> bool {
@@ -304,6 +337,10 @@ impl<S: FrameSource + ?Sized> FrameSource for Box<S> {
         (**self).health()
     }
 
+    fn set_counters(&self) -> Option<SetCounters> {
+        (**self).set_counters()
+    }
+
     fn is_finished(&self) -> bool {
         (**self).is_finished()
     }
@@ -318,6 +355,77 @@ impl<S: FrameSource + ?Sized> FrameSource for Box<S> {
 
     fn set_camera_auto(&mut self, on: bool) -> std::result::Result<(), SourceError> {
         (**self).set_camera_auto(on)
+    }
+}
+
+/// A source that ends after a number of sets (complete or not): a bounded
+/// run of a live or endless source.
+#[derive(Debug)]
+pub struct Budget<S> {
+    inner: S,
+    remaining: u64,
+}
+
+impl<S: FrameSource> Budget<S> {
+    /// `inner`, ending after `sets` sets.
+    pub fn new(inner: S, sets: u64) -> Self {
+        Self {
+            inner,
+            remaining: sets,
+        }
+    }
+
+    /// The source inside.
+    pub fn inner(&self) -> &S {
+        &self.inner
+    }
+}
+
+impl<S: FrameSource> FrameSource for Budget<S> {
+    fn cameras(&self) -> &[CameraInfo] {
+        self.inner.cameras()
+    }
+
+    fn next_set(
+        &mut self,
+        timeout: Duration,
+    ) -> std::result::Result<Option<FrameSet>, SourceError> {
+        if self.remaining == 0 {
+            return Ok(None);
+        }
+        let set = self.inner.next_set(timeout)?;
+        if set.is_some() {
+            self.remaining -= 1;
+        }
+        Ok(set)
+    }
+
+    fn apply(&mut self, commands: &[ExposureCommand]) -> std::result::Result<(), SourceError> {
+        self.inner.apply(commands)
+    }
+
+    fn health(&self) -> Vec<StreamHealth> {
+        self.inner.health()
+    }
+
+    fn set_counters(&self) -> Option<SetCounters> {
+        self.inner.set_counters()
+    }
+
+    fn is_finished(&self) -> bool {
+        self.remaining == 0 || self.inner.is_finished()
+    }
+
+    fn take_messages(&mut self) -> Vec<String> {
+        self.inner.take_messages()
+    }
+
+    fn has_camera_auto(&self) -> bool {
+        self.inner.has_camera_auto()
+    }
+
+    fn set_camera_auto(&mut self, on: bool) -> std::result::Result<(), SourceError> {
+        self.inner.set_camera_auto(on)
     }
 }
 

@@ -1,14 +1,39 @@
-//! Shared helpers of rigview's cross-crate integration tests: a single
-//! linear camera in a closed loop with actuation latency, and the ground
-//! truths the tests compare against (the estimator's fixed point, the
-//! dense-sweep optimum of `M`).
+//! Shared helpers of rigview's cross-crate integration tests: the app's
+//! processor in lock step on the simulated rig, a single linear camera in
+//! a closed loop with actuation latency, and the ground truths the tests
+//! compare against (the estimator's fixed point, the dense-sweep optimum of
+//! `M`).
+
+use std::sync::Arc;
 
 use rigview_core::exposure::{
     ControllerConfig, Estimator, EstimatorConfig, ExposureRange, ExposureSetting, FrameInfo,
     FrameView, Meter, Metered, MeteringConfig, NeighbourGraph, PixelFormat, RigController,
 };
+use rigview_core::pipeline::{LockStep, ProcessingSettings, Processor};
+use rigview_core::sim::{SimRender, SimRig, SimRigOptions};
+use rigview_core::source::SourceError;
+use rigview_core::surround::SurroundView;
 use rigview_core::synth::{HdrScene, LinearCamera};
 use rigview_core::Result;
+
+/// The app's processor under `settings` in lock step on the simulated rig
+/// `render` (commands one set late, as the rig's latency says), metering
+/// `view`'s ground and measuring its overlaps, balancing over `edges` when
+/// the strategy balances. No view is composed.
+pub fn sim_loop(
+    render: &Arc<SimRender>,
+    view: SurroundView,
+    settings: ProcessingSettings,
+    edges: &[(usize, usize)],
+) -> std::result::Result<LockStep<SimRig>, SourceError> {
+    let cameras = render.cameras().to_vec();
+    let graph = NeighbourGraph::new(cameras.len(), edges)?;
+    let mut processor = Processor::new(cameras, Some(view), graph, settings)?;
+    processor.set_compose(false);
+    let source = SimRig::new(render.clone(), SimRigOptions::default())?;
+    LockStep::new(source, processor)
+}
 
 /// Renders and meters `scene` at exposure level `e` (noise-free).
 pub fn meter_at(scene: &HdrScene, camera: &LinearCamera, e: f64) -> Result<Metered> {

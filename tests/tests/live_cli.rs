@@ -1,18 +1,28 @@
 //! `rigview live` end to end on Aravis's in-process fake cameras showing the
-//! simulated rig (`--fake`), and its errors for a rig file whose cameras
-//! have no device and for an unknown simulation.
+//! simulated rig (`--fake`), through the app's own processing pipeline with
+//! the settings the window would use, and its errors for a rig file whose
+//! cameras have no device and for an unknown simulation.
 
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use std::path::PathBuf;
 
 use clap::Parser;
-use rigview::live::cmd::{run, LiveArgs};
+use rigview::live::cmd::LiveArgs;
+use rigview_core::pipeline::ProcessingSettings;
 
 #[derive(Debug, Parser)]
 struct Cli {
     #[command(flatten)]
     live: LiveArgs,
+}
+
+/// `rigview live --headless` as the command line runs it: the default
+/// settings with the options' overrides.
+fn run(args: &LiveArgs, out: &mut Vec<u8>) -> anyhow::Result<()> {
+    let mut settings = ProcessingSettings::default();
+    args.processing.apply(&mut settings);
+    rigview::live::cmd::run(args, &settings, out)
 }
 
 fn rig() -> String {
@@ -41,6 +51,68 @@ fn live_runs_the_loop_on_fake_cameras_and_prints_status() {
             text.lines()
                 .any(|l| l.trim_start().starts_with(name) && l.contains("streaming")),
             "no status line for {name}:\n{text}"
+        );
+    }
+}
+
+/// Balanced control (the default strategy, asked for explicitly) on the
+/// fake cameras: the fake rig comes with its calibration, so the overlaps
+/// are measured and every camera's command is balanced.
+#[test]
+fn live_headless_balances_the_cameras_through_their_overlaps() {
+    let cli = Cli::try_parse_from([
+        "live",
+        "--fake",
+        "--scale",
+        "0.25",
+        "--frames",
+        "80",
+        "--settle",
+        "0.2",
+        "--strategy",
+        "multi",
+        "--law",
+        "fast",
+    ])
+    .unwrap();
+    let mut out = Vec::new();
+    run(&cli.live, &mut out).unwrap();
+    let text = String::from_utf8(out).unwrap();
+    println!("{text}");
+    assert!(text.contains("gradient AE (multi), fast law"), "{text}");
+    assert!(text.contains("done: 80 frame sets"), "{text}");
+    // Every overlap is listed, and overlaps are measured. (An overlap
+    // where either camera has too few usable patches, saturated or near
+    // black, says n/a rather than give a noisy ratio.)
+    let blocks: Vec<&str> = text
+        .lines()
+        .filter_map(|l| l.split("overlaps, log2 r_ij: ").nth(1))
+        .collect();
+    assert!(!blocks.is_empty(), "no overlap line:\n{text}");
+    let mut measured = std::collections::BTreeSet::new();
+    for b in &blocks {
+        let entries: Vec<&str> = b.split(", ").collect();
+        assert_eq!(entries.len(), 4, "{b}");
+        for e in entries {
+            let (pair, value) = e.rsplit_once(' ').unwrap();
+            if let Ok(v) = value.parse::<f64>() {
+                assert!(v.is_finite() && v.abs() < 8.0, "{e}");
+                measured.insert(pair.to_owned());
+            } else {
+                assert_eq!(value, "n/a", "{e}");
+            }
+        }
+    }
+    assert!(measured.len() >= 2, "only {measured:?} measured:\n{text}");
+    // Every camera of a measured overlap is balanced: it sent commands with
+    // α of Eq. 6. (A camera waits for a frame that shows its last command
+    // before the next, so not every block has a command for every camera.)
+    for name in measured.iter().flat_map(|p| p.split('-')) {
+        assert!(
+            text.lines().any(|l| l.trim_start().starts_with(name)
+                && l.contains("→")
+                && l.contains("balanced α")),
+            "{name} never sent a balanced command:\n{text}"
         );
     }
 }

@@ -14,9 +14,9 @@ use std::process::{Child, Command, Stdio};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
-use rigview::live::cmd::LiveLoop;
 use rigview::live::{CameraSpec, CaptureConfig, DeviceSpec, LiveSource, TriggerMode};
-use rigview_core::exposure::ControllerConfig;
+use rigview_core::exposure::NeighbourGraph;
+use rigview_core::pipeline::{LockStep, ProcessingSettings, Processor, Strategy};
 use rigview_core::source::{FrameSource, StreamState};
 
 const ADDRESSES: [&str; 4] = ["127.0.0.1", "127.0.0.2", "127.0.0.3", "127.0.0.4"];
@@ -143,23 +143,25 @@ fn config() -> CaptureConfig {
     }
 }
 
+/// The app's processor on the cameras in lock step: each camera under its
+/// own gradient law (there is no calibration, so whole frames are metered).
+type Loop = LockStep<LiveSource>;
+
 /// Runs capture and control for `duration`; `each` sees every set.
 fn run(
-    source: &mut LiveSource,
-    control: &mut LiveLoop,
+    lp: &mut Loop,
     duration: Duration,
     mut each: impl FnMut(&LiveSource, &rigview_core::source::FrameSet),
 ) {
     let end = Instant::now() + duration;
     while Instant::now() < end {
-        if let Some(set) = source.next_set(Duration::from_millis(200)).unwrap() {
-            each(source, &set);
-            control.step(source, &set).unwrap();
+        if let Some(step) = lp.step().unwrap() {
+            each(lp.source(), &step.set);
         }
     }
 }
 
-fn open(lost: Option<u32>, config: CaptureConfig) -> (Rig, LiveSource, LiveLoop) {
+fn open(lost: Option<u32>, config: CaptureConfig) -> (Rig, Loop) {
     let rig = start_rig(lost);
     let t0 = Instant::now();
     let source = LiveSource::open(specs(), config).unwrap();
@@ -167,38 +169,41 @@ fn open(lost: Option<u32>, config: CaptureConfig) -> (Rig, LiveSource, LiveLoop)
         "four fake GigE Vision cameras open in {:.2} s",
         t0.elapsed().as_secs_f64()
     );
-    let start = source.start_settings().to_vec();
-    let control = LiveLoop::new(&source, ControllerConfig::default(), &start).unwrap();
-    (rig, source, control)
+    let cameras = source.cameras().to_vec();
+    let settings = ProcessingSettings {
+        strategy: Strategy::Single,
+        ..Default::default()
+    };
+    let graph = NeighbourGraph::new(cameras.len(), &[]).unwrap();
+    let mut processor = Processor::new(cameras, None, graph, settings).unwrap();
+    processor.sync(source.start_settings()).unwrap();
+    let mut lp = LockStep::new(source, processor).unwrap();
+    lp.set_timeout(Duration::from_millis(200));
+    (rig, lp)
 }
 
 #[test]
 fn software_trigger_at_20_hz_completes_at_least_99_percent_of_sets() {
     let _one = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
-    let (_rig, mut source, mut control) = open(None, config());
+    let (_rig, mut lp) = open(None, config());
     // Frames of one trigger carry the same frame id on every camera here
     // (each fake camera counts its triggers from the same start).
     let (mut same_ids, mut complete) = (0u64, 0u64);
-    run(
-        &mut source,
-        &mut control,
-        Duration::from_secs(6),
-        |_, set| {
-            if set.is_complete() {
-                complete += 1;
-                let ids: Vec<u64> = set
-                    .frames
-                    .iter()
-                    .flatten()
-                    .map(|f| f.meta.frame_id)
-                    .collect();
-                if ids.windows(2).all(|w| w[0] == w[1]) {
-                    same_ids += 1;
-                }
+    run(&mut lp, Duration::from_secs(6), |_, set| {
+        if set.is_complete() {
+            complete += 1;
+            let ids: Vec<u64> = set
+                .frames
+                .iter()
+                .flatten()
+                .map(|f| f.meta.frame_id)
+                .collect();
+            if ids.windows(2).all(|w| w[0] == w[1]) {
+                same_ids += 1;
             }
-        },
-    );
-    let st = source.status();
+        }
+    });
+    let st = lp.source().status();
     let total = st.sets.complete + st.sets.incomplete;
     let pct = 100.0 * st.sets.complete as f64 / total.max(1) as f64;
     println!(
@@ -213,7 +218,7 @@ fn software_trigger_at_20_hz_completes_at_least_99_percent_of_sets() {
     }
     assert!(total >= 100, "only {total} sets in 6 s");
     assert!(pct >= 99.0, "{pct:.2} % complete");
-    assert_eq!(control.fed(), st.sets.complete);
+    assert_eq!(lp.processed(), st.sets.complete);
 }
 
 #[test]
@@ -225,20 +230,15 @@ fn with_one_percent_packet_loss_incomplete_frames_are_counted_and_kept_from_the_
         packet_size: Some(8192),
         ..config()
     };
-    let (_rig, mut source, mut control) = open(Some(10), config);
+    let (_rig, mut lp) = open(Some(10), config);
     let mut incomplete_seen = 0u64;
-    run(
-        &mut source,
-        &mut control,
-        Duration::from_secs(6),
-        |_, set| {
-            if !set.is_complete() {
-                incomplete_seen += 1;
-            }
-        },
-    );
-    let st = source.status();
-    let h = source.health();
+    run(&mut lp, Duration::from_secs(6), |_, set| {
+        if !set.is_complete() {
+            incomplete_seen += 1;
+        }
+    });
+    let st = lp.source().status();
+    let h = lp.source().health();
     let missing: u64 = h.iter().map(|h| h.missing_packets).sum();
     let resent: u64 = h.iter().map(|h| h.resent_packets).sum();
     let failed: u64 = h.iter().map(|h| h.failed).sum();
@@ -249,49 +249,44 @@ fn with_one_percent_packet_loss_incomplete_frames_are_counted_and_kept_from_the_
         st.sets.incomplete,
         st.sets.broken_frames,
         st.sets.missing_frames,
-        control.fed(),
-        control.skipped()
+        lp.processed(),
+        lp.incomplete()
     );
     assert!(st.sets.complete + st.sets.incomplete >= 60);
     assert!(st.sets.incomplete > 0 && st.sets.broken_frames > 0);
-    assert!(control.fed() > 0, "no set arrived whole");
+    assert!(lp.processed() > 0, "no set arrived whole");
     assert!(h.iter().all(|h| h.state == StreamState::Streaming), "{h:?}");
     // The controller saw exactly the complete sets.
-    assert_eq!(control.fed(), st.sets.complete);
-    assert_eq!(control.skipped(), incomplete_seen);
+    assert_eq!(lp.processed(), st.sets.complete);
+    assert_eq!(lp.incomplete(), incomplete_seen);
     assert_eq!(st.sets.incomplete, incomplete_seen);
 }
 
 #[test]
 fn a_killed_camera_is_lost_while_the_others_go_on_and_rejoins_after_a_restart() {
     let _one = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
-    let (mut rig, mut source, mut control) = open(None, config());
-    run(&mut source, &mut control, Duration::from_secs(2), |_, _| {});
-    let before = source.status().sets.clone();
+    let (mut rig, mut lp) = open(None, config());
+    run(&mut lp, Duration::from_secs(2), |_, _| {});
+    let before = lp.source().status().sets.clone();
 
     // Kill camera 3.
     rig.cameras[3].kill();
     let killed = Instant::now();
     let mut lost_after = None;
     let mut three_camera_sets = 0u64;
-    run(
-        &mut source,
-        &mut control,
-        Duration::from_secs(4),
-        |s, set| {
-            let others = set.frames[..3]
-                .iter()
-                .all(|f| f.as_ref().is_some_and(|f| f.is_complete()));
-            if others && set.frames[3].is_none() {
-                three_camera_sets += 1;
-            }
-            if lost_after.is_none() && s.health()[3].state != StreamState::Streaming {
-                lost_after = Some(killed.elapsed());
-            }
-        },
-    );
+    run(&mut lp, Duration::from_secs(4), |s, set| {
+        let others = set.frames[..3]
+            .iter()
+            .all(|f| f.as_ref().is_some_and(|f| f.is_complete()));
+        if others && set.frames[3].is_none() {
+            three_camera_sets += 1;
+        }
+        if lost_after.is_none() && s.health()[3].state != StreamState::Streaming {
+            lost_after = Some(killed.elapsed());
+        }
+    });
     let lost_after = lost_after.expect("the killed camera was never marked lost");
-    let health = source.health();
+    let health = lp.source().health();
     println!(
         "killed gv3: marked {:?} after {:.2} s; {three_camera_sets} sets from the other three in the next 4 s",
         health[3].state,
@@ -310,21 +305,14 @@ fn a_killed_camera_is_lost_while_the_others_go_on_and_rejoins_after_a_restart() 
     rig.cameras[3] = FakeGv::start(ADDRESSES[3], "RVGV3", None);
     let restarted = Instant::now();
     let mut rejoined = None;
-    run(
-        &mut source,
-        &mut control,
-        Duration::from_secs(5),
-        |s, set| {
-            if rejoined.is_none()
-                && s.health()[3].state == StreamState::Streaming
-                && set.is_complete()
-            {
-                rejoined = Some(restarted.elapsed());
-            }
-        },
-    );
-    let st = source.status();
-    for m in source.take_messages() {
+    run(&mut lp, Duration::from_secs(5), |s, set| {
+        if rejoined.is_none() && s.health()[3].state == StreamState::Streaming && set.is_complete()
+        {
+            rejoined = Some(restarted.elapsed());
+        }
+    });
+    let st = lp.source().status();
+    for m in lp.source_mut().take_messages() {
         println!("  {m}");
     }
     let rejoined = rejoined.expect("camera 3 did not rejoin within 5 s");

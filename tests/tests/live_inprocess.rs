@@ -10,9 +10,9 @@
 //!   simulator's render of its camera at its frame id, its timestamp and the
 //!   `taken` setting it arrived with, noise included (a frame is a pure
 //!   function of those): the setting tracking is exact;
-//! - the closed loop through Aravis settles where the same controller
+//! - the app's processor in lock step through Aravis settles where it
 //!   settles on the same simulated rig without Aravis (`SimRig` in a
-//!   `ClosedLoop`: same start, same whole-frame metering, same ranges), and
+//!   `LockStep`: same start, same whole-frame metering, same ranges), and
 //!   at a stable fixed point of the estimator (`sim::truth::fixed_points`
 //!   on the noise-free renders), every camera having moved more than 1 EV.
 //!   (Metered over whole frames, the cameras have one to three stable fixed
@@ -26,16 +26,13 @@
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use rigview::live::cmd::LiveLoop;
 use rigview::live::fake::{clock_ns, render_into, FakeView};
 use rigview::live::{CameraSpec, CaptureConfig, DeviceSpec, LiveSource, TriggerMode};
-use rigview_core::exposure::{
-    ControllerConfig, ExposureRange, ExposureSetting, Hold, Meter, MeteringConfig, NeighbourGraph,
-    PixelFormat, RigController, RigStep,
-};
+use rigview_core::exposure::{ExposureSetting, Hold, NeighbourGraph, PixelFormat, RigStep};
+use rigview_core::pipeline::{LockStep, ProcessingSettings, Processor, Strategy};
 use rigview_core::sim::truth::{self, FixedPointSearch};
-use rigview_core::sim::{ClosedLoop, SimConfig, SimRender, SimRig, SimRigOptions};
-use rigview_core::source::{ExposureCommand, FrameSource};
+use rigview_core::sim::{SimConfig, SimRender, SimRig, SimRigOptions};
+use rigview_core::source::{CameraInfo, ExposureCommand, FrameSource};
 
 /// Complete sets fed to the controller.
 const SETS: usize = 80;
@@ -102,19 +99,23 @@ fn settled(t: &[f64]) -> Settled {
     }
 }
 
-/// The same controller on the same simulated rig without Aravis, from the
-/// same start, with the cameras' ranges as Aravis reports them.
-fn without_aravis(render: &Arc<SimRender>, ranges: &[ExposureRange]) -> Run {
-    let n = ranges.len();
-    let config = ControllerConfig {
-        balancing: None,
+/// The app's processor, each camera under its own gradient law, metering
+/// whole frames (no calibration), its cameras synced to [`START`].
+fn processor(cameras: &[CameraInfo]) -> Processor {
+    let settings = ProcessingSettings {
+        strategy: Strategy::Single,
         ..Default::default()
     };
-    let mut controller =
-        RigController::new(config, ranges, NeighbourGraph::new(n, &[]).unwrap()).unwrap();
-    for i in 0..n {
-        controller.camera_mut(i).unwrap().sync(START);
-    }
+    let graph = NeighbourGraph::new(cameras.len(), &[]).unwrap();
+    let mut p = Processor::new(cameras.to_vec(), None, graph, settings).unwrap();
+    p.sync(&vec![START; cameras.len()]).unwrap();
+    p
+}
+
+/// The same processor on the same simulated rig without Aravis, from the
+/// same start, with the cameras' ranges as Aravis reports them.
+fn without_aravis(render: &Arc<SimRender>, cameras: &[CameraInfo]) -> Run {
+    let n = cameras.len();
     // The fake cameras show each command from the next frame on (the test
     // counts how often).
     let options = SimRigOptions {
@@ -123,8 +124,11 @@ fn without_aravis(render: &Arc<SimRender>, ranges: &[ExposureRange]) -> Run {
     };
     let mut source = SimRig::new(render.clone(), options).unwrap();
     source.force_all(START);
-    let meter = Meter::new(MeteringConfig::default()).unwrap();
-    let mut lp = ClosedLoop::new(source, controller, meter, None).unwrap();
+    let mut with_ranges = source.cameras().to_vec();
+    for (c, live) in with_ranges.iter_mut().zip(cameras) {
+        c.range = live.range;
+    }
+    let mut lp = LockStep::new(source, processor(&with_ranges)).unwrap();
     let mut run = Run {
         log2_e: vec![Vec::new(); n],
         awaiting: 0,
@@ -134,7 +138,7 @@ fn without_aravis(render: &Arc<SimRender>, ranges: &[ExposureRange]) -> Run {
         for f in step.set.frames.iter().flatten() {
             run.log2_e[f.meta.camera].push(f.meta.taken.exposure().log2());
         }
-        run.awaiting += step.step.as_ref().map_or(0, holds);
+        run.awaiting += step.output.as_ref().map_or(0, |o| holds(&o.step));
     }
     run
 }
@@ -177,7 +181,7 @@ fn four_in_process_fake_cameras_converge_on_the_simulated_rig_through_aravis() {
     let t1 = Instant::now();
     let mut source = open_fakes(&views, &names, "RVINPROC", Duration::from_millis(200));
     let opened = t1.elapsed().as_secs_f64();
-    let ranges: Vec<_> = source.cameras().iter().map(|c| c.range).collect();
+    let cameras = source.cameras().to_vec();
     // Start far from the optimum, commanded through Aravis; wait for a set
     // whose every frame shows it.
     let commands: Vec<ExposureCommand> = (0..4)
@@ -199,7 +203,8 @@ fn four_in_process_fake_cameras_converge_on_the_simulated_rig_through_aravis() {
             break;
         }
     }
-    let mut control = LiveLoop::new(&source, ControllerConfig::default(), &[START; 4]).unwrap();
+    let mut lp = LockStep::new(source, processor(&cameras)).unwrap();
+    let mut last: Option<RigStep> = None;
 
     let t2 = Instant::now();
     let mut live = Run {
@@ -216,10 +221,11 @@ fn four_in_process_fake_cameras_converge_on_the_simulated_rig_through_aravis() {
     let (mut shown_after, mut worst_gap) = (Vec::new(), 0f64);
     let mut index = 0usize;
     let deadline = Instant::now() + Duration::from_secs(20);
-    while control.fed() < SETS as u64 && Instant::now() < deadline {
-        let Some(set) = source.next_set(Duration::from_millis(500)).unwrap() else {
+    while lp.processed() < SETS as u64 && Instant::now() < deadline {
+        let Some(step) = lp.step().unwrap() else {
             continue;
         };
+        let set = &step.set;
         if set.is_complete() {
             first_means.get_or_insert_with(|| {
                 set.frames
@@ -257,25 +263,27 @@ fn four_in_process_fake_cameras_converge_on_the_simulated_rig_through_aravis() {
                 worst_px = worst_px.max(px.max().unwrap_or(0));
             }
         }
-        if let Some(step) = control.step(&mut source, &set).unwrap() {
-            live.awaiting += holds(step);
-            for c in &step.cameras {
+        if let Some(output) = step.output {
+            live.awaiting += holds(&output.step);
+            for c in &output.step.cameras {
                 if let Some(s) = c.command {
                     pending[c.camera] = Some((index, s));
                 }
             }
+            last = Some(output.step);
         }
         index += 1;
     }
     let looped = t2.elapsed().as_secs_f64();
-    let status = source.status();
-    let health = source.health();
-    let last = control.last().unwrap().clone();
+    let status = lp.source().status();
+    let health = lp.source().health();
+    let fed = lp.processed();
+    let last = last.unwrap();
     let first_means = first_means.unwrap();
-    drop(source);
+    drop(lp);
 
     let t3 = Instant::now();
-    let reference = without_aravis(&render, &ranges);
+    let reference = without_aravis(&render, &cameras);
     let referenced = t3.elapsed().as_secs_f64();
 
     println!(
@@ -284,9 +292,7 @@ fn four_in_process_fake_cameras_converge_on_the_simulated_rig_through_aravis() {
     );
     println!(
         "{} complete sets fed in {looped:.1} s ({} complete, {} incomplete assembled)",
-        control.fed(),
-        status.sets.complete,
-        status.sets.incomplete,
+        fed, status.sets.complete, status.sets.incomplete,
     );
     println!(
         "frames identical to the simulator's render at their frame id, timestamp and taken setting: {identical} of {frames} (largest pixel difference {worst_px} DN)"
@@ -347,11 +353,7 @@ fn four_in_process_fake_cameras_converge_on_the_simulated_rig_through_aravis() {
     }
     println!("total {:.1} s", t0.elapsed().as_secs_f64());
 
-    assert!(
-        control.fed() >= SETS as u64,
-        "only {} complete sets",
-        control.fed()
-    );
+    assert!(fed >= SETS as u64, "only {} complete sets", fed);
     assert_eq!(
         identical, frames,
         "frames differ from the render at their id, timestamp and taken setting (largest pixel difference {worst_px} DN)"

@@ -18,12 +18,10 @@
 
 use std::sync::Arc;
 
-use rigview_core::exposure::{
-    ControlMode, ControllerConfig, EstimatorConfig, Meter, MeteringConfig, NeighbourGraph,
-    ProbeEvent, RigController, Simulation,
-};
+use rigview_core::exposure::{ControllerConfig, EstimatorConfig, ProbeEvent, Simulation};
+use rigview_core::pipeline::{LockStep, ProcessingSettings, Strategy};
 use rigview_core::sim::truth::{self, FixedPoint, FixedPointSearch, Sweep, SweepOptions};
-use rigview_core::sim::{ClosedLoop, Event, Script, SimConfig, SimRender, SimRig, SimRigOptions};
+use rigview_core::sim::{Event, Script, SimConfig, SimRender, SimRig};
 use rigview_core::surround::{CanvasSpec, SurroundOptions, SurroundView};
 
 const FRAMES: usize = 100;
@@ -72,14 +70,17 @@ fn view(render: &SimRender) -> SurroundView {
     SurroundView::build(render.rig(), &spec, &SurroundOptions::default()).unwrap()
 }
 
-fn config_for(simulation: Simulation) -> ControllerConfig {
-    ControllerConfig {
-        mode: ControlMode::Gradient,
-        estimator: EstimatorConfig {
-            simulation,
+/// Each camera under its own gradient law with `simulation`.
+fn config_for(simulation: Simulation) -> ProcessingSettings {
+    ProcessingSettings {
+        strategy: Strategy::Single,
+        controller: ControllerConfig {
+            estimator: EstimatorConfig {
+                simulation,
+                ..Default::default()
+            },
             ..Default::default()
         },
-        balancing: None,
         ..Default::default()
     }
 }
@@ -133,31 +134,31 @@ impl Trace {
     }
 }
 
-/// The closed loop of `render` under `config`, balancing over `edges`,
-/// metering the surround view's ground masks.
+/// The app's processor on `render` under `settings`, balancing over
+/// `edges`, metering the surround view's ground, in lock step.
 fn closed_loop(
     render: &Arc<SimRender>,
     view: SurroundView,
-    config: ControllerConfig,
+    settings: ProcessingSettings,
     edges: &[(usize, usize)],
-) -> ClosedLoop<SimRig> {
-    let ranges: Vec<_> = render.cameras().iter().map(|c| c.range).collect();
-    let graph = NeighbourGraph::new(render.cameras().len(), edges).unwrap();
-    let controller = RigController::new(config, &ranges, graph).unwrap();
-    let source = SimRig::new(render.clone(), SimRigOptions::default()).unwrap();
-    let meter = Meter::new(MeteringConfig::default()).unwrap();
-    ClosedLoop::new(source, controller, meter, Some(view)).unwrap()
+) -> LockStep<SimRig> {
+    rigview_tests::sim_loop(render, view, settings, edges).unwrap()
 }
 
-/// [`run`] with any controller configuration and neighbour edges.
+/// Camera `cam`'s controller in `lp`.
+fn camera(lp: &mut LockStep<SimRig>, cam: usize) -> &mut rigview_core::exposure::CameraController {
+    lp.processor_mut().controller_mut().camera_mut(cam).unwrap()
+}
+
+/// [`run`] with any processing settings and neighbour edges.
 fn run_with(
     render: &Arc<SimRender>,
     view: SurroundView,
-    config: ControllerConfig,
+    settings: ProcessingSettings,
     edges: &[(usize, usize)],
 ) -> Trace {
     let n = render.cameras().len();
-    let mut lp = closed_loop(render, view, config, edges);
+    let mut lp = closed_loop(render, view, settings, edges);
     let mut out = Trace {
         log2_e: vec![Vec::new(); n],
         probes: vec![Vec::new(); n],
@@ -165,17 +166,18 @@ fn run_with(
     };
     for frame in 0..FRAMES {
         let step = lp.step().unwrap().unwrap();
-        for f in step.set.frames.iter().flatten() {
-            out.log2_e[f.meta.camera].push(f.meta.taken.exposure().log2());
+        let output = step.output.expect("the simulated rig gives complete sets");
+        for (cam, c) in output.cameras.iter().enumerate() {
+            out.log2_e[cam].push(c.taken.exposure().log2());
         }
-        for c in step.step.iter().flat_map(|s| &s.cameras) {
+        for c in &output.step.cameras {
             if let Some(e) = c.probe {
                 out.probes[c.camera].push((frame, e));
             }
         }
     }
     for (cam, p) in out.probe_frame.iter_mut().enumerate() {
-        *p = lp.controller_mut().camera_mut(cam).unwrap().probe_frame();
+        *p = camera(&mut lp, cam).probe_frame();
     }
     out
 }
@@ -247,7 +249,7 @@ fn evaluate(preset: &'static str, scale: Res) -> Vec<Outcome> {
             let hi = tail.iter().copied().fold(f64::MIN, f64::max);
             let mean = tail.iter().sum::<f64>() / TAIL as f64;
             let search = FixedPointSearch {
-                estimator: config_for(simulation).estimator,
+                estimator: config_for(simulation).controller.estimator,
                 lo: (lo - 1.0).exp2(),
                 hi: (hi + 1.0).exp2(),
                 step_ev: 0.05,
@@ -430,10 +432,7 @@ fn check_balancing_adds_no_cycle(scale: Res) {
     let balanced = run_with(
         &render,
         view(&render),
-        ControllerConfig {
-            mode: ControlMode::Gradient,
-            ..Default::default()
-        },
+        ProcessingSettings::default(),
         &render.rig().neighbours,
     );
     assert!(
@@ -502,9 +501,10 @@ fn probing_darker_takes_a_camera_to_the_best_fixed_point() {
         let without = run_with(
             &render,
             view(&render),
-            ControllerConfig {
-                probe: None,
-                ..config_for(Simulation::ScaleClip)
+            {
+                let mut s = config_for(Simulation::ScaleClip);
+                s.controller.probe = None;
+                s
             },
             &[],
         );
@@ -579,7 +579,7 @@ fn a_camera_that_leaves_its_own_law_forgets_its_probe() {
     for _ in 0..30 {
         lp.step().unwrap();
     }
-    let front = lp.controller_mut().camera_mut(0).unwrap().last_probe();
+    let front = camera(&mut lp, 0).last_probe();
     assert!(
         matches!(
             front,
@@ -588,25 +588,19 @@ fn a_camera_that_leaves_its_own_law_forgets_its_probe() {
         "{front:?}"
     );
     let kept = (0..n)
-        .filter(|&cam| {
-            lp.controller_mut()
-                .camera_mut(cam)
-                .unwrap()
-                .probe_frame()
-                .is_some()
-        })
+        .filter(|&cam| camera(&mut lp, cam).probe_frame().is_some())
         .count();
     assert!(kept > 0, "no camera kept the frame of a probe it rejected");
-    let balanced = ControllerConfig {
-        balancing: Some(Default::default()),
+    let balanced = ProcessingSettings {
+        strategy: Strategy::Multi,
         ..config_for(Simulation::ScaleClip)
     };
-    lp.controller_mut().set_config(balanced).unwrap();
+    lp.set_settings(balanced).unwrap();
     for _ in 0..3 {
         lp.step().unwrap();
     }
     for cam in 0..n {
-        let c = lp.controller_mut().camera_mut(cam).unwrap();
+        let c = camera(&mut lp, cam);
         assert_eq!(c.last_probe(), None);
         assert_eq!(c.probe_frame(), None);
     }
@@ -697,16 +691,16 @@ fn a_change_of_light_retires_the_probe_frame() {
     let mut kept_before = 0;
     for frame in 0..3 * STEP_AT {
         let step = lp.step().unwrap().unwrap();
-        for f in step.set.frames.iter().flatten() {
-            let cam = f.meta.camera;
-            let e = f.meta.taken.exposure();
+        let output = step.output.expect("the simulated rig gives complete sets");
+        for (cam, c) in output.cameras.iter().enumerate() {
+            let e = c.taken.exposure();
             log2_e[cam].push(e.log2());
             if frame >= STEP_AT {
                 after[cam].push(e);
             }
         }
         for (cam, taken_after) in after.iter().enumerate() {
-            let kept = lp.controller_mut().camera_mut(cam).unwrap().probe_frame();
+            let kept = camera(&mut lp, cam).probe_frame();
             if frame == STEP_AT - 1 {
                 kept_before += usize::from(kept.is_some());
             }

@@ -9,13 +9,9 @@ use std::sync::Arc;
 
 use nalgebra::{Rotation3, Vector3};
 use rigview_calib::Pose;
-use rigview_core::exposure::{
-    ControllerConfig, ExposureSetting, LawKind, LawParams, Meter, MeteringConfig, NeighbourGraph,
-    PixelFormat, RigController,
-};
-use rigview_core::sim::{
-    truth, ClosedLoop, FillRequest, SimConfig, SimRender, SimRig, SimRigOptions,
-};
+use rigview_core::exposure::{ControllerConfig, ExposureSetting, LawKind, LawParams, PixelFormat};
+use rigview_core::pipeline::ProcessingSettings;
+use rigview_core::sim::{truth, FillRequest, SimConfig, SimRender};
 use rigview_core::surround::{CanvasSpec, SurroundOptions, SurroundView};
 
 fn render(preset: &str, scale: f64) -> SimRender {
@@ -160,44 +156,32 @@ fn the_frames_follow_the_scripted_light() {
 fn the_loop_follows_the_light_through_the_tunnel() {
     let render = Arc::new(render("tunnel", 0.25));
     let n = render.cameras().len();
-    let config = ControllerConfig {
-        law: LawParams {
-            kind: LawKind::Fast,
+    let settings = ProcessingSettings {
+        controller: ControllerConfig {
+            law: LawParams {
+                kind: LawKind::Fast,
+                ..Default::default()
+            },
             ..Default::default()
         },
         ..Default::default()
     };
-    let ranges: Vec<_> = render.cameras().iter().map(|c| c.range).collect();
-    let graph = NeighbourGraph::new(n, &render.rig().neighbours).unwrap();
-    let controller = RigController::new(config, &ranges, graph).unwrap();
-    let source = SimRig::new(render.clone(), SimRigOptions::default()).unwrap();
     let surround = view(render.rig());
-    let mut lp = ClosedLoop::new(
-        source,
-        controller,
-        Meter::new(MeteringConfig::default()).unwrap(),
-        Some(surround),
-    )
-    .unwrap();
+    let mut lp =
+        rigview_tests::sim_loop(&render, surround, settings, &render.rig().neighbours).unwrap();
     // Enter at 1.5 s, exit at 5.5 s (0.4 s transitions), 100× darker.
     let (mut before, mut inside, mut after) = (Vec::new(), Vec::new(), Vec::new());
     let mut gain_used = false;
     for f in 0..160u64 {
         let step = lp.step().unwrap().unwrap();
         let t = f as f64 / 20.0;
-        let frames: Vec<_> = step.set.frames.iter().flatten().collect();
-        let e: f64 = frames
-            .iter()
-            .map(|f| f.meta.taken.exposure().log2())
-            .sum::<f64>()
-            / n as f64;
-        let mean: f64 = step
-            .metered
-            .iter()
-            .map(|m| f64::from(m.stats().mean))
-            .sum::<f64>()
-            / n as f64;
-        gain_used |= frames.iter().any(|f| f.meta.taken.gain_db > 1.0);
+        let cams = step
+            .output
+            .expect("the simulated rig gives complete sets")
+            .cameras;
+        let e: f64 = cams.iter().map(|c| c.taken.exposure().log2()).sum::<f64>() / n as f64;
+        let mean: f64 = cams.iter().map(|c| f64::from(c.mean)).sum::<f64>() / n as f64;
+        gain_used |= cams.iter().any(|c| c.taken.gain_db > 1.0);
         if (1.0..1.5).contains(&t) {
             before.push((e, mean));
         } else if (5.0..5.5).contains(&t) {

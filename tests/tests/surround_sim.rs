@@ -9,11 +9,9 @@ use std::sync::Arc;
 
 use opencv::core::{self, Mat, Point2f, TermCriteria, Vector};
 use opencv::imgproc;
-use rigview_core::exposure::{
-    BalanceParams, ControllerConfig, ExposureSetting, FrameView, Meter, MeteringConfig,
-    NeighbourGraph, PixelFormat, RigController,
-};
-use rigview_core::sim::{ClosedLoop, FillRequest, SimConfig, SimRender, SimRig, SimRigOptions};
+use rigview_core::exposure::{ExposureSetting, FrameView, PixelFormat};
+use rigview_core::pipeline::{ProcessingSettings, Strategy};
+use rigview_core::sim::{FillRequest, SimConfig, SimRender};
 use rigview_core::surround::{
     BlendMode, Canvas, CanvasSpec, Composer, SurroundOptions, SurroundView,
 };
@@ -173,32 +171,27 @@ fn the_mat_corners_land_within_a_canvas_pixel_of_their_true_positions() {
 /// closed loop under backlight (mean over the last 10 steps).
 fn backlight_loop(balancing: bool, frames: usize) -> f64 {
     let render = Arc::new(render("backlight", 0.25));
-    let n = render.cameras().len();
-    let config = ControllerConfig {
-        balancing: balancing.then(BalanceParams::default),
+    let settings = ProcessingSettings {
+        strategy: if balancing {
+            Strategy::Multi
+        } else {
+            Strategy::Single
+        },
         ..Default::default()
     };
-    let ranges: Vec<_> = render.cameras().iter().map(|c| c.range).collect();
-    let graph = NeighbourGraph::new(n, &render.rig().neighbours).unwrap();
-    let controller = RigController::new(config, &ranges, graph).unwrap();
-    let source = SimRig::new(render.clone(), SimRigOptions::default()).unwrap();
     let spec = CanvasSpec {
         px_per_m: 25.0,
         ..CanvasSpec::default()
     };
     let view = SurroundView::build(render.rig(), &spec, &SurroundOptions::default()).unwrap();
-    let mut lp = ClosedLoop::new(
-        source,
-        controller,
-        Meter::new(MeteringConfig::default()).unwrap(),
-        Some(view),
-    )
-    .unwrap();
+    let mut lp =
+        rigview_tests::sim_loop(&render, view, settings, &render.rig().neighbours).unwrap();
     let mut tail = Vec::new();
     for f in 0..frames {
         let step = lp.step().unwrap().unwrap();
-        let Some(rig_step) = step.step else { continue };
-        let mut logs: Vec<f64> = rig_step
+        let Some(output) = step.output else { continue };
+        let mut logs: Vec<f64> = output
+            .step
             .ratios
             .iter()
             .filter(|p| p.i < p.j)

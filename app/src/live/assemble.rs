@@ -7,6 +7,7 @@
 
 use std::collections::VecDeque;
 
+pub use rigview_core::source::SetCounters;
 use rigview_core::source::{Frame, FrameSet};
 
 /// A frame waiting for its set.
@@ -19,31 +20,6 @@ pub struct Arrived {
     pub id: u64,
     /// The frame.
     pub frame: Frame,
-}
-
-/// Counters of the assembled sets.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct SetCounters {
-    /// Sets with a whole frame from every camera.
-    pub complete: u64,
-    /// Sets with a frame missing or not whole (never fed to the controller).
-    pub incomplete: u64,
-    /// Frames that were not whole (missing packets or failed), over all sets.
-    pub broken_frames: u64,
-    /// Slots left empty (a camera sent nothing for that trigger).
-    pub missing_frames: u64,
-    /// A frame arrived too late for its set and was dropped.
-    pub late_frames: u64,
-    /// Frame ids skipped between consecutive frames of a camera in sets
-    /// (frames that were lost whole or dropped).
-    pub id_gaps: u64,
-    /// Timestamp skew of the last set with two or more frames, ns (camera
-    /// clocks).
-    pub last_skew_ns: u64,
-    /// Largest skew of a complete set so far, ns.
-    pub max_skew_ns: u64,
-    /// Arrival spread (host clock) of the last set, ns.
-    pub last_arrival_spread_ns: u64,
 }
 
 /// Matches frames into sets.

@@ -7,15 +7,11 @@ use std::time::Duration;
 
 use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
-use rigview_core::exposure::{CameraInput, Metered};
-use rigview_core::exposure::{
-    ControllerConfig, ExposureSetting, FrameInfo, Meter, MeteringConfig, NeighbourGraph,
-    PixelFormat, RigController, RigStep,
-};
-use rigview_core::source::{FrameSet, FrameSource, StreamState};
+use rigview_core::exposure::PixelFormat;
+use rigview_core::pipeline::{Output, PipelineStatus, ProcessingSettings};
+use rigview_core::source::StreamState;
 
 use super::config::{CaptureConfig, Region, TriggerMode};
-use super::health::CameraStatus;
 
 /// How the cameras are triggered.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -103,6 +99,9 @@ pub struct LiveArgs {
     /// Without the window: a status block per second on the terminal.
     #[arg(long)]
     pub headless: bool,
+    /// Processing overrides.
+    #[command(flatten)]
+    pub processing: crate::run_cmd::ProcessingArgs,
 }
 
 impl LiveArgs {
@@ -173,111 +172,6 @@ impl LiveArgs {
     }
 }
 
-/// The exposure control loop over a frame source: meters every complete
-/// set, steps the controller and sends its commands. Incomplete sets are
-/// counted and never reach the controller.
-#[derive(Debug)]
-pub struct LiveLoop {
-    controller: RigController,
-    meter: Meter,
-    fed: u64,
-    skipped: u64,
-    last: Option<RigStep>,
-}
-
-impl LiveLoop {
-    /// A loop for `source`'s cameras with `config` (balancing needs overlap
-    /// patches, which come with the surround view; until then each camera
-    /// runs alone), starting each camera's controller from `start`.
-    pub fn new(
-        source: &dyn FrameSource,
-        config: ControllerConfig,
-        start: &[ExposureSetting],
-    ) -> Result<Self> {
-        let ranges: Vec<_> = source.cameras().iter().map(|c| c.range).collect();
-        let graph = NeighbourGraph::new(ranges.len(), &[])?;
-        let mut controller = RigController::new(
-            ControllerConfig {
-                balancing: None,
-                ..config
-            },
-            &ranges,
-            graph,
-        )?;
-        for (i, s) in start.iter().enumerate() {
-            controller.camera_mut(i)?.sync(*s);
-        }
-        Ok(Self {
-            controller,
-            meter: Meter::new(MeteringConfig::default())?,
-            fed: 0,
-            skipped: 0,
-            last: None,
-        })
-    }
-
-    /// One set: a complete one is metered, stepped and its commands applied
-    /// to `source`; an incomplete one is counted and returns `None`.
-    pub fn step(
-        &mut self,
-        source: &mut dyn FrameSource,
-        set: &FrameSet,
-    ) -> Result<Option<&RigStep>> {
-        if !set.is_complete() {
-            self.skipped += 1;
-            return Ok(None);
-        }
-        let mut metered: Vec<Metered> = Vec::with_capacity(set.frames.len());
-        let mut infos = Vec::with_capacity(set.frames.len());
-        for f in set.frames.iter().flatten() {
-            metered.push(self.meter.meter(&f.view()?, None)?);
-            infos.push(FrameInfo {
-                frame_id: f.meta.frame_id,
-                taken: f.meta.taken,
-            });
-        }
-        let inputs: Vec<CameraInput<'_>> = metered
-            .iter()
-            .zip(&infos)
-            .map(|(m, info)| CameraInput {
-                info: *info,
-                metered: m,
-            })
-            .collect();
-        let step = self.controller.step(&inputs, &[])?;
-        let commands: Vec<_> = step
-            .cameras
-            .iter()
-            .filter_map(|c| {
-                c.command
-                    .map(|setting| rigview_core::source::ExposureCommand {
-                        camera: c.camera,
-                        setting,
-                    })
-            })
-            .collect();
-        source.apply(&commands)?;
-        self.fed += 1;
-        self.last = Some(step);
-        Ok(self.last.as_ref())
-    }
-
-    /// Complete sets fed to the controller.
-    pub fn fed(&self) -> u64 {
-        self.fed
-    }
-
-    /// Incomplete sets kept from it.
-    pub fn skipped(&self) -> u64 {
-        self.skipped
-    }
-
-    /// The last controller step.
-    pub fn last(&self) -> Option<&RigStep> {
-        self.last.as_ref()
-    }
-}
-
 fn state_word(s: StreamState) -> &'static str {
     match s {
         StreamState::Streaming => "streaming",
@@ -287,68 +181,100 @@ fn state_word(s: StreamState) -> &'static str {
 }
 
 /// The status block printed once a second: one line for the sets, one per
-/// camera.
+/// camera (its stream, the exposure its last frame was taken with, γ̂, the
+/// command sent and, when balanced, α of Eq. 6), and one for the overlaps'
+/// brightness ratios.
 pub fn format_status(
     elapsed: Duration,
-    cameras: &[CameraStatus],
-    sets: &super::assemble::SetCounters,
-    last: Option<&RigStep>,
+    names: &[String],
+    status: &PipelineStatus,
+    last: Option<&Output>,
 ) -> String {
     let mut s = format!(
-        "[{:7.1} s] sets: {} complete, {} incomplete ({} frames broken, {} missing); skew last {:.2} ms, max {:.2} ms\n",
+        "[{:7.1} s] sets: {} from the cameras, {} processed, {} incomplete, {} dropped (processing behind)",
         elapsed.as_secs_f64(),
-        sets.complete,
-        sets.incomplete,
-        sets.broken_frames,
-        sets.missing_frames,
-        sets.last_skew_ns as f64 / 1e6,
-        sets.max_skew_ns as f64 / 1e6,
+        status.sets,
+        status.processed,
+        status.incomplete,
+        status.capture_queue.dropped,
     );
-    for (i, c) in cameras.iter().enumerate() {
-        let step = last.and_then(|l| l.cameras.get(i));
-        let gamma = step
+    if let Some(a) = &status.assembly {
+        s += &format!(
+            "; {} frames broken, {} missing; skew last {:.2} ms, max {:.2} ms",
+            a.broken_frames,
+            a.missing_frames,
+            a.last_skew_ns as f64 / 1e6,
+            a.max_skew_ns as f64 / 1e6,
+        );
+    }
+    s.push('\n');
+    for (i, name) in names.iter().enumerate() {
+        let h = status.health.get(i).cloned().unwrap_or_default();
+        let cam = last.and_then(|o| o.cameras.get(i));
+        let step = last.and_then(|o| o.step.cameras.get(i));
+        let (e, gain) = cam.map_or((f64::NAN, f64::NAN), |c| {
+            (c.taken.exposure(), c.taken.gain_db)
+        });
+        let gamma = cam
             .and_then(|c| c.estimate.as_ref())
             .map_or(f64::NAN, |e| e.gamma_hat);
-        let (e, gain) = match (step, c.setting) {
-            (Some(st), _) => (st.taken.exposure(), st.taken.gain_db),
-            (None, Some(st)) => (st.exposure(), st.gain_db),
-            (None, None) => (f64::NAN, f64::NAN),
+        let command = match cam.and_then(|c| c.command) {
+            Some(c) => format!("→ {:>9.0}", c.exposure()),
+            None => format!("{:>11}", "no command"),
         };
-        let h = &c.health;
+        let alpha = step
+            .and_then(|c| c.alpha)
+            .map_or_else(String::new, |a| format!("  balanced α {a:.2}"));
         s += &format!(
-            "  {:<10} {:<12} {:5.1} fps  E {:>9.0}  gain {:5.2} dB  γ̂ {:5.2}  completed {:>6} failed {:>4} underruns {:>3} packets missing {:>5} resent {:>5}{}\n",
-            c.name,
+            "  {name:<10} {:<12} {:5.1} fps  E {e:>9.0}  gain {gain:5.2} dB  γ̂ {gamma:5.2}  {command}{alpha}  completed {:>6} failed {:>4} underruns {:>3} packets missing {:>5} resent {:>5}\n",
             state_word(h.state),
             h.fps,
-            e,
-            gain,
-            gamma,
             h.completed,
             h.failed,
             h.underruns,
             h.missing_packets,
             h.resent_packets,
-            match (&c.last_error, h.state) {
-                (Some(m), StreamState::Lost | StreamState::Reconnecting) => format!("  ({m})"),
-                _ => String::new(),
-            }
         );
+    }
+    if let Some(o) = last.filter(|o| !o.pairs.is_empty()) {
+        let pairs: Vec<String> = o
+            .pairs
+            .iter()
+            .map(|p| {
+                let label = format!(
+                    "{}-{}",
+                    names.get(p.i).map_or("?", String::as_str),
+                    names.get(p.j).map_or("?", String::as_str)
+                );
+                match p.log2_r {
+                    Some(r) => format!("{label} {r:+.2}"),
+                    None => format!("{label} n/a"),
+                }
+            })
+            .collect();
+        s += &format!("  overlaps, log2 r_ij: {}\n", pairs.join(", "));
     }
     s
 }
 
-/// Runs `rigview live`.
-pub fn run(args: &LiveArgs, out: &mut dyn Write) -> Result<()> {
+/// Runs `rigview live` headless with the processing `settings`: the
+/// same processor as the window, a status block per second.
+pub fn run(args: &LiveArgs, settings: &ProcessingSettings, out: &mut dyn Write) -> Result<()> {
     // (clap lets these through next to --rig, which rules out --fake.)
     if !args.fake && (args.scenario.is_some() || args.scale.is_some()) {
         anyhow::bail!("--scenario and --scale choose what the fake cameras show: they need --fake");
     }
     let config = args.capture_config()?;
-    run_cameras(args, config, out)
+    run_cameras(args, config, settings, out)
 }
 
 #[cfg(not(feature = "aravis"))]
-fn run_cameras(_args: &LiveArgs, _config: CaptureConfig, _out: &mut dyn Write) -> Result<()> {
+fn run_cameras(
+    _args: &LiveArgs,
+    _config: CaptureConfig,
+    _settings: &ProcessingSettings,
+    _out: &mut dyn Write,
+) -> Result<()> {
     Err(super::LiveError::NoAravis.into())
 }
 
@@ -485,70 +411,103 @@ fn fake_cameras(
     Ok((specs, config, render.rig().clone()))
 }
 
+/// The entries of `recent` (the newest of `total` so far) not seen yet;
+/// `seen` moves on to `total`.
 #[cfg(feature = "aravis")]
-fn run_cameras(args: &LiveArgs, config: CaptureConfig, out: &mut dyn Write) -> Result<()> {
+fn fresh<'a>(
+    recent: &'a std::collections::VecDeque<String>,
+    total: u64,
+    seen: &mut u64,
+) -> impl Iterator<Item = &'a String> {
+    let new = usize::try_from(total.saturating_sub(*seen)).unwrap_or(usize::MAX);
+    *seen = total;
+    recent.iter().skip(recent.len().saturating_sub(new))
+}
+
+#[cfg(feature = "aravis")]
+fn run_cameras(
+    args: &LiveArgs,
+    config: CaptureConfig,
+    settings: &ProcessingSettings,
+    out: &mut dyn Write,
+) -> Result<()> {
+    use std::sync::Arc;
     use std::time::Instant;
 
-    use super::LiveSource;
+    use rigview_core::pipeline::PipelineOptions;
 
-    let (specs, config) = if args.fake {
-        let (specs, config, _) = fake_cameras(args, config, out)?;
-        (specs, config)
-    } else {
-        (rig_cameras(args)?.0, config)
-    };
-    writeln!(
-        out,
-        "rigview live: {} cameras ({}), {}; opening them one after another…",
-        specs.len(),
-        specs
-            .iter()
-            .map(|s| format!("{} = {}", s.name, s.device.describe()))
-            .collect::<Vec<_>>()
-            .join(", "),
-        config.trigger.describe()
-    )?;
-    let mut source = LiveSource::open(specs, config)?;
-    for m in source.take_messages() {
-        writeln!(out, "  {m}")?;
-    }
-    let start = source.start_settings().to_vec();
-    let mut control = LiveLoop::new(&source, ControllerConfig::default(), &start)?;
-    let t0 = Instant::now();
+    use crate::session::{self, SourceSpec};
+
     let limit = args
         .seconds
         .map(Duration::try_from_secs_f64)
         .transpose()
         .context("--seconds: expected a number of seconds ≥ 0")?;
-    let mut next_print = t0 + Duration::from_secs(1);
-    let print_status = |out: &mut dyn Write, source: &LiveSource, control: &LiveLoop| {
-        let st = source.status();
-        let block = format_status(t0.elapsed(), &st.cameras, &st.sets, control.last());
-        write!(out, "{block}")
-    };
-    let mut sets = 0u64;
-    loop {
-        if args.frames.is_some_and(|n| sets >= n) || limit.is_some_and(|l| t0.elapsed() >= l) {
-            break;
-        }
-        if let Some(set) = source.next_set(Duration::from_millis(100))? {
-            sets += 1;
-            control.step(&mut source, &set)?;
-        }
-        for m in source.take_messages() {
-            writeln!(out, "  [{:7.1} s] {m}", t0.elapsed().as_secs_f64())?;
-        }
-        if Instant::now() >= next_print {
-            print_status(out, &source, &control)?;
-            next_print += Duration::from_secs(1);
-        }
-    }
-    print_status(out, &source, &control)?;
     writeln!(
         out,
-        "done: {sets} frame sets, {} fed to the controller, {} incomplete kept from it",
-        control.fed(),
-        control.skipped()
+        "rigview live: {}, {} law, {} simulation; {}; opening the cameras one after another…",
+        settings.strategy.label(),
+        settings.controller.law.kind.name(),
+        settings.controller.estimator.simulation.name(),
+        config.trigger.describe()
+    )?;
+    let t0 = Instant::now();
+    let mut session = session::start(
+        &SourceSpec::Live(Box::new(args.clone())),
+        settings,
+        PipelineOptions::default(),
+        Arc::new(|| {}),
+    )?;
+    writeln!(
+        out,
+        "{}; calibration: {}",
+        session.source_name, session.calibration
+    )?;
+    for m in &session.notes {
+        writeln!(out, "  {m}")?;
+    }
+    let names = session.camera_names();
+    let pipeline = &mut session.pipeline;
+    let mut next_print = Instant::now() + Duration::from_secs(1);
+    let (mut last, mut notes_seen, mut errors_seen) = (None, 0u64, 0u64);
+    loop {
+        if let Some(o) = pipeline.latest() {
+            last = Some(o);
+        }
+        let status = pipeline.status();
+        // New messages from the cameras and new problems, as they come.
+        let at = t0.elapsed().as_secs_f64();
+        for line in fresh(&status.notes, status.notes_total, &mut notes_seen).chain(fresh(
+            &status.errors,
+            status.errors_total,
+            &mut errors_seen,
+        )) {
+            writeln!(out, "  [{at:7.1} s] {line}")?;
+        }
+        if status.stopped || limit.is_some_and(|l| t0.elapsed() >= l) {
+            break;
+        }
+        if Instant::now() >= next_print {
+            let block = format_status(t0.elapsed(), &names, &status, last.as_deref());
+            write!(out, "{block}")?;
+            next_print += Duration::from_secs(1);
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    pipeline.stop();
+    if let Some(o) = pipeline.latest() {
+        last = Some(o);
+    }
+    let status = pipeline.status();
+    write!(
+        out,
+        "{}",
+        format_status(t0.elapsed(), &names, &status, last.as_deref())
+    )?;
+    writeln!(
+        out,
+        "done: {} frame sets, {} fed to the controller, {} incomplete kept from it, {} dropped",
+        status.sets, status.processed, status.incomplete, status.capture_queue.dropped
     )?;
     Ok(())
 }

@@ -380,6 +380,10 @@ impl FrameSource for LiveSource {
         Ok(())
     }
 
+    fn set_counters(&self) -> Option<SetCounters> {
+        Some(self.assembler.counters().clone())
+    }
+
     fn has_camera_auto(&self) -> bool {
         true
     }

@@ -114,6 +114,7 @@ pub const DEFAULT_ANCHORS: [f64; 7] = [1.0 / 1.9, 1.0 / 1.5, 1.0 / 1.2, 1.0, 1.2
 /// How an exposure change is simulated on the current image.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum Simulation {
     /// The paper's `I_out = I_in^γ`; γ > 1 darkens.
     #[default]

@@ -40,6 +40,7 @@ use crate::error::{check_range, Result};
 /// Which update law.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum LawKind {
     /// Eq. 3.
     Linear,

@@ -19,8 +19,9 @@
 //!   actuation latency and a trigger rate.
 //! - [`truth`]: ground truth: the dense-sweep optimum of the metric, the
 //!   estimator's fixed points, the true overlap ratios, the dynamic range.
-//! - [`closed_loop`]: a source, the metering and the rig controller in a
-//!   loop.
+//!
+//! The closed loop on the simulated rig is the app's own processor driven
+//! in lock step ([`crate::pipeline::LockStep`]).
 //!
 //! ```no_run
 //! use std::sync::Arc;
@@ -33,7 +34,6 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
-pub mod closed_loop;
 pub mod config;
 pub mod render;
 pub mod rig;
@@ -44,7 +44,6 @@ pub mod source;
 mod texture;
 pub mod truth;
 
-pub use closed_loop::{ClosedLoop, LoopStep};
 pub use config::{RigChoice, SimConfig, PRESETS};
 pub use render::{FillRequest, SimRender};
 pub use rig::reference_rig;

@@ -195,6 +195,7 @@ impl CanvasSpec {
 /// How overlapping cameras are mixed.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum BlendMode {
     /// Weights falling off with the distance from each camera's exclusive
     /// region (the default).

@@ -1,0 +1,410 @@
+//! The per-set work: metering, the controller, the measured ratios and the
+//! composed view. The pipeline's processing thread and [`super::LockStep`]
+//! both drive a [`Processor`].
+
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use super::{
+    CameraOutput, MeterRoi, Output, Overlay, PairOutput, ProcessingSettings, StageTimes, Strategy,
+};
+use crate::error::{Error, Result};
+use crate::exposure::{
+    CameraMasks, Estimate, Estimator, ExposureSetting, FrameView, Meter, Metered, NeighbourGraph,
+    PixelFormat, ProbeEvent, RigController,
+};
+use crate::source::{CameraInfo, ExposureCommand, FrameSet};
+use crate::surround::{Canvas, Composer, SurroundView};
+
+/// Checks that a surround view fits the source's cameras (count and image
+/// sizes).
+pub fn check_view(view: &SurroundView, cameras: &[CameraInfo]) -> Result<()> {
+    if view.layers().len() != cameras.len() {
+        return Err(Error::InvalidConfig(format!(
+            "the calibration has {} cameras, the source {}",
+            view.layers().len(),
+            cameras.len()
+        )));
+    }
+    for (layer, cam) in view.layers().iter().zip(cameras) {
+        if layer.source != (cam.width, cam.height) {
+            return Err(Error::InvalidConfig(format!(
+                "camera {} (\"{}\"): the calibration is for {}×{} images, the camera gives {}×{}",
+                layer.camera, cam.name, layer.source.0, layer.source.1, cam.width, cam.height
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// Does the per-set work; the processing thread owns one. Usable on its own
+/// (tests, offline tools).
+#[derive(Debug)]
+pub struct Processor {
+    cameras: Vec<CameraInfo>,
+    settings: ProcessingSettings,
+    shared_settings: Arc<ProcessingSettings>,
+    meter: Meter,
+    controller: RigController,
+    display_estimators: Vec<Estimator>,
+    view: Option<SurroundView>,
+    masks: CameraMasks,
+    overlay: Arc<Overlay>,
+    composer: Composer,
+    last_taken: Vec<Option<ExposureSetting>>,
+    compose: bool,
+    compose_error: Option<String>,
+}
+
+impl Processor {
+    /// A processor for `cameras`, with an optional surround view (checked
+    /// with [`check_view`]) and the cameras' neighbour graph.
+    pub fn new(
+        cameras: Vec<CameraInfo>,
+        view: Option<SurroundView>,
+        graph: NeighbourGraph,
+        settings: ProcessingSettings,
+    ) -> Result<Self> {
+        settings.validate()?;
+        if let Some(v) = &view {
+            check_view(v, &cameras)?;
+        }
+        let ranges: Vec<_> = cameras.iter().map(|c| c.range).collect();
+        let controller = RigController::new(settings.controller_config(), &ranges, graph)?;
+        let display_estimators = cameras
+            .iter()
+            .map(|_| Estimator::new(settings.controller.estimator.clone()))
+            .collect::<Result<_>>()?;
+        let n = cameras.len();
+        let mut p = Self {
+            meter: Meter::new(settings.metering)?,
+            controller,
+            display_estimators,
+            overlay: Arc::new(Overlay::of(view.as_ref(), n)),
+            view,
+            masks: CameraMasks::none(n),
+            composer: Composer::new(),
+            last_taken: vec![None; n],
+            compose: true,
+            compose_error: None,
+            cameras,
+            shared_settings: Arc::new(settings.clone()),
+            settings,
+        };
+        p.update_masks();
+        Ok(p)
+    }
+
+    fn update_masks(&mut self) {
+        self.masks = match (&self.view, self.settings.roi) {
+            (Some(v), MeterRoi::Ground) => {
+                let formats: Vec<_> = self.cameras.iter().map(|c| c.format).collect();
+                CameraMasks::new(&self.meter, v.ground_masks(), &formats)
+            }
+            _ => CameraMasks::none(self.cameras.len()),
+        };
+    }
+
+    /// The settings in force.
+    pub fn settings(&self) -> &ProcessingSettings {
+        &self.settings
+    }
+
+    /// The surround view, if any.
+    pub fn view(&self) -> Option<&SurroundView> {
+        self.view.as_ref()
+    }
+
+    /// The controller.
+    pub fn controller(&self) -> &RigController {
+        &self.controller
+    }
+
+    /// The controller, to change (a camera's manual override or its sync
+    /// goes through [`Processor::set_manual`] in the app; tests and offline
+    /// tools reach a camera's controller here).
+    pub fn controller_mut(&mut self) -> &mut RigController {
+        &mut self.controller
+    }
+
+    /// The source's cameras.
+    pub fn cameras(&self) -> &[CameraInfo] {
+        &self.cameras
+    }
+
+    /// Whether views are composed.
+    pub fn set_compose(&mut self, on: bool) {
+        self.compose = on;
+    }
+
+    /// Applies new settings. Returns whether the cameras' own auto-exposure
+    /// must be switched (`Some(on)`).
+    pub fn set_settings(&mut self, settings: ProcessingSettings) -> Result<Option<bool>> {
+        settings.validate()?;
+        let was_auto = self.settings.strategy == Strategy::CameraAuto;
+        let is_auto = settings.strategy == Strategy::CameraAuto;
+        self.controller.set_config(settings.controller_config())?;
+        let metering_changed = settings.metering != self.settings.metering;
+        if metering_changed {
+            self.meter = Meter::new(settings.metering)?;
+        }
+        if settings.controller.estimator != self.settings.controller.estimator {
+            self.display_estimators = self
+                .cameras
+                .iter()
+                .map(|_| Estimator::new(settings.controller.estimator.clone()))
+                .collect::<Result<_>>()?;
+        }
+        let roi_changed = settings.roi != self.settings.roi;
+        self.shared_settings = Arc::new(settings.clone());
+        self.settings = settings;
+        if roi_changed || metering_changed {
+            self.update_masks();
+        }
+        if was_auto && !is_auto {
+            // The cameras' own AE moved them: start from where they are.
+            self.sync_to_last();
+        }
+        Ok((was_auto != is_auto).then_some(is_auto))
+    }
+
+    /// Tells each camera's controller where its camera is (for example
+    /// after the cameras' own start-up auto-exposure), in rig order.
+    pub fn sync(&mut self, settings: &[ExposureSetting]) -> Result<()> {
+        if settings.len() != self.cameras.len() {
+            return Err(Error::InvalidConfig(format!(
+                "{} starting settings for {} cameras",
+                settings.len(),
+                self.cameras.len()
+            )));
+        }
+        for (i, s) in settings.iter().enumerate() {
+            self.controller.camera_mut(i)?.sync(*s);
+            self.last_taken[i] = Some(*s);
+        }
+        Ok(())
+    }
+
+    fn sync_to_last(&mut self) {
+        for (i, t) in self.last_taken.iter().enumerate() {
+            if let (Some(t), Ok(c)) = (t, self.controller.camera_mut(i)) {
+                c.sync(*t);
+            }
+        }
+    }
+
+    /// Holds camera `camera` at `exposure`, or releases it.
+    pub fn set_manual(&mut self, camera: usize, exposure: Option<f64>) -> Result<()> {
+        if let Some(e) = exposure {
+            if !(e.is_finite() && e > 0.0) {
+                return Err(Error::InvalidParameter {
+                    name: "manual exposure",
+                    value: e,
+                    expected: "a positive exposure level (µs at 0 dB)",
+                });
+            }
+        }
+        self.controller.camera_mut(camera)?.set_manual(exposure);
+        Ok(())
+    }
+
+    /// Uses a new calibration (see [`Control::Calibration`]).
+    pub fn set_calibration(
+        &mut self,
+        view: Option<SurroundView>,
+        graph: NeighbourGraph,
+    ) -> Result<()> {
+        if let Some(v) = &view {
+            check_view(v, &self.cameras)?;
+        }
+        let ranges: Vec<_> = self.cameras.iter().map(|c| c.range).collect();
+        let mut controller = RigController::new(self.settings.controller_config(), &ranges, graph)?;
+        for i in 0..self.cameras.len() {
+            let manual = self.controller.camera_mut(i)?.manual();
+            let c = controller.camera_mut(i)?;
+            c.set_manual(manual);
+            if let Some(Some(t)) = self.last_taken.get(i) {
+                c.sync(*t);
+            }
+        }
+        self.controller = controller;
+        self.overlay = Arc::new(Overlay::of(view.as_ref(), self.cameras.len()));
+        self.view = view;
+        self.compose_error = None;
+        self.update_masks();
+        Ok(())
+    }
+
+    /// The overlaps as camera index pairs (in telemetry order).
+    pub fn pairs(&self) -> Vec<(usize, usize)> {
+        self.overlay.pairs.clone()
+    }
+
+    /// Processes one complete set: returns what to display and the commands
+    /// to send. The set's frames must match the cameras.
+    pub fn process(
+        &mut self,
+        set: &FrameSet,
+        ready: Instant,
+        mut times: StageTimes,
+    ) -> Result<(Output, Vec<ExposureCommand>)> {
+        let n = self.cameras.len();
+        let frames: Vec<_> = set.frames.iter().flatten().collect();
+        if frames.len() != n || !set.is_complete() {
+            return Err(Error::IncompleteSet {
+                trigger: set.trigger,
+                complete: frames.iter().filter(|f| f.is_complete()).count(),
+                cameras: n,
+            });
+        }
+        let t0 = Instant::now();
+        let views = frames
+            .iter()
+            .map(|f| f.view())
+            .collect::<Result<Vec<FrameView<'_>>>>()?;
+        let metered = self.masks.meter(&self.meter, &views)?;
+        let observations = match &self.view {
+            Some(v) => v.pair_observations(&views)?,
+            None => Vec::new(),
+        };
+        let t1 = Instant::now();
+        let step = self
+            .controller
+            .step_frames(&frames, &metered, &observations)?;
+        let camera_auto = self.settings.strategy == Strategy::CameraAuto;
+        let commands = if camera_auto {
+            Vec::new()
+        } else {
+            step.commands()
+        };
+        let mut cameras = Vec::with_capacity(n);
+        for (k, (f, m)) in frames.iter().zip(&metered).enumerate() {
+            self.last_taken[k] = Some(f.meta.taken);
+            let cs = step.cameras.get(k);
+            let estimate = match cs.and_then(|c| c.estimate.clone()) {
+                Some(e) => Some(e),
+                None => match self.display_estimators.get_mut(k) {
+                    Some(est) => Some(est.estimate(m)?),
+                    None => None,
+                },
+            };
+            let camera = self.controller.camera_mut(k)?;
+            let (manual, last_probe) = (camera.manual(), camera.last_probe());
+            cameras.push(camera_output(
+                f.meta.taken,
+                m,
+                estimate,
+                if camera_auto {
+                    None
+                } else {
+                    cs.and_then(|c| c.command)
+                },
+                manual,
+                last_probe,
+            ));
+        }
+        let pairs: Vec<PairOutput> = self
+            .overlay
+            .pairs
+            .iter()
+            .map(|&(i, j)| PairOutput {
+                i,
+                j,
+                log2_r: step
+                    .ratios
+                    .iter()
+                    .find(|r| r.i == i && r.j == j)
+                    .and_then(|r| r.r_ij)
+                    .filter(|r| *r > 0.0)
+                    .map(f64::log2),
+            })
+            .collect();
+        let t2 = Instant::now();
+        let canvas = match (&self.view, self.compose) {
+            (Some(view), true) => {
+                let channels = if views
+                    .iter()
+                    .any(|v| v.format() == PixelFormat::Rgb8 || v.format().is_bayer())
+                {
+                    3
+                } else {
+                    1
+                };
+                let (w, h) = view.size();
+                let mut canvas = Canvas::new(w, h, channels);
+                match self
+                    .composer
+                    .compose(view, &views, self.settings.blend, &mut canvas)
+                {
+                    Ok(()) => {
+                        self.compose_error = None;
+                        Some(Arc::new(canvas))
+                    }
+                    Err(e) => {
+                        self.compose_error = Some(e.to_string());
+                        None
+                    }
+                }
+            }
+            _ => None,
+        };
+        let t3 = Instant::now();
+        times.meter_ms = ms(t1 - t0);
+        times.control_ms = ms(t2 - t1);
+        times.compose_ms = ms(t3 - t2);
+        times.total_ms = ms(t3.saturating_duration_since(ready));
+        let output = Output {
+            trigger: set.trigger,
+            ready,
+            processed: t3,
+            cameras,
+            pairs,
+            canvas,
+            overlay: self.overlay.clone(),
+            times,
+            settings: self.shared_settings.clone(),
+            step,
+        };
+        Ok((output, commands))
+    }
+
+    /// Why the last composition failed, if it did.
+    pub fn compose_error(&self) -> Option<&str> {
+        self.compose_error.as_deref()
+    }
+}
+
+fn camera_output(
+    taken: ExposureSetting,
+    m: &Metered,
+    estimate: Option<Estimate>,
+    command: Option<ExposureSetting>,
+    manual: Option<f64>,
+    last_probe: Option<ProbeEvent>,
+) -> CameraOutput {
+    let thumb = m
+        .luma()
+        .iter()
+        .map(|&v| (v.clamp(0.0, 1.0) * 255.0 + 0.5) as u8)
+        .collect();
+    let metered_mask = m.weight().map(|w| w.iter().map(|&v| v > 0.0).collect());
+    let stats = m.stats();
+    CameraOutput {
+        taken,
+        thumb,
+        thumb_width: m.width(),
+        thumb_height: m.height(),
+        metered_mask,
+        histogram: stats.histogram.clone(),
+        mean: stats.mean,
+        saturated: stats.saturated_fraction,
+        estimate,
+        command,
+        manual,
+        last_probe,
+    }
+}
+
+pub(super) fn ms(d: Duration) -> f64 {
+    d.as_secs_f64() * 1e3
+}
