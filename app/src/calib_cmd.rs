@@ -18,6 +18,9 @@ pub enum Model {
     Fisheye,
     /// Pinhole with radial-tangential distortion (k1, k2, p1, p2, k3).
     Pinhole,
+    /// Pinhole with OpenCV's rational distortion (k1, k2, p1, p2, k3, k4,
+    /// k5, k6; ROS's rational_polynomial).
+    Rational,
 }
 
 impl From<Model> for ModelKind {
@@ -25,6 +28,7 @@ impl From<Model> for ModelKind {
         match m {
             Model::Fisheye => ModelKind::Fisheye,
             Model::Pinhole => ModelKind::Pinhole,
+            Model::Rational => ModelKind::Rational,
         }
     }
 }
@@ -40,7 +44,8 @@ pub enum FormatArg {
     OpencvXml,
     /// Kalibr camchain YAML.
     Kalibr,
-    /// ROS camera_info YAML (one file a camera).
+    /// ROS camera_info (one file a camera): ROS 1's YAML, or a ROS 2
+    /// CameraInfo message as `ros2 topic echo` prints it (read only).
     Ros,
 }
 
@@ -86,7 +91,8 @@ pub struct InputArgs {
     #[arg(long, value_enum)]
     pub from: Option<FormatArg>,
     /// Camera model for OpenCV files that do not say which (4 coefficients
-    /// fit both).
+    /// fit fisheye and pinhole; rational keeps 8 as the rational model even
+    /// when k4..k6 are 0).
     #[arg(long, value_enum)]
     pub model: Option<Model>,
 }
@@ -382,6 +388,99 @@ mod tests {
         assert!(out.contains("from 6 of 6 images"), "{out}");
         let rig = formats::load(&out_file, None, None).unwrap().rig;
         assert!((rig.cameras[0].intrinsics.fx - 533.0).abs() < 15.0);
+    }
+
+    #[test]
+    fn show_and_convert_files_as_users_bring_them() {
+        let d = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../calib/tests/data");
+        // Each file both ways: told from its contents, and named.
+        let show = |file: &str, from: &str, wants: &[&str]| {
+            for from in [None, Some(from)] {
+                let path = s(&d.join(file));
+                let mut args = vec!["show", path.as_str()];
+                args.extend(from.iter().flat_map(|f| ["--from", *f]));
+                let out = run_args(&args).unwrap();
+                for want in wants {
+                    assert!(out.contains(want), "{args:?}: no \"{want}\" in:\n{out}");
+                }
+            }
+        };
+        show(
+            "kalibr-opencv-header.yaml",
+            "kalibr",
+            &[
+                "format: kalibr",
+                "[0] cam0",
+                "[1] cam1",
+                "pinhole-radtan 752×480",
+            ],
+        );
+        show(
+            "ros2-camera-info.yaml",
+            "ros",
+            &[
+                "format: ros",
+                "[0] camera_optical",
+                "pinhole-radtan 640×480",
+            ],
+        );
+        let rational = s(&d.join("ros-rational.yaml"));
+        let out = run_args(&["show", &rational]).unwrap();
+        for want in [
+            "model: pinhole-rational 1280×720",
+            "distortion: [k1 0.520000, k2 -2.600000, p1 0.000620, p2 -0.000210, k3 1.500000, k4 0.400000, k5 -2.450000, k6 1.420000]",
+            "field of view: horizontal",
+        ] {
+            assert!(out.contains(want), "no \"{want}\" in:\n{out}");
+        }
+        let t = tmp("rational");
+        let xml = t.join("rgb.xml");
+        run_args(&["convert", &rational, &s(&xml)]).unwrap();
+        let back = formats::load(&xml, None, None).unwrap().rig;
+        let orig = formats::load(Path::new(&rational), None, None).unwrap().rig;
+        assert_eq!(back.cameras[0].intrinsics, orig.cameras[0].intrinsics);
+        let e = run_args(&[
+            "convert",
+            &rational,
+            &s(&t.join("chain.yaml")),
+            "--to",
+            "kalibr",
+        ])
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("rgb_camera") && e.contains("Kalibr has no rational"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn rational_intrinsics_from_the_sample_chessboards() {
+        let d = tmp("intrinsics-rational");
+        let out_file = d.join("left.yaml");
+        let imgs: Vec<String> = ["01", "02", "03", "04", "05", "06"]
+            .iter()
+            .map(|n| s(&data().join(format!("opencv-samples/left{n}.jpg"))))
+            .collect();
+        let o = s(&out_file);
+        let mut args = vec![
+            "intrinsics",
+            "--board",
+            "9x6",
+            "--model",
+            "rational",
+            "-o",
+            &o,
+        ];
+        args.extend(imgs.iter().map(String::as_str));
+        let out = run_args(&args).unwrap();
+        assert!(
+            out.contains("pinhole-rational model from 6 of 6 images"),
+            "{out}"
+        );
+        let k = formats::load(&out_file, None, None).unwrap().rig.cameras[0].intrinsics;
+        assert_eq!(k.distortion.kind(), ModelKind::Rational);
+        assert!((k.fx - 533.0).abs() < 15.0, "{k:?}");
     }
 
     #[test]

@@ -1,5 +1,5 @@
 //! `rigview-calib`: camera models (OpenCV fisheye / Kannala–Brandt, pinhole
-//! with radial-tangential distortion), the rig (intrinsics, extrinsics in the
+//! with radial-tangential or rational distortion), the rig (intrinsics, extrinsics in the
 //! vehicle frame, neighbour graph), calibration file formats and the
 //! calibration tools.
 //!

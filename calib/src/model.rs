@@ -1,16 +1,25 @@
 //! Camera models: the OpenCV fisheye model (Kannala–Brandt with k1..k4, as
-//! `cv::fisheye`) and the pinhole model with OpenCV's radial-tangential
-//! distortion (k1, k2, p1, p2, k3, as `cv::projectPoints`).
+//! `cv::fisheye`), the pinhole model with OpenCV's radial-tangential
+//! distortion (k1, k2, p1, p2, k3, as `cv::projectPoints`) and the pinhole
+//! model with OpenCV's rational distortion (k1, k2, p1, p2, k3, k4, k5, k6:
+//! `cv::projectPoints` with 8 coefficients, `CALIB_RATIONAL_MODEL`, ROS's
+//! `rational_polynomial`).
 //!
 //! Camera frame: OpenCV's, x right, y down, z along the optical axis. Pixel
 //! coordinates: OpenCV's, the centre of the top-left pixel is (0, 0).
 //!
 //! Each model knows where it is valid. The fisheye polynomial
 //! θd(θ) = θ (1 + k1 θ² + k2 θ⁴ + k3 θ⁶ + k4 θ⁸) is used up to the first θ
-//! where it stops increasing (or π); the radial factor of the pinhole model
-//! up to the first radius where r·(1 + k1 r² + k2 r⁴ + k3 r⁶) stops
-//! increasing (and only in front of the camera). Outside, `project` and
-//! `unproject` return `None` rather than a folded-over answer.
+//! where it stops increasing (or π); the pinhole models up to the first
+//! radius where the distorted radius r·(1 + k1 r² + k2 r⁴ + k3 r⁶) /
+//! (1 + k4 r² + k5 r⁴ + k6 r⁶) stops increasing, its denominator reaches 0
+//! (radial-tangential: k4 = k5 = k6 = 0), or the tangential terms fold the
+//! image over (they grow with r², so they overtake a radial factor that
+//! tends to k3/k6, as the rational model's does), and only in front of the
+//! camera. Outside, `project` and `unproject` return `None` rather than a
+//! folded-over answer. The radial-tangential model is computed as the
+//! rational one with k4 = k5 = k6 = 0, which gives the same bits (the
+//! denominator is exactly 1).
 //!
 //! Unlike `cv::fisheye`, which works with x/z and so only sees the forward
 //! hemisphere, the fisheye model here takes θ = atan2(√(x²+y²), z), so a
@@ -28,6 +37,8 @@ pub enum ModelKind {
     Fisheye,
     /// Pinhole with radial-tangential distortion.
     Pinhole,
+    /// Pinhole with OpenCV's rational distortion (k1..k6, p1, p2).
+    Rational,
 }
 
 /// The lens model and its distortion coefficients.
@@ -38,14 +49,24 @@ pub enum Distortion {
     /// Pinhole with radial-tangential distortion: `[k1, k2, p1, p2, k3]`
     /// (OpenCV's order).
     RadTan([f64; 5]),
+    /// Pinhole with OpenCV's rational distortion:
+    /// `[k1, k2, p1, p2, k3, k4, k5, k6]` (OpenCV's order, as ROS's
+    /// `rational_polynomial`). The radial factor is
+    /// (1 + k1 r² + k2 r⁴ + k3 r⁶) / (1 + k4 r² + k5 r⁴ + k6 r⁶).
+    Rational([f64; 8]),
 }
 
+/// The model names of rig files, for error messages.
+const MODEL_NAMES: &str = "\"fisheye\", \"pinhole-radtan\" or \"pinhole-rational\"";
+
 impl Distortion {
-    /// The model's name in rig files: `fisheye` or `pinhole-radtan`.
+    /// The model's name in rig files: `fisheye`, `pinhole-radtan` or
+    /// `pinhole-rational`.
     pub fn model_name(&self) -> &'static str {
         match self {
             Distortion::Fisheye(_) => "fisheye",
             Distortion::RadTan(_) => "pinhole-radtan",
+            Distortion::Rational(_) => "pinhole-rational",
         }
     }
 
@@ -54,6 +75,7 @@ impl Distortion {
         match self {
             Distortion::Fisheye(_) => ModelKind::Fisheye,
             Distortion::RadTan(_) => ModelKind::Pinhole,
+            Distortion::Rational(_) => ModelKind::Rational,
         }
     }
 
@@ -62,34 +84,66 @@ impl Distortion {
         match self {
             Distortion::Fisheye(k) => k,
             Distortion::RadTan(k) => k,
+            Distortion::Rational(k) => k,
+        }
+    }
+
+    /// The names of the coefficients, in the order of
+    /// [`coefficients`](Self::coefficients).
+    pub fn coefficient_names(&self) -> &'static [&'static str] {
+        match self {
+            Distortion::Fisheye(_) => &["k1", "k2", "k3", "k4"],
+            Distortion::RadTan(_) => &["k1", "k2", "p1", "p2", "k3"],
+            Distortion::Rational(_) => &["k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6"],
         }
     }
 
     /// Builds a model from its rig-file name and coefficients. For
     /// `pinhole-radtan`, 4 coefficients mean k3 = 0.
     pub fn from_name(name: &str, coefficients: &[f64]) -> Result<Self, FieldError> {
-        match (name, coefficients.len()) {
-            ("fisheye", 4) => Ok(Distortion::Fisheye([
-                coefficients[0],
-                coefficients[1],
-                coefficients[2],
-                coefficients[3],
-            ])),
+        let c = coefficients;
+        match (name, c.len()) {
+            ("fisheye", 4) => Ok(Distortion::Fisheye([c[0], c[1], c[2], c[3]])),
             ("pinhole-radtan", 4 | 5) => {
                 let mut k = [0.0; 5];
-                k[..coefficients.len()].copy_from_slice(coefficients);
+                k[..c.len()].copy_from_slice(c);
                 Ok(Distortion::RadTan(k))
+            }
+            ("pinhole-rational", 8) => {
+                let mut k = [0.0; 8];
+                k.copy_from_slice(c);
+                Ok(Distortion::Rational(k))
             }
             ("fisheye", n) => Err(FieldError::new(
                 "distortion",
                 "4 fisheye coefficients k1..k4",
                 format!("{n}"),
             )),
-            (_, n) => Err(FieldError::new(
+            ("pinhole-radtan", n) => Err(FieldError::new(
                 "distortion",
                 "4 or 5 radial-tangential coefficients k1, k2, p1, p2[, k3]",
                 format!("{n}"),
             )),
+            ("pinhole-rational", n) => Err(FieldError::new(
+                "distortion",
+                "8 rational coefficients k1, k2, p1, p2, k3, k4, k5, k6",
+                format!("{n}"),
+            )),
+            (other, _) => Err(FieldError::new(
+                "model",
+                MODEL_NAMES,
+                format!("\"{other}\""),
+            )),
+        }
+    }
+
+    /// The eight coefficients of OpenCV's pinhole distortion
+    /// (radial-tangential: k4 = k5 = k6 = 0); `None` for the fisheye model.
+    fn pinhole(&self) -> Option<[f64; 8]> {
+        match *self {
+            Distortion::Fisheye(_) => None,
+            Distortion::RadTan([k1, k2, p1, p2, k3]) => Some([k1, k2, p1, p2, k3, 0.0, 0.0, 0.0]),
+            Distortion::Rational(k) => Some(k),
         }
     }
 }
@@ -189,15 +243,16 @@ impl Intrinsics {
                     (0.0, 0.0)
                 }
             }
-            Distortion::RadTan(k) => {
+            Distortion::RadTan(_) | Distortion::Rational(_) => {
+                let k = self.distortion.pinhole()?;
                 if p.z <= 0.0 || !p.z.is_finite() {
                     return None;
                 }
                 let (a, b) = (p.x / p.z, p.y / p.z);
-                if a * a + b * b > radtan_r2_max(&k) {
+                if a * a + b * b > pinhole_r2_max(&k) {
                     return None;
                 }
-                radtan_distort(&k, a, b)
+                pinhole_distort(&k, a, b)
             }
         };
         let u = self.fx * xd + self.cx;
@@ -227,8 +282,8 @@ impl Intrinsics {
                     theta.cos(),
                 )))
             }
-            Distortion::RadTan(k) => {
-                let (a, b) = radtan_undistort(&k, xd, yd)?;
+            Distortion::RadTan(_) | Distortion::Rational(_) => {
+                let (a, b) = pinhole_undistort(&self.distortion.pinhole()?, xd, yd)?;
                 Some(Unit::new_normalize(Vector3::new(a, b, 1.0)))
             }
         }
@@ -239,7 +294,10 @@ impl Intrinsics {
     pub fn max_incidence(&self) -> f64 {
         match self.distortion {
             Distortion::Fisheye(k) => fisheye_theta_max(&k),
-            Distortion::RadTan(k) => radtan_r2_max(&k).sqrt().atan(),
+            Distortion::RadTan(_) | Distortion::Rational(_) => self
+                .distortion
+                .pinhole()
+                .map_or(0.0, |k| pinhole_r2_max(&k).sqrt().atan()),
         }
     }
 
@@ -329,91 +387,175 @@ fn first_stationary(d: impl Fn(f64) -> f64, limit: f64, steps: usize) -> f64 {
     limit
 }
 
+/// How many validity limits each thread keeps: a rig's cameras, projected
+/// in turn (as the surround view does, point by point), each scan once.
+const LIMIT_SLOTS: usize = 8;
+
+type LimitSlots = ([(Family, [u64; 8], f64); LIMIT_SLOTS], usize);
+
 thread_local! {
-    /// The last validity limit computed on this thread, by coefficient bits:
-    /// projecting many points through one camera scans only once.
-    static LIMIT_CACHE: std::cell::Cell<([u64; 5], bool, f64)> =
-        const { std::cell::Cell::new(([0; 5], false, f64::NAN)) };
+    /// The validity limits last computed on this thread, by model family
+    /// and coefficient bits, and the slot to fill next.
+    static LIMIT_CACHE: std::cell::RefCell<LimitSlots> = const {
+        std::cell::RefCell::new(([(Family::Fisheye, [0; 8], f64::NAN); LIMIT_SLOTS], 0))
+    };
 }
 
-fn cached(key: [u64; 5], fisheye: bool, compute: impl FnOnce() -> f64) -> f64 {
-    LIMIT_CACHE.with(|c| {
-        let (k, f, v) = c.get();
-        if k == key && f == fisheye && !v.is_nan() {
-            return v;
-        }
-        let v = compute();
-        c.set((key, fisheye, v));
-        v
-    })
+/// Which validity limit a cache entry holds.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Family {
+    Fisheye,
+    Pinhole,
+}
+
+fn cached(family: Family, k: &[f64], compute: impl FnOnce() -> f64) -> f64 {
+    let mut key = [0; 8];
+    for (b, v) in key.iter_mut().zip(k) {
+        *b = v.to_bits();
+    }
+    let hit = LIMIT_CACHE.with_borrow(|(slots, _)| {
+        slots
+            .iter()
+            .find(|(f, bits, v)| *f == family && *bits == key && !v.is_nan())
+            .map(|s| s.2)
+    });
+    if let Some(v) = hit {
+        return v;
+    }
+    let v = compute();
+    LIMIT_CACHE.with_borrow_mut(|(slots, next)| {
+        slots[*next] = (family, key, v);
+        *next = (*next + 1) % LIMIT_SLOTS;
+    });
+    v
 }
 
 /// The largest θ where the fisheye polynomial still increases (≤ π).
 pub(crate) fn fisheye_theta_max(k: &[f64; 4]) -> f64 {
-    let key = [
-        k[0].to_bits(),
-        k[1].to_bits(),
-        k[2].to_bits(),
-        k[3].to_bits(),
-        0,
-    ];
-    cached(key, true, || {
+    cached(Family::Fisheye, k, || {
         first_stationary(|t| fisheye_dtheta_d(k, t), std::f64::consts::PI, 4096)
     })
 }
 
-/// θ for a given θd (safeguarded Newton on [0, θmax]); `None` if θd is
-/// beyond the valid region.
+/// The x in [0, hi] where an increasing function `f` (giving its value and
+/// derivative) reaches `target` (safeguarded Newton, bisecting whenever a
+/// step leaves the bracket); `hi` if `target` is beyond `f(hi)`.
+fn invert_increasing(f: impl Fn(f64) -> (f64, f64), target: f64, hi: f64) -> f64 {
+    let (mut lo, mut hi) = (0.0, hi);
+    let mut t = target.min(hi);
+    for _ in 0..100 {
+        let (v, d) = f(t);
+        let e = v - target;
+        if e > 0.0 {
+            hi = t;
+        } else {
+            lo = t;
+        }
+        let mut next = t - e / d;
+        if !(next > lo && next < hi) || d <= 0.0 {
+            next = 0.5 * (lo + hi);
+        }
+        if (next - t).abs() <= 1e-16 * t.max(1.0) {
+            return next;
+        }
+        t = next;
+    }
+    t
+}
+
+/// θ for a given θd on [0, θmax]; `None` if θd is beyond the valid region.
 fn fisheye_theta_from_theta_d(k: &[f64; 4], td: f64) -> Option<f64> {
     let t_max = fisheye_theta_max(k);
     if td > fisheye_theta_d(k, t_max) {
         return None;
     }
-    let (mut lo, mut hi) = (0.0, t_max);
-    let mut t = td.min(t_max);
-    for _ in 0..100 {
-        let f = fisheye_theta_d(k, t) - td;
-        if f > 0.0 {
-            hi = t;
-        } else {
-            lo = t;
-        }
-        let d = fisheye_dtheta_d(k, t);
-        let mut next = t - f / d;
-        if !(next > lo && next < hi) || d <= 0.0 {
-            next = 0.5 * (lo + hi);
-        }
-        if (next - t).abs() <= 1e-16 * t.max(1.0) {
-            return Some(next);
-        }
-        t = next;
-    }
-    Some(t)
+    Some(invert_increasing(
+        |t| (fisheye_theta_d(k, t), fisheye_dtheta_d(k, t)),
+        td,
+        t_max,
+    ))
 }
 
-/// Radial-tangential distortion of a normalised point.
-fn radtan_distort(k: &[f64; 5], a: f64, b: f64) -> (f64, f64) {
-    let [k1, k2, p1, p2, k3] = *k;
+/// The radial factor of OpenCV's pinhole distortion at r² = `s`,
+/// (1 + k1 s + k2 s² + k3 s³) / (1 + k4 s + k5 s² + k6 s³), with its
+/// numerator, denominator and their derivatives in s.
+struct Radial {
+    n: f64,
+    d: f64,
+    dn: f64,
+    dd: f64,
+}
+
+impl Radial {
+    fn at(k: &[f64; 8], s: f64) -> Self {
+        let [k1, k2, _, _, k3, k4, k5, k6] = *k;
+        Self {
+            n: 1.0 + s * (k1 + s * (k2 + s * k3)),
+            d: 1.0 + s * (k4 + s * (k5 + s * k6)),
+            dn: k1 + s * (2.0 * k2 + s * 3.0 * k3),
+            dd: k4 + s * (2.0 * k5 + s * 3.0 * k6),
+        }
+    }
+
+    /// The factor.
+    fn value(&self) -> f64 {
+        self.n / self.d
+    }
+
+    /// Its derivative in s.
+    fn slope(&self) -> f64 {
+        (self.dn * self.d - self.n * self.dd) / (self.d * self.d)
+    }
+}
+
+/// OpenCV's pinhole distortion (k1, k2, p1, p2, k3, k4, k5, k6) of a
+/// normalised point.
+fn pinhole_distort(k: &[f64; 8], a: f64, b: f64) -> (f64, f64) {
+    let [_, _, p1, p2, ..] = *k;
     let r2 = a * a + b * b;
-    let radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3));
+    let radial = Radial::at(k, r2).value();
     (
         a * radial + 2.0 * p1 * a * b + p2 * (r2 + 2.0 * a * a),
         b * radial + p1 * (r2 + 2.0 * b * b) + 2.0 * p2 * a * b,
     )
 }
 
-/// The largest r² = (x/z)² + (y/z)² where the radial factor still
-/// increases, capped at tan²(89.9°).
-pub(crate) fn radtan_r2_max(k: &[f64; 5]) -> f64 {
-    cached(k.map(f64::to_bits), false, || radtan_r2_max_uncached(k))
+/// The largest r² = (x/z)² + (y/z)² up to which the model is one to one:
+/// the distorted radius r·factor(r²) still increases, the factor's
+/// denominator is positive, and the tangential terms do not fold the image
+/// (the Jacobian's determinant is positive at every angle). Capped at
+/// tan²(89.9°).
+fn pinhole_r2_max(k: &[f64; 8]) -> f64 {
+    cached(Family::Pinhole, k, || pinhole_r2_max_uncached(k))
 }
 
-fn radtan_r2_max_uncached(k: &[f64; 5]) -> f64 {
-    let [k1, k2, _, _, k3] = *k;
+/// Positive where the pinhole model is locally one to one at r² = `s` (the
+/// distorted radius increases and the Jacobian's determinant is positive
+/// at every angle; see [`pinhole_r2_max`]). With the radial factor R, A = d(r R)/dr and
+/// q = (p2, p1) at an angle φ from the point's direction, the Jacobian's
+/// determinant is (A + 6 r|q| cos φ)(R + 2 r|q| cos φ) − 4 r²|q|² sin² φ,
+/// a quadratic in cos φ whose least value over φ is taken here.
+fn pinhole_one_to_one(k: &[f64; 8], s: f64) -> f64 {
+    let q = Radial::at(k, s);
+    if q.d <= 0.0 {
+        // Past the denominator's pole.
+        return -1.0;
+    }
+    let b = q.value();
+    let a = b + 2.0 * s * q.slope();
+    let c = s.sqrt() * k[2].hypot(k[3]);
+    if c == 0.0 {
+        return a;
+    }
+    let t = (-(a + 3.0 * b) / (16.0 * c)).clamp(-1.0, 1.0);
+    let det = a * b - 4.0 * c * c + 2.0 * c * (a + 3.0 * b) * t + 16.0 * c * c * t * t;
+    a.min(det)
+}
+
+fn pinhole_r2_max_uncached(k: &[f64; 8]) -> f64 {
     let cap = 89.9_f64.to_radians().tan().powi(2);
-    // d/dr [r (1 + k1 r² + k2 r⁴ + k3 r⁶)] in s = r²; scanned on a
-    // geometric grid because the cap is large.
-    let d = |s: f64| 1.0 + s * (3.0 * k1 + s * (5.0 * k2 + s * 7.0 * k3));
+    // Scanned on a geometric grid because the cap is large.
+    let d = |s: f64| pinhole_one_to_one(k, s);
     let mut prev = 0.0;
     let mut s = 1e-4;
     while s < cap {
@@ -429,24 +571,39 @@ fn radtan_r2_max_uncached(k: &[f64; 5]) -> f64 {
     cap
 }
 
-/// Inverts the radial-tangential distortion by Newton's method; `None` if
-/// it does not converge inside the valid region.
-fn radtan_undistort(k: &[f64; 5], xd: f64, yd: f64) -> Option<(f64, f64)> {
-    let [k1, k2, p1, p2, k3] = *k;
-    let r2_max = radtan_r2_max(k);
-    let (mut a, mut b) = (xd, yd);
+/// Inverts OpenCV's pinhole distortion: the radial part alone first (a
+/// bracketed Newton on the valid radii), then Newton's method on both
+/// coordinates with the tangential terms. `None` if that does not converge
+/// to the distorted point inside the valid region.
+fn pinhole_undistort(k: &[f64; 8], xd: f64, yd: f64) -> Option<(f64, f64)> {
+    let [_, _, p1, p2, ..] = *k;
+    let r2_max = pinhole_r2_max(k);
+    let rd = xd.hypot(yd);
+    let (mut a, mut b) = if rd > 0.0 {
+        let r = invert_increasing(
+            |r| {
+                let q = Radial::at(k, r * r);
+                (r * q.value(), q.value() + 2.0 * r * r * q.slope())
+            },
+            rd,
+            r2_max.sqrt(),
+        );
+        (xd * r / rd, yd * r / rd)
+    } else {
+        (0.0, 0.0)
+    };
     for _ in 0..100 {
         let r2 = a * a + b * b;
-        if r2 > 4.0 * r2_max {
-            // Far outside: pull back towards the valid region.
-            let s = (r2_max / r2).sqrt();
+        if r2 > r2_max {
+            // Outside: pull back into the valid region.
+            let s = (r2_max / r2).sqrt() * (1.0 - 1e-9);
             a *= s;
             b *= s;
             continue;
         }
-        let radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3));
-        let dradial = k1 + r2 * (2.0 * k2 + r2 * 3.0 * k3);
-        let (fx, fy) = radtan_distort(k, a, b);
+        let q = Radial::at(k, r2);
+        let (radial, dradial) = (q.value(), q.slope());
+        let (fx, fy) = pinhole_distort(k, a, b);
         let (ex, ey) = (fx - xd, fy - yd);
         let j11 = radial + 2.0 * a * a * dradial + 2.0 * p1 * b + 6.0 * p2 * a;
         let j12 = 2.0 * a * b * dradial + 2.0 * p1 * a + 2.0 * p2 * b;
@@ -464,7 +621,7 @@ fn radtan_undistort(k: &[f64; 5], xd: f64, yd: f64) -> Option<(f64, f64)> {
             break;
         }
     }
-    let (fx, fy) = radtan_distort(k, a, b);
+    let (fx, fy) = pinhole_distort(k, a, b);
     let err = (fx - xd).hypot(fy - yd);
     let ok = err <= 1e-12 * (1.0 + xd.hypot(yd)) && a * a + b * b <= r2_max;
     ok.then_some((a, b))
@@ -509,7 +666,7 @@ mod tests {
     fn radtan_folds_are_invalid() {
         // k1 < 0 folds at r² = −1/(3 k1).
         let k = [-0.3, 0.0, 0.0, 0.0, 0.0];
-        let r2 = radtan_r2_max(&k);
+        let r2 = pinhole_r2_max(&[-0.3, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]);
         assert!((r2 - 1.0 / 0.9).abs() < 1e-9, "{r2}");
         let cam = Intrinsics {
             width: 640,
@@ -523,6 +680,83 @@ mod tests {
         assert!(cam.project(&Vector3::new(2.0, 0.0, 1.0)).is_none());
         assert!(cam.project(&Vector3::new(0.5, 0.0, -1.0)).is_none());
         assert!(cam.project(&Vector3::new(0.5, 0.2, 1.0)).is_some());
+    }
+
+    fn rational(k: [f64; 8]) -> Intrinsics {
+        Intrinsics {
+            width: 1280,
+            height: 720,
+            fx: 610.2,
+            fy: 609.8,
+            cx: 638.4,
+            cy: 366.9,
+            distortion: Distortion::Rational(k),
+        }
+    }
+
+    /// As a depth camera's colour stream calibrates: numerator and
+    /// denominator nearly cancel.
+    const DEPTH_CAMERA: [f64; 8] = [0.52, -2.6, 6.2e-4, -2.1e-4, 1.5, 0.4, -2.45, 1.42];
+
+    #[test]
+    fn rational_round_trip_across_the_image() {
+        let cam = rational(DEPTH_CAMERA);
+        let mut worst = 0.0_f64;
+        for j in 0..=36 {
+            for i in 0..=64 {
+                let px = Point2::new(f64::from(i) / 64.0 * 1279.0, f64::from(j) / 36.0 * 719.0);
+                let ray = cam.unproject(&px).unwrap();
+                let back = cam.project(&(ray.into_inner() * 2.5)).unwrap();
+                worst = worst.max((back - px).norm());
+            }
+        }
+        assert!(worst < 1e-9, "round trip off by {worst} px");
+    }
+
+    #[test]
+    fn rational_validity_ends_at_a_fold_or_a_pole() {
+        // A denominator 1 − r² has its pole at r² = 1, and the numerator
+        // 1 + r² keeps r·n/d increasing up to it.
+        let pole = rational([1.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0]);
+        let r2 = pinhole_r2_max(&[1.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0]);
+        assert!((r2 - 1.0).abs() < 1e-9, "{r2}");
+        assert!(pole.project(&Vector3::new(0.999, 0.0, 1.0)).is_some());
+        assert!(pole.project(&Vector3::new(1.001, 0.0, 1.0)).is_none());
+        // Numerator 1, denominator 1 + r²: r/(1 + r²) peaks at r = 1.
+        let fold = rational([0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0]);
+        assert!((fold.max_incidence() - std::f64::consts::FRAC_PI_4).abs() < 1e-9);
+        let edge = fold.project(&Vector3::new(0.999_999, 0.0, 1.0)).unwrap();
+        assert!(fold.unproject(&Point2::new(edge.x + 1.0, edge.y)).is_none());
+        let inside = fold.unproject(&Point2::new(edge.x - 1.0, edge.y)).unwrap();
+        assert!(inside.x / inside.z < 1.0);
+        // Tangential terms fold the image where they outgrow the radial
+        // part: with p1 = 0.1 alone, y ↦ y + 0.3 y² along x = 0 turns back
+        // at y = −1/0.6.
+        let tangential = [0.0, 0.0, 0.1, 0.0, 0.0, 0.0, 0.0, 0.0];
+        let r2 = pinhole_r2_max(&tangential);
+        assert!((r2 - 1.0 / 0.36).abs() < 1e-9, "{r2}");
+        let cam = rational(tangential);
+        assert!(cam.project(&Vector3::new(0.0, -1.66, 1.0)).is_some());
+        assert!(cam.project(&Vector3::new(0.0, -1.67, 1.0)).is_none());
+        // The depth camera is valid beyond its image corners.
+        let cam = rational(DEPTH_CAMERA);
+        let fov = cam.field_of_view();
+        assert!(fov.diagonal_deg.is_some(), "{fov:?}");
+        assert!(fov.model_limit_deg > 0.5 * fov.diagonal_deg.unwrap_or(180.0));
+    }
+
+    #[test]
+    fn rig_file_model_names() {
+        let d = Distortion::from_name("pinhole-rational", &DEPTH_CAMERA).unwrap();
+        assert_eq!(d, Distortion::Rational(DEPTH_CAMERA));
+        assert_eq!(d.model_name(), "pinhole-rational");
+        assert_eq!(d.coefficient_names().len(), d.coefficients().len());
+        let e = Distortion::from_name("pinhole-rational", &[0.0; 5]).unwrap_err();
+        assert_eq!((e.field.as_str(), e.found.as_str()), ("distortion", "5"));
+        assert!(e.expected.contains("8 rational"), "{e}");
+        let e = Distortion::from_name("omni", &[0.0; 5]).unwrap_err();
+        assert_eq!(e.field, "model");
+        assert!(e.expected.contains("pinhole-rational"), "{e}");
     }
 
     #[test]

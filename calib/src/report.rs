@@ -138,9 +138,10 @@ pub fn summary(loaded: &Loaded) -> String {
         }
         let coeffs: Vec<String> = k
             .distortion
-            .coefficients()
+            .coefficient_names()
             .iter()
-            .map(|v| format!("{v:.6}"))
+            .zip(k.distortion.coefficients())
+            .map(|(n, v)| format!("{n} {v:.6}"))
             .collect();
         let _ = writeln!(
             s,

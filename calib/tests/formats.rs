@@ -3,11 +3,16 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
+mod common;
+
 use std::path::{Path, PathBuf};
+
+use common::fixture;
 
 use nalgebra::Vector3;
 use proptest::prelude::*;
 use rigview_calib::formats::{self, kalibr, opencv, rig_yaml, ros, Format};
+use rigview_calib::report;
 use rigview_calib::{
     CalibError, Camera, DeviceId, Distortion, Frame, Intrinsics, ModelKind, Pose, Rig,
 };
@@ -99,16 +104,16 @@ proptest! {
     #[test]
     fn rig_yaml_keeps_every_bit(
         f in (positive(), positive(), finite(), finite()),
-        k in prop::array::uniform5(finite()),
-        fisheye in any::<bool>(),
+        k in prop::array::uniform8(finite()),
+        model in 0usize..3,
         ypr in prop::array::uniform3(-180.0..180.0f64),
         t in prop::array::uniform3(finite()),
         w in 1u32..100_000, h in 1u32..100_000,
     ) {
-        let distortion = if fisheye {
-            Distortion::Fisheye([k[0], k[1], k[2], k[3]])
-        } else {
-            Distortion::RadTan(k)
+        let distortion = match model {
+            0 => Distortion::Fisheye([k[0], k[1], k[2], k[3]]),
+            1 => Distortion::RadTan([k[0], k[1], k[2], k[3], k[4]]),
+            _ => Distortion::Rational(k),
         };
         let intr = Intrinsics { width: w, height: h, fx: f.0, fy: f.1, cx: f.2, cy: f.3, distortion };
         let mut cam = Camera::new("c", intr);
@@ -461,8 +466,22 @@ fn bad_kalibr_and_ros_files_get_errors_that_name_file_and_field() {
     let info = ros::write(&rig.cameras[2]).unwrap();
     let cases: Vec<(String, Vec<&str>)> = vec![
         (
+            info.replace("plumb_bob", "fov"),
+            vec![
+                "info.yaml",
+                "distortion_model",
+                "fov",
+                "rational_polynomial",
+            ],
+        ),
+        (
             info.replace("plumb_bob", "rational_polynomial"),
-            vec!["info.yaml", "distortion_model", "rational_polynomial"],
+            vec![
+                "info.yaml",
+                "distortion_coefficients",
+                "8 rational_polynomial coefficients",
+                "found 5",
+            ],
         ),
         (
             info.replacen("rows: 3", "rows: 2", 1),
@@ -503,4 +522,370 @@ fn missing_and_unreadable_files_are_named() {
     assert!(formats::load(&p, Some(Format::OpenCvYaml), None).is_err());
     // Several cameras to a one-camera format need a folder or {camera}.
     assert!(formats::save(&example_rig(), &d.join("one.yaml"), Some(Format::Ros)).is_err());
+}
+
+/// Loads a file both ways: told from its contents, and named.
+fn load_both(p: &Path, format: Format) -> Rig {
+    let auto = formats::load(p, None, None).unwrap();
+    assert_eq!(auto.format, format, "{}", p.display());
+    let named = formats::load(p, Some(format), None).unwrap();
+    assert_eq!(auto.rig, named.rig);
+    auto.rig
+}
+
+#[test]
+fn kalibr_camchain_with_opencvs_header_line() {
+    let (p, text) = fixture("kalibr-opencv-header.yaml");
+    assert!(text.starts_with("%YAML:1.0\n"));
+    let rig = load_both(&p, Format::Kalibr);
+    assert_eq!(rig.frame, Frame::Camera("cam0".into()));
+    assert_eq!(rig.neighbours, [(0, 1)]);
+    let c0 = &rig.cameras[0].intrinsics;
+    assert_eq!(
+        (c0.width, c0.height, c0.fx, c0.cy),
+        (752, 480, 461.2, 246.8)
+    );
+    assert_eq!(
+        c0.distortion,
+        Distortion::RadTan([-0.2831, 0.0738, 0.00021, 1.9e-05, 0.0])
+    );
+    // cam1 sits 0.11 m to the right of cam0.
+    let t = *rig.cameras[1].pose.unwrap().translation();
+    assert!(
+        (t - Vector3::new(0.110_052_318, -0.000_171_210, 0.000_900_939)).norm() < 1e-8,
+        "{t:?}"
+    );
+    // The same chain without the header line reads the same.
+    let plain = kalibr::parse(&text.replacen("%YAML:1.0\n", "", 1), "plain.yaml").unwrap();
+    assert_eq!(plain, rig);
+    // A YAML error after the header gives the line as the file has it.
+    let broken = text.replacen(
+        "  camera_model: pinhole\n",
+        "  camera_model: pinhole: x\n",
+        1,
+    );
+    let at = broken
+        .lines()
+        .position(|l| l.contains("pinhole: x"))
+        .unwrap()
+        + 1;
+    assert_mentions(
+        &err(kalibr::parse(&broken, "chain.yaml")),
+        &["chain.yaml", &format!("line {at} ")],
+    );
+    // Bad variants name the file and the field, header or not.
+    let cases: Vec<(String, Vec<&str>)> = vec![
+        (
+            text.replacen(
+                "distortion_coeffs: [-0.2831, 0.0738, 0.00021, 1.9e-05]",
+                "distortion_coeffs: [-0.2831, 0.0738, 0.00021]",
+                1,
+            ),
+            vec![
+                "chain.yaml",
+                "cam0.distortion_coeffs",
+                "4 radtan",
+                "3 numbers",
+            ],
+        ),
+        (
+            text.replacen("  intrinsics: [461.2, 460.1, 362.4, 246.8]\n", "", 1),
+            vec!["chain.yaml", "cam0.intrinsics", "[fu, fv, pu, pv]"],
+        ),
+    ];
+    for (t, parts) in cases {
+        assert_mentions(&err(kalibr::parse(&t, "chain.yaml")), &parts);
+        let d = tmp("kalibr-bad");
+        let f = d.join("chain.yaml");
+        std::fs::write(&f, &t).unwrap();
+        assert_mentions(&err(formats::load(&f, None, None)), &parts[1..]);
+    }
+}
+
+#[test]
+fn ros_plumb_bob_with_eight_coefficients() {
+    let (p, text) = fixture("ros-plumb-bob-8.yaml");
+    let rig = load_both(&p, Format::Ros);
+    let c = &rig.cameras[0];
+    assert_eq!(c.name, "stereo_left");
+    assert_eq!(
+        c.intrinsics.distortion,
+        Distortion::RadTan([-0.0512, 0.0583, 0.00021, -0.00113, -0.0189])
+    );
+    assert_eq!((c.intrinsics.fx, c.intrinsics.cy), (383.91, 238.24));
+    // Non-zero extra coefficients are the rational model, not plumb_bob.
+    let extra = text.replace("-0.0189, 0, 0, 0]", "-0.0189, 0.25, 0, 0]");
+    assert_ne!(extra, text);
+    assert_mentions(
+        &err(ros::parse(&extra, "left.yaml", "x")),
+        &[
+            "left.yaml",
+            "distortion_coefficients",
+            "5 plumb_bob coefficients",
+            "rational_polynomial",
+            "[0.25, 0.0, 0.0]",
+        ],
+    );
+    // Other counts.
+    let six = text
+        .replace("cols: 8", "cols: 6")
+        .replace("-0.0189, 0, 0, 0]", "-0.0189, 0]");
+    assert_mentions(
+        &err(ros::parse(&six, "left.yaml", "x")),
+        &[
+            "left.yaml",
+            "distortion_coefficients",
+            "5 plumb_bob coefficients",
+            "found 6 coefficients",
+        ],
+    );
+}
+
+/// A rig of one rational camera.
+fn rational_rig() -> Rig {
+    let k = Intrinsics {
+        width: 1280,
+        height: 720,
+        fx: 610.2,
+        fy: 609.8,
+        cx: 638.4,
+        cy: 366.9,
+        distortion: Distortion::Rational([0.52, -2.6, 0.00062, -0.00021, 1.5, 0.4, -2.45, 1.42]),
+    };
+    let mut cam = Camera::new("rgb_camera", k);
+    cam.pose = Some(Pose::from_ypr_deg([5.0, 10.0, 0.0], Vector3::new(1.2, 0.0, 1.4)).unwrap());
+    Rig::new(Frame::Vehicle, vec![cam], vec![]).unwrap()
+}
+
+#[test]
+fn rational_model_reads_and_writes_in_every_format_that_has_it() {
+    let want = rational_rig();
+    let want_k = want.cameras[0].intrinsics;
+    // ROS 1 camera_info and OpenCV's calibration sample with
+    // CALIB_RATIONAL_MODEL.
+    let (p, ros_text) = fixture("ros-rational.yaml");
+    let from_ros = load_both(&p, Format::Ros);
+    assert_eq!(from_ros.cameras[0].intrinsics, want_k);
+    assert_eq!(from_ros.cameras[0].name, "rgb_camera");
+    let (p, cv_text) = fixture("opencv-rational.yaml");
+    let from_cv = load_both(&p, Format::OpenCvYaml);
+    assert_eq!(from_cv.cameras[0].intrinsics, want_k);
+    // Written and read back, bit for bit: rig YAML, ROS, OpenCV YAML and
+    // XML.
+    let back = rig_yaml::parse(&rig_yaml::to_string(&want).unwrap(), "r.yaml").unwrap();
+    assert_eq!(back, want);
+    assert!(rig_yaml::to_string(&want)
+        .unwrap()
+        .contains("model: pinhole-rational"));
+    let text = ros::write(&want.cameras[0]).unwrap();
+    assert!(
+        text.contains("distortion_model: rational_polynomial"),
+        "{text}"
+    );
+    assert_eq!(ros::parse(&text, "r.yaml", "x").unwrap().intrinsics, want_k);
+    for xml in [false, true] {
+        let text = opencv::write(&want.cameras[0], xml).unwrap();
+        let c = opencv::parse(&text, xml, "r", None).unwrap();
+        assert_eq!((c.intrinsics, c.pose), (want_k, want.cameras[0].pose));
+    }
+    // rigview's camera_model: rational keeps 8 coefficients rational even
+    // when k4..k6 are 0; a pinhole file with them 0 is radial-tangential.
+    let mut flat = want.cameras[0].clone();
+    flat.intrinsics.distortion = Distortion::Rational([0.1, 0.01, 0.0, 0.0, 0.001, 0.0, 0.0, 0.0]);
+    let text = opencv::write(&flat, false).unwrap();
+    assert_eq!(
+        opencv::parse(&text, false, "f", None).unwrap().intrinsics,
+        flat.intrinsics
+    );
+    assert_eq!(
+        opencv::parse(
+            &text.replace("camera_model: rational", "camera_model: pinhole"),
+            false,
+            "f",
+            None
+        )
+        .unwrap()
+        .intrinsics
+        .distortion,
+        Distortion::RadTan([0.1, 0.01, 0.0, 0.0, 0.001])
+    );
+    // Kalibr has no rational model: writing says so and names the camera.
+    assert_mentions(
+        &err(kalibr::write(&want)),
+        &["rgb_camera", "Kalibr has no rational"],
+    );
+    // `calib show`'s summary names the model and every coefficient.
+    let shown = report::summary(&formats::Loaded {
+        rig: from_ros,
+        format: Format::Ros,
+        surround: None,
+    });
+    assert_mentions(
+        &shown,
+        &[
+            "pinhole-rational 1280×720",
+            "k1 0.520000, k2 -2.600000, p1 0.000620, p2 -0.000210, k3 1.500000, k4 0.400000, k5 -2.450000, k6 1.420000",
+        ],
+    );
+    // Bad variants.
+    let ros_cases: Vec<(String, Vec<&str>)> = vec![
+        (
+            ros_text
+                .replace("cols: 8", "cols: 5")
+                .replace(", 0.4, -2.45, 1.42]", "]"),
+            vec![
+                "rgb.yaml",
+                "distortion_coefficients",
+                "8 rational_polynomial coefficients k1, k2, p1, p2, k3, k4, k5, k6",
+                "found 5 coefficients",
+            ],
+        ),
+        (
+            ros_text.replace("-2.45", ".nan"),
+            vec![
+                "rgb.yaml",
+                "distortion_coefficients",
+                "numbers",
+                "item 6",
+                ".nan",
+            ],
+        ),
+    ];
+    for (t, parts) in ros_cases {
+        assert_mentions(&err(ros::parse(&t, "rgb.yaml", "x")), &parts);
+    }
+    let with_model = cv_text.replace("flags: 16384", "camera_model: rational");
+    assert!(opencv::parse(&with_model, false, "rgb.yaml", None).is_ok());
+    let cv_cases: Vec<(String, Vec<&str>)> = vec![
+        (
+            with_model
+                .replace("rows: 8", "rows: 5")
+                .replace(
+                    ",\n       1.5000000000000000e+00, 4.0000000000000002e-01,\n       -2.4500000000000002e+00, 1.4199999999999999e+00 ]",
+                    ",\n       1.5 ]",
+                ),
+            vec!["rgb.yaml", "distortion_coefficients", "8 rational coefficients", "found 5"],
+        ),
+        (
+            cv_text.replace("rows: 8", "rows: 12").replace(
+                "1.4199999999999999e+00 ]",
+                "1.4199999999999999e+00, 0., 0.01, 0., 0. ]",
+            ),
+            vec!["rgb.yaml", "distortion_coefficients", "thin-prism", "coefficient 9 = 0.01"],
+        ),
+    ];
+    for (t, parts) in cv_cases {
+        assert_mentions(&err(opencv::parse(&t, false, "rgb.yaml", None)), &parts);
+    }
+}
+
+#[test]
+fn ros2_camera_info_message_as_echoed() {
+    let (p, text) = fixture("ros2-camera-info.yaml");
+    let rig = load_both(&p, Format::Ros);
+    let c = &rig.cameras[0];
+    // A message has no camera name: its frame_id names the camera.
+    assert_eq!(c.name, "camera_optical");
+    assert_eq!(
+        c.intrinsics,
+        Intrinsics {
+            width: 640,
+            height: 480,
+            fx: 500.0,
+            fy: 500.0,
+            cx: 320.0,
+            cy: 240.0,
+            distortion: Distortion::RadTan([-0.28, 0.07, 0.0, 0.0, 0.0]),
+        }
+    );
+    // Without frame_id, the file names the camera.
+    let no_frame = text.replace("  frame_id: camera_optical\n", "");
+    assert_eq!(
+        ros::parse(&no_frame, "f.yaml", "front").unwrap().name,
+        "front"
+    );
+    let empty_frame = text.replace("frame_id: camera_optical", "frame_id: ''");
+    assert_eq!(
+        ros::parse(&empty_frame, "f.yaml", "front").unwrap().name,
+        "front"
+    );
+    // Flow-style lists, as older ROS 2 releases print them, and the
+    // rational model.
+    let rational = text.replace("plumb_bob", "rational_polynomial").replace(
+        "d:\n- -0.28\n- 0.07\n- 0.0\n- 0.0\n- 0.0\n",
+        "d: [-0.28, 0.07, 0.0, 0.0, 0.0, 0.1, 0.0, 0.0]\n",
+    );
+    assert_eq!(
+        ros::parse(&rational, "f.yaml", "x")
+            .unwrap()
+            .intrinsics
+            .distortion,
+        Distortion::Rational([-0.28, 0.07, 0.0, 0.0, 0.0, 0.1, 0.0, 0.0])
+    );
+    // Bad variants name the file, the message's field and what was
+    // expected.
+    let d_list = "d:\n- -0.28\n- 0.07\n- 0.0\n- 0.0\n- 0.0\n";
+    let k_start = text.find("\nk:\n").unwrap() + 1;
+    let k_end = text.find("\nr:\n").unwrap() + 1;
+    let cases: Vec<(String, Vec<&str>)> = vec![
+        (
+            format!("{}{}", &text[..k_start], &text[k_end..]),
+            vec![
+                "cam.yaml",
+                "missing field \"k\"",
+                "9 numbers",
+                "3×3 camera matrix",
+            ],
+        ),
+        (
+            text.replacen("- 1.0\nr:", "r:", 1),
+            vec!["cam.yaml", "field \"k\"", "9 numbers", "found 8 numbers"],
+        ),
+        (
+            text.replace(d_list, "d:\n- -0.28\n- 0.07\n- 0.0\n- 0.0\n- 0.0\n- 0.0\n"),
+            vec![
+                "cam.yaml",
+                "field \"d\"",
+                "5 plumb_bob coefficients",
+                "found 6 coefficients",
+            ],
+        ),
+        (
+            text.replace(d_list, "d: [-0.28, 0.07, 0.0, 0.0, 0.0, 0.0, 0.03, 0.0]\n"),
+            vec![
+                "cam.yaml",
+                "field \"d\"",
+                "rational_polynomial",
+                "[0.0, 0.03, 0.0]",
+            ],
+        ),
+        (
+            text.replace("- 500.0\n- 0.0\n- 320.0", "- 500.0\n- 0.5\n- 320.0"),
+            vec!["cam.yaml", "field \"k\"", "[fx 0 cx; 0 fy cy; 0 0 1]"],
+        ),
+        (
+            text.replace("width: 640", "width: -640"),
+            vec!["cam.yaml", "field \"width\"", "positive whole number"],
+        ),
+        (
+            text.replace("binning_x: 0", "binning_x: 2"),
+            vec!["cam.yaml", "binning_x", "0 or 1", "2"],
+        ),
+        (
+            text.replace("  height: 0\n  width: 0", "  height: 240\n  width: 320"),
+            vec!["cam.yaml", "roi", "the whole image", "320×240 at (0, 0)"],
+        ),
+        (
+            format!("{text}{text}"),
+            vec!["cam.yaml", "2 YAML documents", "expected one"],
+        ),
+    ];
+    for (t, parts) in cases {
+        assert_mentions(&err(ros::parse(&t, "cam.yaml", "x")), &parts);
+    }
+    // A ROS 2 message missing k is still told for camera_info.
+    let d = tmp("ros2");
+    let f = d.join("cam.yaml");
+    std::fs::write(&f, format!("{}{}", &text[..k_start], &text[k_end..])).unwrap();
+    assert_mentions(&err(formats::load(&f, None, None)), &["cam.yaml", "\"k\""]);
 }

@@ -3,8 +3,11 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
+mod common;
+
 use std::path::Path;
 
+use common::fixture;
 use nalgebra::Vector3;
 use proptest::prelude::*;
 use rigview_calib::formats::{self, kalibr, opencv, rig_yaml, ros};
@@ -37,6 +40,9 @@ fn seeds() -> Vec<String> {
         opencv::write(&r.cameras[0], true).unwrap(),
         kalibr::write(&r).unwrap(),
         ros::write(&r.cameras[0]).unwrap(),
+        fixture("kalibr-opencv-header.yaml").1,
+        fixture("ros2-camera-info.yaml").1,
+        fixture("ros-rational.yaml").1,
     ]
 }
 
@@ -65,7 +71,7 @@ proptest! {
 
     #[test]
     fn cut_or_changed_files_never_panic(
-        which in 0usize..5,
+        which in 0usize..8,
         cut in any::<prop::sample::Index>(),
         edits in prop::collection::vec((any::<prop::sample::Index>(), any::<char>()), 0..4),
     ) {
@@ -101,4 +107,7 @@ fn the_seeds_parse() {
     assert!(opencv::parse(&s[2], true, "f", None).is_ok());
     assert!(kalibr::parse(&s[3], "f").is_ok());
     assert!(ros::parse(&s[4], "f", "c").is_ok());
+    assert!(kalibr::parse(&s[5], "f").is_ok());
+    assert!(ros::parse(&s[6], "f", "c").is_ok());
+    assert!(ros::parse(&s[7], "f", "c").is_ok());
 }

@@ -1,6 +1,6 @@
 //! `calib ground` recovers known poses from rendered images of checkerboard
-//! mats: each camera of a synthetic rig (three 190° fisheyes and one
-//! pinhole) sees its own mat, rendered through the camera model at a known
+//! mats: each camera of a synthetic rig (three 190° fisheyes, a
+//! radial-tangential pinhole and a rational pinhole) sees its own mat, rendered through the camera model at a known
 //! pose; the tool detects the corners, solves the poses, and must find the
 //! poses the images were rendered with.
 
@@ -35,6 +35,13 @@ fn pinhole() -> Intrinsics {
     }
 }
 
+fn rational() -> Intrinsics {
+    Intrinsics {
+        distortion: Distortion::Rational([-0.2, 0.05, 0.001, -0.0005, 0.0, 0.15, 0.02, 0.0]),
+        ..pinhole()
+    }
+}
+
 /// The true rig, and each camera's mat: on the ground, centred where the
 /// optical axis meets it, its x axis across the view.
 fn truth() -> (Rig, Vec<GroundMat>) {
@@ -53,6 +60,13 @@ fn truth() -> (Rig, Vec<GroundMat>) {
             pinhole(),
             [-93.0, 50.0, 2.0],
             [0.9, -1.0, 1.0],
+            0.2,
+        ),
+        (
+            "aux",
+            rational(),
+            [-40.0, 50.0, -1.0],
+            [1.6, -0.8, 1.0],
             0.2,
         ),
     ];
@@ -136,7 +150,7 @@ fn recovers_known_poses_from_rendered_mats() {
         assert!(da < 0.1, "{}: rotation off by {da}°", g.camera);
         assert_eq!(solved.camera(&g.camera).unwrap().pose, Some(g.pose));
     }
-    assert_eq!(results.len(), 4);
+    assert_eq!(results.len(), 5);
 
     // A mat of the wrong size is not found, and the error names the camera.
     let mut wrong = GroundLayout::load(&layout_path).unwrap();

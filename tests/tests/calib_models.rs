@@ -2,7 +2,8 @@
 //! `fisheye::projectPoints` / `projectPoints`, unprojection against
 //! `fisheye::undistortPoints` / `undistortPoints`, on random points across
 //! the field of view, for the four real surround-view calibrations and for
-//! pinhole and fisheye model sets of realistic and random coefficients.
+//! pinhole (radial-tangential and rational, OpenCV's 8 coefficients) and
+//! fisheye model sets of realistic and random coefficients.
 //!
 //! OpenCV's fisheye functions work with x/z and clip θd to π/2, so they only
 //! describe the forward hemisphere; there the models must agree to 1e-6 px.
@@ -51,7 +52,7 @@ fn opencv_project(k: &Intrinsics, pts: &[Vector3<f64>]) -> Vec<[f64; 2]> {
             &mut Mat::default(),
         )
         .unwrap(),
-        Distortion::RadTan(_) => opencv::calib3d::project_points(
+        Distortion::RadTan(_) | Distortion::Rational(_) => opencv::calib3d::project_points(
             &obj,
             &zero,
             &zero,
@@ -85,7 +86,7 @@ fn opencv_unproject(k: &Intrinsics, px: &[[f64; 2]]) -> Vec<[f64; 2]> {
             )
             .unwrap();
         }
-        Distortion::RadTan(_) => {
+        Distortion::RadTan(_) | Distortion::Rational(_) => {
             let c = TermCriteria::new(TermCriteria_COUNT + TermCriteria_EPS, 2000, 1e-13).unwrap();
             opencv::calib3d::undistort_points_iter(
                 &src,
@@ -165,6 +166,53 @@ fn model_sets() -> Vec<(String, Intrinsics)> {
         sets.push((
             format!("pinhole random {i}"),
             pinhole(rng.gen_range(450.0..800.0), d),
+        ));
+    }
+    let rational = |w: u32, h: u32, fx: f64, d: [f64; 8]| Intrinsics {
+        width: w,
+        height: h,
+        fx,
+        fy: fx * 0.9993,
+        cx: f64::from(w) / 2.0 - 1.6,
+        cy: f64::from(h) / 2.0 + 3.1,
+        distortion: Distortion::Rational(d),
+    };
+    // As depth cameras' colour streams calibrate: numerator and denominator
+    // nearly cancel.
+    sets.push((
+        "rational depth-camera-like".into(),
+        rational(
+            1280,
+            720,
+            610.2,
+            [0.52, -2.6, 6.2e-4, -2.1e-4, 1.5, 0.4, -2.45, 1.42],
+        ),
+    ));
+    // A wide lens as CALIB_RATIONAL_MODEL fits it: large k1 and k4.
+    sets.push((
+        "rational wide".into(),
+        rational(
+            640,
+            480,
+            300.0,
+            [2.3, 0.9, 2e-4, -3e-4, 0.02, 2.7, 1.6, 0.15],
+        ),
+    ));
+    let mut rng = ChaCha8Rng::seed_from_u64(8);
+    for i in 0..4 {
+        let r = [
+            rng.gen_range(-0.3..0.3),
+            rng.gen_range(-0.1..0.1),
+            rng.gen_range(-0.003..0.003),
+            rng.gen_range(-0.003..0.003),
+            rng.gen_range(-0.02..0.02),
+            rng.gen_range(-0.3..0.3),
+            rng.gen_range(-0.1..0.1),
+            rng.gen_range(-0.02..0.02),
+        ];
+        sets.push((
+            format!("rational random {i}"),
+            rational(640, 480, rng.gen_range(450.0..800.0), r),
         ));
     }
     sets

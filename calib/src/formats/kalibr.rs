@@ -15,7 +15,10 @@
 //!
 //! Supported: `pinhole` with `equidistant` (the OpenCV fisheye model) or
 //! `radtan` (k3 = 0), and `none`. Any other camera or distortion model is an
-//! error that names it. The rig's frame is `cam0`'s (Kalibr knows nothing of
+//! error that names it. Kalibr has no rational distortion model, so a rig
+//! with a `pinhole-rational` camera cannot be written as a camchain (an
+//! error names the camera). A file that begins with OpenCV's `%YAML:1.0`
+//! line, as some tools write camchains, reads like one without it. The rig's frame is `cam0`'s (Kalibr knows nothing of
 //! the ground): cam0 sits at the origin, camera n at the inverse of the
 //! chained `T_cn_cnm1 · … · T_c1_c0`. Other keys (`rostopic`, `T_cam_imu`,
 //! `timeshift_cam_imu`) are ignored on reading.
@@ -205,6 +208,14 @@ pub fn write(rig: &Rig) -> Result<String> {
                 return Err(CalibError::Argument(format!(
                     "camera \"{}\": Kalibr's radtan model has no k3, and k3 = {}",
                     c.name, d[4]
+                )))
+            }
+            Distortion::Rational(_) => {
+                return Err(CalibError::Argument(format!(
+                    "camera \"{}\": Kalibr has no rational distortion model (its pinhole \
+                     distortions are radtan, equidistant, fov and none); write it as rig, \
+                     opencv-yaml, opencv-xml or ros",
+                    c.name
                 )))
             }
         };

@@ -7,7 +7,7 @@
 //! | [`opencv`] OpenCV FileStorage (`.yaml`, `.xml`) | yes | yes | a camera |
 //! | [`surround`] surround layout (a folder of 4 OpenCV files) | yes | — | a camera each |
 //! | [`kalibr`] Kalibr camchain | yes | yes | a rig (frame of cam0) |
-//! | [`ros`] ROS camera_info | yes | yes | a camera |
+//! | [`ros`] ROS camera_info (ROS 1 YAML; ROS 2 message as echoed) | yes | ROS 1 | a camera |
 //!
 //! A folder reads as a rig of its per-camera files (OpenCV or ROS; camera
 //! names from the file names), or, if it holds `front`, `left`, `back` and
@@ -130,35 +130,50 @@ fn has_extension(path: &Path, exts: &[&str]) -> bool {
         .is_some_and(|e| exts.iter().any(|x| e.eq_ignore_ascii_case(x)))
 }
 
-/// Tells a file's format from its contents (and, for XML, its name).
+/// Tells a file's format from its contents (and, for XML, its name). A
+/// `%YAML:1.0` first line alone does not make a file OpenCV's: Kalibr and
+/// ROS files written by some tools begin with it too, so the keys decide.
 pub fn detect(path: &Path, text: &str) -> Result<Format> {
     let file = path.display().to_string();
     let head = text.trim_start_matches('\u{feff}').trim_start();
-    if head.starts_with("%YAML") || text.contains("!!opencv-matrix") {
+    let directive = head.starts_with("%YAML");
+    if text.contains("!!opencv-matrix") {
         return Ok(Format::OpenCvYaml);
     }
     if head.starts_with("<?xml") || head.starts_with("<opencv_storage") {
         return Ok(Format::OpenCvXml);
     }
-    if has_extension(path, &["xml"]) {
+    if !directive && has_extension(path, &["xml"]) {
         return Ok(Format::OpenCvXml);
     }
-    let doc = yaml::parse(text, &file)?;
+    let doc = match yaml::parse(text, &file) {
+        Ok(doc) => doc,
+        // OpenCV's reader says what is wrong with the files it writes.
+        Err(_) if directive => return Ok(Format::OpenCvYaml),
+        Err(e) => return Err(e),
+    };
     let key = |k: &str| doc.get(k).is_some();
+    // ROS writes K as a map {rows, cols, data}; OpenCV as a matrix or list.
+    let ros_matrix = matches!(
+        doc.get("camera_matrix"),
+        None | Some(serde_norway::Value::Mapping(_))
+    );
+    let ros_message = doc.as_mapping().is_some_and(ros::is_message);
     if key("format") {
         Ok(Format::Rig)
     } else if key("cam0") {
         Ok(Format::Kalibr)
-    } else if key("image_width") || key("distortion_model") {
+    } else if (key("image_width") || key("distortion_model") || ros_message) && ros_matrix {
         Ok(Format::Ros)
-    } else if key("camera_matrix") {
+    } else if key("camera_matrix") || directive {
         Ok(Format::OpenCvYaml)
     } else {
         Err(CalibError::Format {
             file,
             detail: "cannot tell the calibration format: expected a rigview rig \
                      (format: rigview-rig), a Kalibr camchain (cam0: …), a ROS camera_info \
-                     (image_width: …) or an OpenCV FileStorage file (%YAML:1.0 or <?xml)"
+                     (image_width: … or a ROS 2 message with width, k, d) or an OpenCV \
+                     FileStorage file (camera_matrix, %YAML:1.0 or <?xml)"
                 .into(),
         })
     }

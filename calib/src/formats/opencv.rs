@@ -4,14 +4,18 @@
 //! - `camera_matrix` (3×3, no skew);
 //! - `dist_coeffs` (or `distortion_coefficients`, OpenCV's calibration
 //!   sample's name): 4 fisheye coefficients, or 4, 5, 8, 12 or 14 pinhole
-//!   coefficients of which only k1, k2, p1, p2, k3 may be non-zero;
+//!   coefficients in OpenCV's order (k1, k2, p1, p2, k3, k4, k5, k6, then
+//!   the thin-prism and tilt terms, which must be 0). A pinhole file whose
+//!   k4, k5 or k6 is non-zero is the rational model (`CALIB_RATIONAL_MODEL`),
+//!   otherwise the radial-tangential one;
 //! - `resolution` (2 ints: width, height; or `image_width` and
 //!   `image_height`);
-//! - `camera_model` (`fisheye` or `pinhole`), which rigview writes. Without
-//!   it, the model comes from the caller's hint, else from the surround
-//!   layout (a file with `project_matrix` is fisheye), else from the number
-//!   of coefficients (5 or more: pinhole); 4 coefficients without any of
-//!   these are ambiguous and an error says so;
+//! - `camera_model` (`fisheye`, `pinhole` or `rational`), which rigview
+//!   writes; `rational` keeps 8 coefficients as the rational model even
+//!   when k4..k6 are 0. Without it, the model comes from the caller's hint,
+//!   else from the surround layout (a file with `project_matrix` is
+//!   fisheye), else from the number of coefficients (5 or more: pinhole); 4
+//!   coefficients without any of these are ambiguous and an error says so;
 //! - `project_matrix` (3×3), `scale_xy`, `shift_xy` (2 each) of the surround
 //!   layout (see [`super::surround`]);
 //! - `rotation_camera_to_rig` (3×3) and `translation_camera_in_rig_m` (3),
@@ -412,18 +416,19 @@ impl Reader<'_> {
                 match s.as_str() {
                     "fisheye" => Some(ModelKind::Fisheye),
                     "pinhole" => Some(ModelKind::Pinhole),
+                    "rational" => Some(ModelKind::Rational),
                     _ if n.is_string().unwrap_or(false) => {
                         return Err(CalibError::UnknownModel {
                             file: self.file.into(),
                             field: "camera_model".into(),
                             model: s,
-                            supported: "fisheye, pinhole".into(),
+                            supported: "fisheye, pinhole, rational".into(),
                         })
                     }
                     _ => {
                         return Err(self.field(
                             "camera_model",
-                            "\"fisheye\" or \"pinhole\"",
+                            "\"fisheye\", \"pinhole\" or \"rational\"",
                             Self::describe(&n),
                         ))
                     }
@@ -442,22 +447,40 @@ impl Reader<'_> {
             Some(ModelKind::Fisheye) => {
                 return Err(self.field(dist_key, "4 fisheye coefficients k1..k4", format!("{n}")))
             }
-            Some(ModelKind::Pinhole) if matches!(n, 4 | 5 | 8 | 12 | 14) => {
-                if let Some(i) = (5..n).find(|&i| dist.data[i] != 0.0) {
+            Some(kind @ (ModelKind::Pinhole | ModelKind::Rational))
+                if matches!(n, 4 | 5 | 8 | 12 | 14)
+                    && (kind == ModelKind::Pinhole || n >= 8) =>
+            {
+                let d = &dist.data;
+                if let Some(i) = (8..n).find(|&i| d[i] != 0.0) {
                     return Err(self.field(
                         dist_key,
-                        "radial-tangential coefficients k1, k2, p1, p2, k3 (the rational, thin-prism and tilt terms must be 0)",
-                        format!("coefficient {i} = {}", dist.data[i]),
+                        "pinhole coefficients k1, k2, p1, p2, k3[, k4, k5, k6] (the thin-prism and tilt terms must be 0)",
+                        format!("coefficient {i} = {}", d[i]),
                     ));
                 }
-                let mut k = [0.0; 5];
-                k[..n.min(5)].copy_from_slice(&dist.data[..n.min(5)]);
-                Distortion::RadTan(k)
+                let rational_terms = n >= 8 && d[5..8].iter().any(|&v| v != 0.0);
+                if n >= 8 && (kind == ModelKind::Rational || rational_terms) {
+                    let mut k = [0.0; 8];
+                    k.copy_from_slice(&d[..8]);
+                    Distortion::Rational(k)
+                } else {
+                    let mut k = [0.0; 5];
+                    k[..n.min(5)].copy_from_slice(&d[..n.min(5)]);
+                    Distortion::RadTan(k)
+                }
             }
             Some(ModelKind::Pinhole) => {
                 return Err(self.field(
                     dist_key,
                     "4, 5, 8, 12 or 14 pinhole coefficients",
+                    format!("{n}"),
+                ))
+            }
+            Some(ModelKind::Rational) => {
+                return Err(self.field(
+                    dist_key,
+                    "8 rational coefficients k1, k2, p1, p2, k3, k4, k5, k6 (or 12 or 14 whose terms after k6 are 0)",
                     format!("{n}"),
                 ))
             }
@@ -554,6 +577,7 @@ pub fn write(camera: &Camera, xml: bool) -> Result<String> {
     let model = match k.distortion {
         Distortion::Fisheye(_) => "fisheye",
         Distortion::RadTan(_) => "pinhole",
+        Distortion::Rational(_) => "rational",
     };
     cv(ctx, fs.write_str("camera_model", model))?;
     if let Some(p) = &camera.pose {

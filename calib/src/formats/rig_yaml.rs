@@ -9,11 +9,12 @@
 //!   device:                 # optional; exactly one of the two
 //!     genicam: Basler-21234567
 //!     # ip: 192.168.10.11
-//!   model: fisheye          # or pinhole-radtan
+//!   model: fisheye          # or pinhole-radtan, pinhole-rational
 //!   resolution_px: [960, 640]
 //!   focal_px: [302.45, 320.75]
 //!   principal_point_px: [496.64, 331.20]
-//!   distortion: [-0.0437, 0.0217, -0.0264, 0.0084]   # fisheye: k1..k4; pinhole-radtan: k1, k2, p1, p2, k3
+//!   distortion: [-0.0437, 0.0217, -0.0264, 0.0084]   # fisheye: k1..k4; pinhole-radtan: k1, k2, p1, p2, k3;
+//!                                                    # pinhole-rational: k1, k2, p1, p2, k3, k4, k5, k6
 //!   pose:                   # optional; camera (OpenCV axes) to rig frame
 //!     translation_m: [1.9, 0.0, 0.9]                 # camera centre, metres
 //!     rotation_matrix: [[...], [...], [...]]         # row-major, p_rig = R·p_cam + t
@@ -184,17 +185,7 @@ fn from_doc(doc: RigDoc) -> Result<Rig, FieldError> {
 }
 
 fn camera_from_doc(c: CameraDoc) -> Result<Camera, FieldError> {
-    let distortion = Distortion::from_name(&c.model, &c.distortion).map_err(|e| {
-        if matches!(c.model.as_str(), "fisheye" | "pinhole-radtan") {
-            e
-        } else {
-            FieldError::new(
-                "model",
-                "\"fisheye\" or \"pinhole-radtan\"",
-                format!("\"{}\"", c.model),
-            )
-        }
-    })?;
+    let distortion = Distortion::from_name(&c.model, &c.distortion)?;
     let intrinsics = Intrinsics {
         width: c.resolution_px[0],
         height: c.resolution_px[1],

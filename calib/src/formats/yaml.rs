@@ -1,16 +1,51 @@
 //! Reading plain YAML documents (Kalibr, ROS) field by field, so that every
 //! error names the field and says what was expected.
 
+use std::borrow::Cow;
+
+use serde::Deserialize;
 use serde_norway::{Mapping, Value};
 
 use crate::error::{CalibError, FieldError, Result};
 
-/// Parses YAML text into a document; `file` names it in errors.
+/// The text with OpenCV's `%YAML:1.0` line blanked (line numbers stay as
+/// they are), and whether it had one. OpenCV writes that line first in
+/// every YAML file, and some other tools copy it (Kalibr camchains from
+/// some pipelines begin with it); YAML parsers refuse it, since YAML's own
+/// directive is `%YAML 1.1` or `%YAML 1.2`, which they accept.
+pub(crate) fn without_opencv_directive(text: &str) -> (Cow<'_, str>, bool) {
+    let body = text.trim_start_matches('\u{feff}');
+    if !body.starts_with("%YAML:") {
+        return (Cow::Borrowed(text), false);
+    }
+    let rest = body.find('\n').map_or("", |i| &body[i..]);
+    (Cow::Owned(rest.to_owned()), true)
+}
+
+/// Parses YAML text into a document; `file` names it in errors. OpenCV's
+/// `%YAML:1.0` line is passed over, and so are empty documents (a `---`
+/// after the document, as `ros2 topic echo` prints it); more than one
+/// document is an error.
 pub(crate) fn parse(text: &str, file: &str) -> Result<Value> {
-    serde_norway::from_str::<Value>(text).map_err(|e| CalibError::Parse {
+    let parse_error = |detail: String| CalibError::Parse {
         file: file.into(),
-        detail: e.to_string(),
-    })
+        detail,
+    };
+    let (text, _) = without_opencv_directive(text);
+    let mut docs = Vec::new();
+    for doc in serde_norway::Deserializer::from_str(&text) {
+        let v = Value::deserialize(doc).map_err(|e| parse_error(e.to_string()))?;
+        if !v.is_null() {
+            docs.push(v);
+        }
+    }
+    match docs.len() {
+        0 => Ok(Value::Null),
+        1 => Ok(docs.swap_remove(0)),
+        n => Err(parse_error(format!(
+            "{n} YAML documents (separated by ---); expected one"
+        ))),
+    }
 }
 
 /// A short description of a value, for "found …".

@@ -214,7 +214,7 @@ fn undistort(k: &Intrinsics, corners: &[[f64; 2]]) -> Result<Vec<[f64; 2]>> {
                 ),
             )?;
         }
-        Distortion::RadTan(_) => {
+        Distortion::RadTan(_) | Distortion::Rational(_) => {
             let criteria = cv(
                 "undistortion criteria",
                 TermCriteria::new(TermCriteria_COUNT + TermCriteria_EPS, 200, 1e-12),

@@ -1,6 +1,6 @@
 //! Intrinsic calibration from chessboard images, through OpenCV
-//! (`calibrateCamera` for the pinhole model, `fisheye::calibrate` for the
-//! fisheye model).
+//! (`calibrateCamera` for the pinhole models, with `CALIB_RATIONAL_MODEL`
+//! for the rational one; `fisheye::calibrate` for the fisheye model).
 //!
 //! Every image is either used or rejected with a reason: it cannot be read,
 //! its size differs from the first image's, the board is not found whole,
@@ -217,11 +217,16 @@ fn run(views: &[View], board: Board, model: ModelKind, w: u32, h: u32) -> Result
         "calibration criteria",
         TermCriteria::new(TermCriteria_COUNT + TermCriteria_EPS, 100, f64::EPSILON),
     )?;
+    let flags = if model == ModelKind::Rational {
+        opencv::calib3d::CALIB_RATIONAL_MODEL
+    } else {
+        0
+    };
     let opencv_rms = match model {
-        ModelKind::Pinhole => cv(
+        ModelKind::Pinhole | ModelKind::Rational => cv(
             "calibrateCamera",
             opencv::calib3d::calibrate_camera(
-                &obj, &img, size, &mut k, &mut d, &mut rvecs, &mut tvecs, 0, criteria,
+                &obj, &img, size, &mut k, &mut d, &mut rvecs, &mut tvecs, flags, criteria,
             ),
         )?,
         ModelKind::Fisheye => cv(
@@ -251,6 +256,9 @@ fn run(views: &[View], board: Board, model: ModelKind, w: u32, h: u32) -> Result
         ModelKind::Fisheye if dv.len() >= 4 => Distortion::Fisheye([dv[0], dv[1], dv[2], dv[3]]),
         ModelKind::Pinhole if dv.len() >= 5 => {
             Distortion::RadTan([dv[0], dv[1], dv[2], dv[3], dv[4]])
+        }
+        ModelKind::Rational if dv.len() >= 8 => {
+            Distortion::Rational([dv[0], dv[1], dv[2], dv[3], dv[4], dv[5], dv[6], dv[7]])
         }
         _ => {
             return Err(CalibError::Calibration(
