@@ -5,6 +5,8 @@
 //!   2018): metering, the gradient-information metric, the γ̂ estimator, the
 //!   update laws, multi-camera balancing, the shutter/gain split, baselines and
 //!   the per-camera and per-rig controllers.
+//! - [`image`]: camera frames as the crate reads them: pixel formats,
+//!   borrowed frames, region-of-interest masks and luminance.
 //! - [`pipeline`]: the capture and processing threads of the app and its
 //!   headless mode: bounded drop-oldest queues, live control, telemetry and
 //!   stage times.
@@ -21,6 +23,7 @@
 
 pub mod error;
 pub mod exposure;
+pub mod image;
 pub mod pipeline;
 pub mod sim;
 pub mod source;

@@ -6,7 +6,7 @@ use opencv::imgproc;
 use super::remap::Image;
 use super::{BlendMode, SurroundView};
 use crate::error::{Error, Result};
-use crate::exposure::{FrameView, PixelFormat};
+use crate::image::{FrameView, PixelFormat};
 
 /// A composed canvas: 8-bit, 1 (mono) or 3 (RGB) channels, row-major.
 #[derive(Clone, Debug, PartialEq, Eq)]

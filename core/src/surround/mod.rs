@@ -61,7 +61,8 @@ pub use compose::{Canvas, Composer};
 
 use crate::error::{Error, Result};
 use crate::exposure::controller::PairObservation;
-use crate::exposure::{FrameView, PatchPair, RoiMask};
+use crate::exposure::PatchPair;
+use crate::image::{FrameView, RoiMask};
 
 /// The ground rectangle a canvas shows, and at what resolution.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -1005,7 +1006,7 @@ mod tests {
 
     #[test]
     fn compositions_are_within_a_level_of_the_exact_blend_in_every_mode() {
-        use crate::exposure::PixelFormat;
+        use crate::image::PixelFormat;
         use rand::{Rng, SeedableRng};
         let (sw, sh) = (160usize, 120usize);
         let view = small_view(sw as u32, sh as u32);
