@@ -1,6 +1,8 @@
 //! `rigview-core`: the algorithms of rigview that need neither a camera nor a
 //! display.
 //!
+//! - [`cpu`]: the vector instruction sets the kernels are compiled for, and
+//!   which of them this CPU runs.
 //! - [`exposure`]: gradient-based auto-exposure after Shim et al. (IEEE TCSVT
 //!   2018): metering, the gradient-information metric, the γ̂ estimator, the
 //!   update laws, multi-camera balancing, the shutter/gain split, baselines and
@@ -21,6 +23,7 @@
 //! - [`synth`]: small synthetic high-dynamic-range scenes seen by linear
 //!   cameras, for the exposure core's own tests and benchmarks.
 
+pub mod cpu;
 pub mod error;
 pub mod exposure;
 pub mod image;

@@ -36,7 +36,6 @@ pub use estimator::{
     Darker, Estimate, EstimateOptions, Estimator, EstimatorConfig, Simulation, DARKER_MIN_EV,
     DEFAULT_ANCHORS,
 };
-pub use kernel::Isa;
 pub use laws::{LawKind, LawParams};
 pub use metering::{CameraMasks, ImageStats, Meter, Metered, MeteringConfig, PreparedMask};
 pub use metric::{GradientMetric, MetricParams};

@@ -34,7 +34,7 @@
 //! [`SurroundView::build`] maps every canvas pixel directly to sub-pixel
 //! positions in the fisheye images (no intermediate undistorted image). On
 //! first use of a blend mode it turns the maps and weights into a plan of
-//! fixed-point bilinear taps with the blend weights folded in (`remap.rs`):
+//! fixed-point bilinear taps with the blend weights folded in (`remap/`):
 //! per frame, [`Composer::compose`] then writes each canvas pixel once,
 //! from one gathered bilinear sample where one camera shows it and from the
 //! sum of the cameras' samples in the overlaps.
