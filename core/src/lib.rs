@@ -8,7 +8,8 @@
 //!   update laws, multi-camera balancing, the shutter/gain split, baselines and
 //!   the per-camera and per-rig controllers.
 //! - [`image`]: camera frames as the crate reads them: pixel formats,
-//!   borrowed frames, region-of-interest masks and luminance.
+//!   borrowed frames, region-of-interest masks and luminance; 8-bit colour
+//!   conversion and the Euclidean distance transform.
 //! - [`pipeline`]: the capture and processing threads of the app and its
 //!   headless mode: bounded drop-oldest queues, live control, telemetry and
 //!   stage times.

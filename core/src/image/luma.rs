@@ -11,6 +11,21 @@ const W_G: f32 = 0.587;
 /// BT.601 weight of blue.
 const W_B: f32 = 0.114;
 
+/// Bits of the fixed-point weights of 8-bit conversions ([`FIXED`]).
+pub(crate) const FIXED_SHIFT: u32 = 15;
+
+/// The weights of red, green and blue in 1/2¹⁵: red's and green's rounded,
+/// blue's the rest of 2¹⁵, so that they sum to exactly one: 9798, 19235 and
+/// 3735 (OpenCV's for 8-bit `RGB2GRAY`).
+pub(crate) const FIXED: [u32; 3] = {
+    let (r, g) = (fixed(W_R), fixed(W_G));
+    [r, g, (1 << FIXED_SHIFT) - r - g]
+};
+
+const fn fixed(w: f32) -> u32 {
+    (w * (1u32 << FIXED_SHIFT) as f32 + 0.5) as u32
+}
+
 /// The luminance of red, green and blue values (or of sums of them, in
 /// their own units): `W_R·r + W_G·g + W_B·b`.
 #[inline(always)]
@@ -93,5 +108,16 @@ pub(crate) fn luma_row(format: PixelFormat, src: &[u8], dst: &mut [f32]) {
                 *d = f32::from(s) * (1.0 / 255.0);
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_fixed_point_weights_are_opencvs_and_sum_to_one() {
+        assert_eq!(FIXED, [9798, 19235, 3735]);
+        assert_eq!(FIXED.iter().sum::<u32>(), 1 << FIXED_SHIFT);
     }
 }
