@@ -21,11 +21,23 @@
 //! The rig: four 185° equidistant fisheyes at 1288×964, 1 m high, looking
 //! past the four sides of a 4.6 m × 1.9 m car, tilted down (front and back
 //! 30°, sides 45°). Results: `BENCHMARKS.md`.
+//!
+//! Two image operations of the view, each against the OpenCV call it
+//! replaces (one OpenCV thread):
+//!
+//! - `rgb_to_mono_4x1288x964`: `image::rgb8_to_mono8` of the four frames
+//!   (what "mono from RGB" composes from) against `cvtColor RGB2GRAY`.
+//! - `distance_transform_1000x1000`: `image::distance_to_zero` of the
+//!   complement of the front camera's exclusive region (once per camera
+//!   when a view is built) against `distanceTransform` `DIST_L2` with
+//!   `DIST_MASK_PRECISE` (the same exact distances) and with `DIST_MASK_5`
+//!   (the chamfer approximation rigview called before).
 
 use std::hint::black_box;
 use std::time::Duration;
 
-use criterion::{criterion_group, criterion_main, Criterion};
+use criterion::measurement::WallTime;
+use criterion::{criterion_group, criterion_main, BenchmarkGroup, Criterion};
 use nalgebra::{Matrix3, Vector3};
 use opencv::core::{self, Mat, MatTraitConst, MatTraitConstManual, Scalar, Size, CV_32F, CV_32FC3};
 use opencv::{calib3d, imgproc};
@@ -34,6 +46,7 @@ use rigview_calib::model::{Distortion, Intrinsics};
 use rigview_calib::pose::Pose;
 use rigview_calib::rig::{Camera, Frame, Rig};
 use rigview_core::exposure::{FrameView, PixelFormat};
+use rigview_core::image::{distance_to_zero, rgb8_to_mono8};
 use rigview_core::surround::{
     BlendMode, Canvas, CanvasSpec, Composer, SurroundOptions, SurroundView,
 };
@@ -421,11 +434,7 @@ fn compose(c: &mut Criterion) {
         covered as f64 / (view.size().0 * view.size().1) as f64
     );
 
-    let mut group = c.benchmark_group("surround_4x1288x964_to_1000x1000");
-    group
-        .sample_size(20)
-        .warm_up_time(Duration::from_secs(1))
-        .measurement_time(Duration::from_secs(4));
+    let mut group = group(c, "surround_4x1288x964_to_1000x1000", 4);
     group.bench_function("rigview_linear_rgb", |b| {
         b.iter(|| {
             composer
@@ -466,5 +475,121 @@ fn compose(c: &mut Criterion) {
     core::set_num_threads(threads).unwrap();
 }
 
-criterion_group!(benches, compose);
+/// A benchmark group of 20 samples after a 1 s warm-up, over `seconds`.
+fn group<'c>(c: &'c mut Criterion, name: &str, seconds: u64) -> BenchmarkGroup<'c, WallTime> {
+    let mut group = c.benchmark_group(name);
+    group
+        .sample_size(20)
+        .warm_up_time(Duration::from_secs(1))
+        .measurement_time(Duration::from_secs(seconds));
+    group
+}
+
+/// The 8-bit RGB to grey conversion of the four frames, rigview's and
+/// OpenCV's.
+fn rgb_to_mono(c: &mut Criterion) {
+    let threads = core::get_num_threads().unwrap();
+    core::set_num_threads(1).unwrap();
+    let data = frames();
+    let mats: Vec<Mat> = data
+        .iter()
+        .map(|f| {
+            Mat::new_rows_cols_with_data(H as i32, (W * 3) as i32, f)
+                .unwrap()
+                .reshape(3, H as i32)
+                .unwrap()
+                .try_clone()
+                .unwrap()
+        })
+        .collect();
+    let mut ours = vec![vec![0u8; W * H]; 4];
+    let mut theirs = vec![Mat::default(); 4];
+    for ((f, o), (m, t)) in data.iter().zip(&mut ours).zip(mats.iter().zip(&mut theirs)) {
+        rgb8_to_mono8(f, o).unwrap();
+        imgproc::cvt_color(m, t, imgproc::COLOR_RGB2GRAY, 0).unwrap();
+        assert_eq!(o.as_slice(), t.data_bytes().unwrap(), "the same bytes");
+    }
+    let mut group = group(c, "rgb_to_mono_4x1288x964", 2);
+    group.bench_function("rigview", |b| {
+        b.iter(|| {
+            for (f, o) in black_box(&data).iter().zip(&mut ours) {
+                rgb8_to_mono8(f, o).unwrap();
+            }
+        });
+    });
+    group.bench_function("opencv", |b| {
+        b.iter(|| {
+            for (m, t) in black_box(&mats).iter().zip(&mut theirs) {
+                imgproc::cvt_color(m, t, imgproc::COLOR_RGB2GRAY, 0).unwrap();
+            }
+        });
+    });
+    group.finish();
+    core::set_num_threads(threads).unwrap();
+}
+
+/// The distance transform a view build runs per camera, rigview's and
+/// OpenCV's.
+fn distance_transform(c: &mut Criterion) {
+    let threads = core::get_num_threads().unwrap();
+    core::set_num_threads(1).unwrap();
+    let view =
+        SurroundView::build(&rig(), &CanvasSpec::default(), &SurroundOptions::default()).unwrap();
+    let (w, h) = view.size();
+    // 0 where the front camera alone shows the ground (all its weight).
+    let layer = &view.layers()[0];
+    let [c0, r0, rw, rh] = layer.roi;
+    let mut mask = vec![255u8; w * h];
+    for r in 0..rh {
+        for col in 0..rw {
+            if layer.weights[0][r * rw + col] == 256 {
+                mask[(r0 + r) * w + c0 + col] = 0;
+            }
+        }
+    }
+    let src = Mat::new_rows_cols_with_data(h as i32, w as i32, &mask)
+        .unwrap()
+        .try_clone()
+        .unwrap();
+    let opencv = |precise: bool| {
+        let mut dst = Mat::default();
+        let size = if precise {
+            imgproc::DIST_MASK_PRECISE
+        } else {
+            imgproc::DIST_MASK_5
+        };
+        imgproc::distance_transform(&src, &mut dst, imgproc::DIST_L2, size, CV_32F).unwrap();
+        dst
+    };
+    let ours = distance_to_zero(&mask, w, h).unwrap();
+    let precise = opencv(true);
+    assert_eq!(
+        ours.as_slice(),
+        precise.data_typed::<f32>().unwrap(),
+        "the same distances"
+    );
+    // How far the chamfer approximation is from the exact distances.
+    let chamfer = opencv(false);
+    let worst = ours
+        .iter()
+        .zip(chamfer.data_typed::<f32>().unwrap())
+        .filter(|(&d, _)| d >= 1.0)
+        .map(|(&d, &a)| ((a - d) / d).abs())
+        .fold(0.0f32, f32::max);
+    eprintln!(
+        "distance_transform_1000x1000: largest distance {:.1} px, DIST_MASK_5 off by up to {:.2} %",
+        ours.iter().copied().fold(0.0f32, f32::max),
+        100.0 * worst
+    );
+    let mut group = group(c, "distance_transform_1000x1000", 2);
+    group.bench_function("rigview", |b| {
+        b.iter(|| distance_to_zero(black_box(&mask), w, h).unwrap());
+    });
+    group.bench_function("opencv_precise", |b| b.iter(|| opencv(true)));
+    group.bench_function("opencv_mask5", |b| b.iter(|| opencv(false)));
+    group.finish();
+    core::set_num_threads(threads).unwrap();
+}
+
+criterion_group!(benches, compose, rgb_to_mono, distance_transform);
 criterion_main!(benches);

@@ -1,10 +1,15 @@
 //! `rigview-core`: the algorithms of rigview that need neither a camera nor a
 //! display.
 //!
+//! - [`cpu`]: the vector instruction sets the kernels are compiled for, and
+//!   which of them this CPU runs.
 //! - [`exposure`]: gradient-based auto-exposure after Shim et al. (IEEE TCSVT
 //!   2018): metering, the gradient-information metric, the γ̂ estimator, the
 //!   update laws, multi-camera balancing, the shutter/gain split, baselines and
 //!   the per-camera and per-rig controllers.
+//! - [`image`]: camera frames as the crate reads them: pixel formats,
+//!   borrowed frames, region-of-interest masks and luminance; 8-bit colour
+//!   conversion and the Euclidean distance transform.
 //! - [`pipeline`]: the capture and processing threads of the app and its
 //!   headless mode: bounded drop-oldest queues, live control, telemetry and
 //!   stage times.
@@ -19,8 +24,10 @@
 //! - [`synth`]: small synthetic high-dynamic-range scenes seen by linear
 //!   cameras, for the exposure core's own tests and benchmarks.
 
+pub mod cpu;
 pub mod error;
 pub mod exposure;
+pub mod image;
 pub mod pipeline;
 pub mod sim;
 pub mod source;

@@ -16,7 +16,8 @@ use std::time::Duration;
 
 use serde::{Deserialize, Serialize};
 
-use crate::exposure::{ExposureRange, ExposureSetting, FrameView, PixelFormat};
+use crate::exposure::{ExposureRange, ExposureSetting};
+use crate::image::{FrameView, PixelFormat};
 use crate::{Error, Result};
 
 /// How a frame arrived.

@@ -407,7 +407,8 @@ impl StripHarness {
 
     /// Renders, meters and measures the next frame set.
     pub fn capture(&mut self) -> Result<CapturedSet> {
-        use crate::exposure::{FrameInfo, FrameView, PairObservation, PatchPair, PixelFormat};
+        use crate::exposure::{FrameInfo, PairObservation, PatchPair};
+        use crate::image::{FrameView, PixelFormat};
         let id = self.next_frame;
         let (due, later): (Vec<_>, Vec<_>) =
             self.queued.drain(..).partition(|(at, _, _)| *at <= id);

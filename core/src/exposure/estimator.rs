@@ -103,9 +103,10 @@
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
 
-use super::kernel::{self, Isa, Source};
+use super::kernel::{self, Source};
 use super::metering::{Metered, SATURATED_LEVEL};
 use super::metric::{GradientMetric, MetricParams, Scratch};
+use crate::cpu::Isa;
 use crate::error::{Error, Result};
 
 /// The paper's seven anchors.
@@ -477,8 +478,9 @@ impl Estimator {
     }
 
     /// Runs the kernels with the vector instruction set `isa` (or the
-    /// widest the CPU has, if it lacks `isa`) instead of the widest; for
-    /// comparisons and benchmarks. Returns the one chosen.
+    /// widest below it that the CPU has and the kernels have code for; see
+    /// [`Scratch::with_isa`]) instead of the widest; for comparisons and
+    /// benchmarks. Returns the one chosen.
     pub fn set_isa(&mut self, isa: Isa) -> Isa {
         self.scratch = Scratch::with_isa(isa);
         self.scratch.isa()

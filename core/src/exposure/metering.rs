@@ -1,11 +1,10 @@
 //! Metering: luminance from a camera frame, an optional region of interest,
 //! and area downsampling to the metering size.
 //!
-//! The metered image is what the estimator sees. Luminance uses the BT.601
-//! weights (0.299 R + 0.587 G + 0.114 B, as OpenCV's `RGB2GRAY`) on the
-//! camera's values, normalised to [0, 1] by the format's full scale. Bayer
-//! frames are read as 2×2 quads (one R, two G, one B), so no demosaicing is
-//! needed. Downsampling averages `k×k` blocks with one integer factor `k`,
+//! The metered image is what the estimator sees. Luminance is read as
+//! [`crate::image`] defines it (BT.601 weights, normalised to [0, 1] by the
+//! format's full scale; Bayer frames as 2×2 quads, so no demosaicing is
+//! needed). Downsampling averages `k×k` blocks with one integer factor `k`,
 //! the largest that keeps the result at least as large as the target: a
 //! 1288×964 frame with the default 320×240 target gives 322×241.
 //!
@@ -18,12 +17,9 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::frame::{FrameView, PixelFormat, RoiMask};
 use crate::error::{Error, Result};
-
-pub(crate) const W_R: f32 = 0.299;
-pub(crate) const W_G: f32 = 0.587;
-pub(crate) const W_B: f32 = 0.114;
+use crate::image::luma::{self, bayer_luma_row, bayer_row, bayer_weights, luma_row};
+use crate::image::{FrameView, PixelFormat, RoiMask};
 
 /// Luminance at or above this counts as saturated in [`ImageStats`].
 pub const SATURATED_LEVEL: f32 = 0.98;
@@ -616,9 +612,9 @@ const SATURATED_BYTE: u8 = 250;
 /// The luminance of the saturated samples of `k×k` blocks of an 8-bit
 /// frame with `c` channels (1: mono, 3: RGB) over the frame rows `rows`,
 /// into `out` (in samples: a saturated grey sample counts 1, a saturated
-/// red channel `W_R`). The counts per sample column are kept in bytes
-/// while a block is at most 255 rows tall (16 columns per SSE2 operation),
-/// in 16-bit words beyond.
+/// red channel its luminance weight, 0.299). The counts per sample column
+/// are kept in bytes while a block is at most 255 rows tall (16 columns per
+/// SSE2 operation), in 16-bit words beyond.
 fn saturated_sums_8bit(
     frame: &FrameView<'_>,
     rows: std::ops::Range<usize>,
@@ -690,13 +686,14 @@ fn saturated_sums_in<T>(
     }
 }
 
-/// `W_R·ΣR + W_G·ΣG + W_B·ΣB` of the RGB triples in `block`.
+/// The luminance of the summed channels of the RGB triples in `block`
+/// ([`luma::rgb`] of `ΣR`, `ΣG`, `ΣB`).
 fn rgb_sum<T: Copy + Into<u32>>(block: &[T]) -> f32 {
     let (pixels, _) = block.as_chunks::<3>();
     let [r, g, b] = pixels.iter().fold([0u32; 3], |[r, g, b], p| {
         [r + p[0].into(), g + p[1].into(), b + p[2].into()]
     });
-    W_R * r as f32 + W_G * g as f32 + W_B * b as f32
+    luma::rgb(r as f32, g as f32, b as f32)
 }
 
 /// The luminance of the saturated samples of a row of 2×2 Bayer quads (a
@@ -704,17 +701,6 @@ fn rgb_sum<T: Copy + Into<u32>>(block: &[T]) -> f32 {
 fn bayer_saturated_row(format: PixelFormat, top: &[u8], bottom: &[u8], dst: &mut [f32]) {
     let sat = |v: u8| if v >= SATURATED_BYTE { 1.0 } else { 0.0 };
     bayer_row(bayer_weights(format), top, bottom, dst, sat);
-}
-
-/// `Σ w_i·value(sample_i)` over each 2×2 Bayer quad of the two rows.
-fn bayer_row(w: [f32; 4], top: &[u8], bottom: &[u8], dst: &mut [f32], value: impl Fn(u8) -> f32) {
-    for ((d, t), b) in dst
-        .iter_mut()
-        .zip(top.chunks_exact(2))
-        .zip(bottom.chunks_exact(2))
-    {
-        *d = w[0] * value(t[0]) + w[1] * value(t[1]) + w[2] * value(b[0]) + w[3] * value(b[1]);
-    }
 }
 
 /// Adds the sums of `row`'s consecutive blocks of `k` to `out`.
@@ -742,65 +728,18 @@ fn add_block_sums(out: &mut [f32], row: &[f32], k: usize) {
     }
 }
 
-/// Luminance of one row of a non-Bayer frame.
-fn luma_row(format: PixelFormat, src: &[u8], dst: &mut [f32]) {
-    match format {
-        PixelFormat::Mono8 => {
-            for (d, &s) in dst.iter_mut().zip(src) {
-                *d = f32::from(s) * (1.0 / 255.0);
-            }
-        }
-        PixelFormat::Mono12 => {
-            for (d, s) in dst.iter_mut().zip(src.chunks_exact(2)) {
-                let v = u16::from_le_bytes([s[0], s[1]]) & 0x0fff;
-                *d = f32::from(v) * (1.0 / 4095.0);
-            }
-        }
-        PixelFormat::Mono16 => {
-            for (d, s) in dst.iter_mut().zip(src.chunks_exact(2)) {
-                *d = f32::from(u16::from_le_bytes([s[0], s[1]])) * (1.0 / 65535.0);
-            }
-        }
-        PixelFormat::Rgb8 => {
-            let (pixels, _) = src.as_chunks::<3>();
-            for (d, s) in dst.iter_mut().zip(pixels) {
-                *d = (W_R * f32::from(s[0]) + W_G * f32::from(s[1]) + W_B * f32::from(s[2]))
-                    * (1.0 / 255.0);
-            }
-        }
-        // Bayer rows go through `bayer_luma_row`.
-        PixelFormat::BayerRg8
-        | PixelFormat::BayerGr8
-        | PixelFormat::BayerGb8
-        | PixelFormat::BayerBg8 => {
-            for (d, &s) in dst.iter_mut().zip(src) {
-                *d = f32::from(s) * (1.0 / 255.0);
-            }
-        }
-    }
-}
-
-/// The luminance weights of a Bayer quad's positions (top-left, top-right,
-/// bottom-left, bottom-right); the two greens share `W_G`.
-fn bayer_weights(format: PixelFormat) -> [f32; 4] {
-    let g = W_G * 0.5;
-    match format {
-        PixelFormat::BayerRg8 => [W_R, g, g, W_B],
-        PixelFormat::BayerGr8 => [g, W_R, W_B, g],
-        PixelFormat::BayerGb8 => [g, W_B, W_R, g],
-        _ => [W_B, g, g, W_R],
-    }
-}
-
-/// Luminance of a row of 2×2 Bayer quads, from the quad's two source rows.
-fn bayer_luma_row(format: PixelFormat, top: &[u8], bottom: &[u8], dst: &mut [f32]) {
-    let w = bayer_weights(format).map(|v| v * (1.0 / 255.0));
-    bayer_row(w, top, bottom, dst, f32::from);
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A meter to `side×side` metered pixels.
+    fn square_meter(side: usize) -> Meter {
+        Meter::new(MeteringConfig {
+            target_width: side,
+            target_height: side,
+        })
+        .unwrap()
+    }
 
     /// A 12×12 frame of `format` (Bayer: 24×24 sensor pixels, 12×12 quads)
     /// at grey level `base` with each sample of `hot` at its own level.
@@ -841,11 +780,7 @@ mod tests {
 
     #[test]
     fn metered_blocks_carry_the_fraction_of_their_saturated_samples() {
-        let meter = Meter::new(MeteringConfig {
-            target_width: 3,
-            target_height: 3,
-        })
-        .unwrap();
+        let meter = square_meter(3);
         for format in [
             PixelFormat::Mono8,
             PixelFormat::Mono12,
@@ -879,11 +814,7 @@ mod tests {
                 .unwrap()
                 .saturated_samples()
                 .is_none());
-            let one = Meter::new(MeteringConfig {
-                target_width: 12,
-                target_height: 12,
-            })
-            .unwrap();
+            let one = square_meter(12);
             let frame = FrameView::new(format, side, side, &data).unwrap();
             assert!(one
                 .meter(&frame, None)
@@ -941,5 +872,34 @@ mod tests {
         let (bayer, _, _, _) = frame_and_mask(PixelFormat::BayerRg8);
         let frame = FrameView::new(PixelFormat::BayerRg8, w, h, &bayer).unwrap();
         assert!(meter.meter_prepared(&frame, &prepared).is_err());
+    }
+
+    #[test]
+    fn metering_one_sample_per_pixel_gives_the_luminance_of_luma_at() {
+        // One metered pixel per pixel (or Bayer quad): the metering's
+        // luminance and the frame's own agree exactly, in every format.
+        let meter = square_meter(12);
+        for format in PixelFormat::ALL {
+            let side = if format.is_bayer() { 24 } else { 12 };
+            let data: Vec<u8> = (0..side * side * format.bytes_per_pixel())
+                .map(|i| ((i * 7919 + 13) % 256) as u8)
+                .collect();
+            let frame = FrameView::new(format, side, side, &data).unwrap();
+            let m = meter.meter(&frame, None).unwrap();
+            assert_eq!((m.width(), m.height()), (12, 12), "{format:?}");
+            let step = if format.is_bayer() { 2 } else { 1 };
+            for y in 0..12 {
+                for x in 0..12 {
+                    let want = m.luma()[y * 12 + x];
+                    // Every pixel of a quad reads the quad.
+                    for (dx, dy) in [(0, 0), (step - 1, 0), (0, step - 1), (step - 1, step - 1)] {
+                        let got = frame.luma_at(step * x + dx, step * y + dy);
+                        assert_eq!(got.to_bits(), want.to_bits(), "{format:?} ({x}, {y})");
+                    }
+                }
+            }
+            // Not all alike: the test reads different values.
+            assert!(m.stats().histogram.iter().filter(|&&c| c > 0).count() > 20);
+        }
     }
 }

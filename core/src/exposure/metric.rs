@@ -14,7 +14,8 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::kernel::{self, Isa};
+use super::kernel;
+use crate::cpu::Isa;
 use crate::error::{check_range, Result};
 
 /// Divides the Sobel magnitude of a [0, 1] image into [0, 1].
@@ -205,12 +206,13 @@ impl Default for Scratch {
 }
 
 impl Scratch {
-    /// Buffers for kernels compiled for `isa` (the detected one when the CPU
-    /// lacks it).
+    /// Buffers for kernels compiled for `isa`, or for the widest set at or
+    /// below it that the CPU has and the kernels have code for (they have
+    /// none for BMI2 alone: that runs the baseline code).
     pub fn with_isa(isa: Isa) -> Self {
         Self {
             rows: kernel::Rows::default(),
-            isa: isa.supported(),
+            isa: kernel::kernel_isa(isa),
         }
     }
 

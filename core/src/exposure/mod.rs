@@ -16,13 +16,15 @@ pub mod baselines;
 pub mod controller;
 pub mod estimator;
 mod fastmath;
-pub mod frame;
 mod kernel;
 pub mod laws;
 pub mod metering;
 pub mod metric;
 pub mod probe;
 pub mod split;
+
+// The frame types, where the data flow starts.
+pub use crate::image::{FrameView, PixelFormat, RoiMask};
 
 pub use balance::{BalanceParams, NeighbourGraph, PatchPair};
 pub use baselines::{MeanIntensityParams, PidParams};
@@ -34,8 +36,6 @@ pub use estimator::{
     Darker, Estimate, EstimateOptions, Estimator, EstimatorConfig, Simulation, DARKER_MIN_EV,
     DEFAULT_ANCHORS,
 };
-pub use frame::{FrameView, PixelFormat, RoiMask};
-pub use kernel::Isa;
 pub use laws::{LawKind, LawParams};
 pub use metering::{CameraMasks, ImageStats, Meter, Metered, MeteringConfig, PreparedMask};
 pub use metric::{GradientMetric, MetricParams};

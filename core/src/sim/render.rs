@@ -24,7 +24,8 @@ use super::sensor::{
     expose_row, format_bits, frame_rng, noise_table, store_row, Sensor, NOISE_TABLE_LEN,
 };
 use crate::error::{Error, Result};
-use crate::exposure::{ExposureSetting, PixelFormat};
+use crate::exposure::ExposureSetting;
+use crate::image::PixelFormat;
 use crate::source::{CameraInfo, FrameMeta, FrameStatus};
 
 /// One camera's precomputed image.

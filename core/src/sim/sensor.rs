@@ -44,7 +44,8 @@ use serde::{Deserialize, Serialize};
 use super::texture::mix;
 use super::{check_field, FieldError};
 use crate::exposure::split::gain_factor;
-use crate::exposure::{ExposureRange, ExposureSetting, PixelFormat};
+use crate::exposure::{ExposureRange, ExposureSetting};
+use crate::image::PixelFormat;
 
 /// Samples in the noise table.
 pub const NOISE_TABLE_LEN: usize = 1 << 20;

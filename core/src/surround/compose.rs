@@ -1,12 +1,9 @@
 //! Per-frame composition of the surround view.
 
-use opencv::core::{Mat, MatTraitConst, MatTraitConstManual};
-use opencv::imgproc;
-
 use super::remap::Image;
 use super::{BlendMode, SurroundView};
 use crate::error::{Error, Result};
-use crate::exposure::{FrameView, PixelFormat};
+use crate::image::{mono8_to_rgb8, rgb8_to_mono8, FrameView, PixelFormat};
 
 /// A composed canvas: 8-bit, 1 (mono) or 3 (RGB) channels, row-major.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -40,11 +37,7 @@ pub struct Composer {
     /// Per camera, frames converted to packed 8 bits.
     scratch: Vec<Vec<u8>>,
     /// Per camera, frames converted between mono and RGB.
-    converted: Vec<Mat>,
-}
-
-fn cv(context: &str, e: opencv::Error) -> Error {
-    Error::InvalidConfig(format!("surround view: {context}: {e}"))
+    converted: Vec<Vec<u8>>,
 }
 
 /// Where a camera's 8-bit pixels with the canvas's channel count are.
@@ -54,7 +47,7 @@ enum Prepared {
     Frame,
     /// The composer's scratch buffer.
     Scratch,
-    /// The composer's converted Mat.
+    /// The composer's converted buffer.
     Converted,
 }
 
@@ -90,7 +83,7 @@ impl Composer {
     fn images<'s>(&'s mut self, frames: &[FrameView<'s>], ch: usize) -> Result<Vec<Image<'s>>> {
         let n = frames.len();
         self.scratch.resize_with(n, Vec::new);
-        self.converted.resize_with(n, Mat::default);
+        self.converted.resize_with(n, Vec::new);
         let mut prepared = Vec::with_capacity(n);
         for ((frame, scratch), converted) in frames
             .iter()
@@ -111,22 +104,13 @@ impl Composer {
             } else {
                 frame.packed().unwrap_or_default()
             };
-            let flat = Mat::new_rows_cols_with_data(
-                frame.height() as i32,
-                (frame.width() * src_ch) as i32,
-                bytes,
-            )
-            .map_err(|e| cv("frame", e))?;
-            let shaped = flat
-                .reshape(src_ch as i32, frame.height() as i32)
-                .map_err(|e| cv("frame", e))?;
-            let code = if src_ch == 3 {
-                imgproc::COLOR_RGB2GRAY
+            let pixels = frame.width() * frame.height();
+            converted.resize(pixels * ch, 0);
+            if src_ch == 3 {
+                rgb8_to_mono8(bytes, converted)?;
             } else {
-                imgproc::COLOR_GRAY2RGB
-            };
-            imgproc::cvt_color(&shaped, converted, code, 0)
-                .map_err(|e| cv("colour conversion", e))?;
+                mono8_to_rgb8(bytes, converted)?;
+            }
             prepared.push(Prepared::Converted);
         }
         let mut images = Vec::with_capacity(n);
@@ -134,9 +118,7 @@ impl Composer {
             let bytes = match how {
                 Prepared::Frame => frame.packed().unwrap_or_default(),
                 Prepared::Scratch => self.scratch[k].as_slice(),
-                Prepared::Converted => self.converted[k]
-                    .data_bytes()
-                    .map_err(|e| cv("colour conversion", e))?,
+                Prepared::Converted => self.converted[k].as_slice(),
             };
             images.push(Image {
                 bytes,

@@ -23,7 +23,8 @@
 //! A camera's *exclusive* region is where it is the only one.
 //!
 //! In an overlap, camera `c`'s blend weight falls off with the distance `d_c`
-//! from its exclusive region: `w_c ∝ 1/d_c²`, so for two cameras
+//! (canvas pixels, exact Euclidean: [`crate::image::distance_to_zero`]) from
+//! its exclusive region: `w_c ∝ 1/d_c²`, so for two cameras
 //! `w_A = d_B² / (d_A² + d_B²)`. [`BlendMode::Alpha`] weighs both halves
 //! alike and [`BlendMode::Seams`] gives each overlap pixel to the camera with
 //! the larger linear weight, so that a bad calibration shows as a break in
@@ -34,7 +35,7 @@
 //! [`SurroundView::build`] maps every canvas pixel directly to sub-pixel
 //! positions in the fisheye images (no intermediate undistorted image). On
 //! first use of a blend mode it turns the maps and weights into a plan of
-//! fixed-point bilinear taps with the blend weights folded in (`remap.rs`):
+//! fixed-point bilinear taps with the blend weights folded in (`remap/`):
 //! per frame, [`Composer::compose`] then writes each canvas pixel once,
 //! from one gathered bilinear sample where one camera shows it and from the
 //! sum of the cameras' samples in the overlaps.
@@ -51,8 +52,6 @@ mod remap;
 use std::sync::OnceLock;
 
 use nalgebra::{Point2, Vector3};
-use opencv::core::{Mat, MatTraitConstManual, CV_32F};
-use opencv::imgproc;
 use serde::{Deserialize, Serialize};
 
 use rigview_calib::rig::Rig;
@@ -61,7 +60,8 @@ pub use compose::{Canvas, Composer};
 
 use crate::error::{Error, Result};
 use crate::exposure::controller::PairObservation;
-use crate::exposure::{FrameView, PatchPair, RoiMask};
+use crate::exposure::PatchPair;
+use crate::image::{distance_to_zero, FrameView, RoiMask};
 
 /// The ground rectangle a canvas shows, and at what resolution.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -645,20 +645,6 @@ fn validate_options(o: &SurroundOptions) -> Result<()> {
     Ok(())
 }
 
-/// Distance (pixels, L2) of every pixel to the nearest 0 of a `w×h` mask.
-fn distance_to_zero(mask: &[u8], w: usize, h: usize) -> opencv::Result<Vec<f32>> {
-    let src = Mat::new_rows_cols_with_data(h as i32, w as i32, mask)?;
-    let mut dst = Mat::default();
-    imgproc::distance_transform(
-        &src,
-        &mut dst,
-        imgproc::DIST_L2,
-        imgproc::DIST_MASK_5,
-        CV_32F,
-    )?;
-    Ok(dst.data_typed::<f32>()?.to_vec())
-}
-
 /// Buffers of [`blend_weights`], reused from pixel to pixel.
 #[derive(Debug, Default)]
 struct BlendScratch {
@@ -1006,7 +992,7 @@ mod tests {
 
     #[test]
     fn compositions_are_within_a_level_of_the_exact_blend_in_every_mode() {
-        use crate::exposure::PixelFormat;
+        use crate::image::PixelFormat;
         use rand::{Rng, SeedableRng};
         let (sw, sh) = (160usize, 120usize);
         let view = small_view(sw as u32, sh as u32);

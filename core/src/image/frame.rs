@@ -1,0 +1,131 @@
+//! Borrowed camera frames.
+
+use super::luma;
+use super::PixelFormat;
+use crate::error::{Error, Result};
+
+/// One camera frame, borrowed: the pixels and their layout.
+#[derive(Clone, Copy, Debug)]
+pub struct FrameView<'a> {
+    format: PixelFormat,
+    width: usize,
+    height: usize,
+    stride: usize,
+    data: &'a [u8],
+}
+
+impl<'a> FrameView<'a> {
+    /// A tightly packed frame (`stride = width · bytes_per_pixel`).
+    pub fn new(format: PixelFormat, width: usize, height: usize, data: &'a [u8]) -> Result<Self> {
+        Self::with_stride(
+            format,
+            width,
+            height,
+            width * format.bytes_per_pixel(),
+            data,
+        )
+    }
+
+    /// A frame whose rows are `stride` bytes apart.
+    pub fn with_stride(
+        format: PixelFormat,
+        width: usize,
+        height: usize,
+        stride: usize,
+        data: &'a [u8],
+    ) -> Result<Self> {
+        if width == 0 || height == 0 {
+            return Err(Error::EmptyImage {
+                what: "frame",
+                width,
+                height,
+            });
+        }
+        let row = width * format.bytes_per_pixel();
+        let detail = || {
+            format!(
+                "{} {width}×{height}, stride {stride}",
+                format.genicam_name()
+            )
+        };
+        if stride < row {
+            return Err(Error::BufferSize {
+                what: "frame row stride",
+                expected: row,
+                actual: stride,
+                detail: detail(),
+            });
+        }
+        let needed = stride * (height - 1) + row;
+        if data.len() < needed {
+            return Err(Error::BufferSize {
+                what: "frame",
+                expected: needed,
+                actual: data.len(),
+                detail: detail(),
+            });
+        }
+        if format.is_bayer() && (width < 2 || height < 2) {
+            return Err(Error::EmptyImage {
+                what: "Bayer frame (needs at least one 2×2 quad)",
+                width,
+                height,
+            });
+        }
+        Ok(Self {
+            format,
+            width,
+            height,
+            stride,
+            data,
+        })
+    }
+
+    /// The pixel format.
+    pub fn format(&self) -> PixelFormat {
+        self.format
+    }
+    /// Width in pixels.
+    pub fn width(&self) -> usize {
+        self.width
+    }
+    /// Height in pixels.
+    pub fn height(&self) -> usize {
+        self.height
+    }
+    /// Bytes from one row to the next.
+    pub fn stride(&self) -> usize {
+        self.stride
+    }
+    /// The bytes of row `y` (exactly `width · bytes_per_pixel` long).
+    pub fn row(&self, y: usize) -> &'a [u8] {
+        let start = y * self.stride;
+        &self.data[start..start + self.width * self.format.bytes_per_pixel()]
+    }
+
+    /// All pixels as one slice, when the rows are packed (stride = row
+    /// length).
+    pub fn packed(&self) -> Option<&'a [u8]> {
+        let row = self.width * self.format.bytes_per_pixel();
+        (self.stride == row).then(|| &self.data[..row * self.height])
+    }
+
+    /// The luminance in [0, 1] at pixel (`x`, `y`), which must lie in the
+    /// frame, as the metering reads it ([`Meter`](crate::exposure::Meter)):
+    /// for Bayer, that of the 2×2 quad holding the pixel (a pixel of an odd last
+    /// row or column, outside every quad, is read as it is).
+    pub fn luma_at(&self, x: usize, y: usize) -> f32 {
+        let mut out = [0.0f32];
+        if self.format.is_bayer() {
+            let (qx, qy) = (x & !1, y & !1);
+            if qx + 1 < self.width && qy + 1 < self.height {
+                let (top, bottom) = (self.row(qy), self.row(qy + 1));
+                luma::bayer_luma_row(self.format, &top[qx..qx + 2], &bottom[qx..qx + 2], &mut out);
+                return out[0];
+            }
+        }
+        let bpp = self.format.bytes_per_pixel();
+        luma::luma_row(self.format, &self.row(y)[x * bpp..(x + 1) * bpp], &mut out);
+        out[0]
+    }
+}

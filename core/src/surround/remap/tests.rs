@@ -1,0 +1,259 @@
+use rand::{Rng, SeedableRng};
+
+use super::plan::bilinear;
+use super::*;
+use crate::cpu::Isa;
+
+#[test]
+fn rounding_to_a_total_keeps_the_total_where_rounding_each_misses_it() {
+    // Two halves: each rounded on its own gives 129 + 128 = 257.
+    let halves = [128.5f64, 127.5];
+    let each: u32 = halves.iter().map(|v| v.round() as u32).sum();
+    assert_eq!(each, 257);
+    let mut out = [0u32; 2];
+    round_to_total(&halves, 256, &mut out);
+    assert_eq!(out.iter().sum::<u32>(), 256);
+    assert!(out
+        .iter()
+        .zip(halves)
+        .all(|(&o, v)| (f64::from(o) - v).abs() < 1.0));
+    // Three thirds: each rounded gives 255.
+    let thirds = [256.0f64 / 3.0; 3];
+    let each: u32 = thirds.iter().map(|v| v.round() as u32).sum();
+    assert_eq!(each, 255);
+    let mut out = [0u32; 3];
+    round_to_total(&thirds, 256, &mut out);
+    assert_eq!(out, [86, 85, 85]);
+    // Random splits of 4096 into up to 12 parts: the total, and each
+    // within 1 of its value.
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
+    for _ in 0..2000 {
+        let n = rng.gen_range(1..=12);
+        let raw: Vec<f64> = (0..n).map(|_| rng.gen::<f64>()).collect();
+        let sum: f64 = raw.iter().sum();
+        let values: Vec<f64> = raw.iter().map(|v| v / sum * 4096.0).collect();
+        let mut out = vec![0u32; n];
+        round_to_total(&values, 4096, &mut out);
+        assert_eq!(out.iter().sum::<u32>(), 4096, "{values:?} → {out:?}");
+        for (&o, &v) in out.iter().zip(&values) {
+            assert!((f64::from(o) - v).abs() < 1.0, "{v} → {o}");
+        }
+    }
+}
+
+#[test]
+fn the_bilinear_neighbourhood_stays_inside_the_image() {
+    let same = |a: [f64; 4], b: [f64; 4]| a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-12);
+    let (w, h) = (7, 5);
+    // The last pixel: the neighbourhood to its upper left, all weight on
+    // its bottom-right pixel.
+    let (i, b) = bilinear(6.0, 4.0, w, h);
+    assert_eq!(i as usize, 3 * w + 5);
+    assert!(same(b, [0.0, 0.0, 0.0, 1.0]), "{b:?}");
+    let (i, b) = bilinear(0.0, 0.0, w, h);
+    assert_eq!(i, 0);
+    assert!(same(b, [1.0, 0.0, 0.0, 0.0]), "{b:?}");
+    let (i, b) = bilinear(2.25, 1.5, w, h);
+    assert_eq!(i as usize, w + 2);
+    assert!(same(b, [0.375, 0.125, 0.375, 0.125]), "{b:?}");
+}
+
+/// Random images and a random plan over them: per canvas pixel, 0 to 3
+/// cameras at random positions (a fifth of them on the last column or
+/// row) with random blend weights.
+struct Case {
+    sources: Vec<(usize, usize)>,
+    frames: Vec<Vec<u8>>,
+    pixels: Vec<Vec<Contribution>>,
+}
+
+impl Case {
+    fn new(seed: u64, ch: usize) -> Self {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+        let sources = vec![(37, 23), (2, 2), (64, 9)];
+        let frames = sources
+            .iter()
+            .map(|&(w, h)| (0..w * h * ch).map(|_| rng.gen::<u8>()).collect())
+            .collect();
+        // The same cameras for stretches of 1 to 40 pixels, so that
+        // the vector kernels see whole steps and ends of runs.
+        let mut cams: Vec<u32> = Vec::new();
+        let mut left = 0;
+        let pixels = (0..61 * 17)
+            .map(|_| {
+                if left == 0 {
+                    left = rng.gen_range(1..=40);
+                    let n = rng.gen_range(0..=3usize);
+                    let mut all: Vec<u32> = (0..3).collect();
+                    all.sort_by_key(|_| rng.gen::<u32>());
+                    cams = all.into_iter().take(n).collect();
+                    cams.sort_unstable();
+                }
+                left -= 1;
+                cams.iter()
+                    .copied()
+                    .map(|camera| {
+                        let (w, h) = sources[camera as usize];
+                        let mut pos = |len: usize| {
+                            if rng.gen_bool(0.2) {
+                                (len - 1) as f32
+                            } else {
+                                rng.gen_range(0.0..(len - 1) as f32)
+                            }
+                        };
+                        Contribution {
+                            camera,
+                            at: [pos(w), pos(h)],
+                            weight: f64::from(rng.gen_range(1..=256u16)),
+                        }
+                    })
+                    .collect()
+            })
+            .collect();
+        Self {
+            sources,
+            frames,
+            pixels,
+        }
+    }
+
+    fn plan(&self) -> Plan {
+        Plan::build(61, self.pixels.len(), self.sources.clone(), |i, list| {
+            list.extend_from_slice(&self.pixels[i]);
+        })
+    }
+
+    fn images(&self) -> Vec<Image<'_>> {
+        self.frames
+            .iter()
+            .zip(&self.sources)
+            .map(|(bytes, &(width, height))| Image {
+                bytes,
+                width,
+                height,
+            })
+            .collect()
+    }
+
+    /// The exact value of channel `c` of canvas pixel `i`.
+    fn exact(&self, i: usize, c: usize, ch: usize) -> f64 {
+        let list = &self.pixels[i];
+        let total: f64 = list.iter().map(|p| p.weight).sum();
+        list.iter()
+            .map(|p| {
+                let (w, h) = self.sources[p.camera as usize];
+                let f = &self.frames[p.camera as usize];
+                let (x, y) = (f64::from(p.at[0]), f64::from(p.at[1]));
+                let (x0, y0) = (x.floor() as usize, y.floor() as usize);
+                let (fx, fy) = (x - x0 as f64, y - y0 as f64);
+                let px = |xx: usize, yy: usize| {
+                    f64::from(f[(yy.min(h - 1) * w + xx.min(w - 1)) * ch + c])
+                };
+                let v = (1.0 - fy) * ((1.0 - fx) * px(x0, y0) + fx * px(x0 + 1, y0))
+                    + fy * ((1.0 - fx) * px(x0, y0 + 1) + fx * px(x0 + 1, y0 + 1));
+                v * p.weight / total
+            })
+            .sum()
+    }
+}
+
+#[test]
+fn the_remap_is_within_a_level_of_the_exact_bilinear_blend_with_every_kernel() {
+    for ch in [1, 3] {
+        let case = Case::new(7 + ch as u64, ch);
+        let plan = case.plan();
+        assert!(plan.gather_ok, "the plan's invariant");
+        let (one, several, taps) = plan.counts();
+        assert!(one > 100 && several > 300, "{one} {several}");
+        // Runs of 1, 2 and 3 cameras long enough for whole vector
+        // steps and their ends.
+        for n in 1..=3 {
+            assert!(
+                plan.runs.iter().any(|r| r.n == n && r.len >= 19),
+                "no long run of {n} cameras"
+            );
+        }
+        assert_eq!(taps, case.pixels.iter().map(Vec::len).sum::<usize>());
+        let images = case.images();
+        let mut first: Option<Vec<u8>> = None;
+        for isa in Isa::available() {
+            // A canvas full of garbage: every byte must be written.
+            let mut out = vec![0xa5; plan.pixels * ch];
+            plan.execute_with(isa, &images, ch, &mut out).unwrap();
+            let mut worst = 0.0f64;
+            for i in 0..case.pixels.len() {
+                for c in 0..ch {
+                    let n = case.pixels[i].len() as f64;
+                    let err = (f64::from(out[i * ch + c]) - case.exact(i, c, ch)).abs();
+                    // Each weight is off by less than 1/4096, which
+                    // moves the value by less than 127.5/4096 per
+                    // weight, and the last rounding adds ½.
+                    let bound = 0.5 + 127.5 * 4.0 * n / 4096.0;
+                    assert!(
+                        err < bound,
+                        "{isa:?}, {ch} channels, pixel {i} ({:?}), channel {c}: off by {err}",
+                        case.pixels[i]
+                    );
+                    worst = worst.max(err);
+                }
+            }
+            eprintln!("{isa:?}, {ch} channels: worst error {worst:.3}");
+            match &first {
+                None => first = Some(out),
+                Some(f) => assert!(f == &out, "{isa:?} differs from the portable kernel"),
+            }
+        }
+    }
+}
+
+#[test]
+fn a_source_too_small_for_a_neighbourhood_contributes_nothing() {
+    let one = Contribution {
+        camera: 0,
+        at: [0.0, 1.0],
+        weight: 1.0,
+    };
+    let other = Contribution { camera: 1, ..one };
+    let plan = Plan::build(2, 2, vec![(1, 5), (2, 2)], |i, list| {
+        list.push(one);
+        if i == 1 {
+            list.push(other);
+        }
+    });
+    // Such a plan runs the scalar kernels only.
+    assert!(!plan.gather_ok);
+    let (a, b) = (vec![200u8; 5], vec![10u8, 20, 30, 40]);
+    let images = [
+        Image {
+            bytes: &a,
+            width: 1,
+            height: 5,
+        },
+        Image {
+            bytes: &b,
+            width: 2,
+            height: 2,
+        },
+    ];
+    let mut out = vec![0xff; 2];
+    plan.execute(&images, 1, &mut out).unwrap();
+    // Pixel 0: only the 1-pixel-wide camera, so black; pixel 1: the
+    // other camera alone, at (0, 1).
+    assert_eq!(out, [0, 30]);
+}
+
+#[test]
+fn images_that_do_not_fit_the_plan_are_refused() {
+    let case = Case::new(3, 3);
+    let plan = case.plan();
+    let mut images = case.images();
+    let mut out = vec![0; plan.pixels * 3];
+    assert!(plan.execute(&images[..2], 3, &mut out).is_err());
+    assert!(plan.execute(&images, 2, &mut out).is_err());
+    assert!(plan.execute(&images, 3, &mut out[1..]).is_err());
+    images[0].bytes = &images[0].bytes[1..];
+    let e = plan.execute(&images, 3, &mut out).unwrap_err();
+    assert!(e.to_string().contains("37×23"), "{e}");
+    images[0].width = 36;
+    assert!(plan.execute(&images, 3, &mut out).is_err());
+}
