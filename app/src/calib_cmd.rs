@@ -4,62 +4,12 @@ use std::io::Write;
 use std::path::PathBuf;
 
 use anyhow::{bail, Context, Result};
-use clap::{Args, Subcommand, ValueEnum};
+use clap::{Args, Subcommand};
 use rigview_calib::formats::{self, Format};
 use rigview_calib::rig::{Camera, Frame, Rig};
 use rigview_calib::tools::ground::{self, GroundLayout};
 use rigview_calib::tools::intrinsics::{self, Board, ImageStatus};
 use rigview_calib::{report, ModelKind};
-
-/// A camera model on the command line.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum Model {
-    /// OpenCV fisheye (Kannala–Brandt, k1..k4).
-    Fisheye,
-    /// Pinhole with radial-tangential distortion (k1, k2, p1, p2, k3).
-    Pinhole,
-    /// Pinhole with OpenCV's rational distortion (k1, k2, p1, p2, k3, k4,
-    /// k5, k6; ROS's rational_polynomial).
-    Rational,
-}
-
-impl From<Model> for ModelKind {
-    fn from(m: Model) -> Self {
-        match m {
-            Model::Fisheye => ModelKind::Fisheye,
-            Model::Pinhole => ModelKind::Pinhole,
-            Model::Rational => ModelKind::Rational,
-        }
-    }
-}
-
-/// A calibration format on the command line.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum FormatArg {
-    /// rigview's rig YAML.
-    Rig,
-    /// OpenCV FileStorage YAML (one file a camera).
-    OpencvYaml,
-    /// OpenCV FileStorage XML (one file a camera).
-    OpencvXml,
-    /// Kalibr camchain YAML.
-    Kalibr,
-    /// ROS camera_info (one file a camera): ROS 1's YAML, or a ROS 2
-    /// CameraInfo message as `ros2 topic echo` prints it (read only).
-    Ros,
-}
-
-impl From<FormatArg> for Format {
-    fn from(f: FormatArg) -> Self {
-        match f {
-            FormatArg::Rig => Format::Rig,
-            FormatArg::OpencvYaml => Format::OpenCvYaml,
-            FormatArg::OpencvXml => Format::OpenCvXml,
-            FormatArg::Kalibr => Format::Kalibr,
-            FormatArg::Ros => Format::Ros,
-        }
-    }
-}
 
 /// Options of `rigview calib`.
 #[derive(Debug, Args)]
@@ -89,12 +39,12 @@ pub enum CalibCommand {
 pub struct InputArgs {
     /// Input format (default: told from the file).
     #[arg(long, value_enum)]
-    pub from: Option<FormatArg>,
+    pub from: Option<Format>,
     /// Camera model for OpenCV files that do not say which (4 coefficients
     /// fit fisheye and pinhole; rational keeps 8 as the rational model even
     /// when k4..k6 are 0).
     #[arg(long, value_enum)]
-    pub model: Option<Model>,
+    pub model: Option<ModelKind>,
 }
 
 /// Options of `rigview calib show`.
@@ -119,7 +69,7 @@ pub struct ConvertArgs {
     pub read: InputArgs,
     /// Output format (default: .xml → opencv-xml, otherwise rig).
     #[arg(long, value_enum)]
-    pub to: Option<FormatArg>,
+    pub to: Option<Format>,
 }
 
 /// Options of `rigview calib intrinsics`.
@@ -135,8 +85,8 @@ pub struct IntrinsicsArgs {
     #[arg(long, default_value_t = 0.025)]
     pub square: f64,
     /// Lens model to fit.
-    #[arg(long, value_enum, default_value_t = Model::Pinhole)]
-    pub model: Model,
+    #[arg(long, value_enum, default_value_t = ModelKind::Pinhole)]
+    pub model: ModelKind,
     /// Camera name in the output.
     #[arg(long, default_value = "camera")]
     pub name: String,
@@ -145,7 +95,7 @@ pub struct IntrinsicsArgs {
     pub output: Option<PathBuf>,
     /// Output format.
     #[arg(long, value_enum)]
-    pub to: Option<FormatArg>,
+    pub to: Option<Format>,
 }
 
 /// Options of `rigview calib ground`.
@@ -163,7 +113,7 @@ pub struct GroundArgs {
     pub output: Option<PathBuf>,
     /// Output format.
     #[arg(long, value_enum)]
-    pub to: Option<FormatArg>,
+    pub to: Option<Format>,
     #[command(flatten)]
     pub input: InputArgs,
 }
@@ -183,11 +133,7 @@ fn parse_board(s: &str) -> std::result::Result<(u32, u32), String> {
 }
 
 fn load(path: &std::path::Path, input: &InputArgs) -> Result<formats::Loaded> {
-    Ok(formats::load(
-        path,
-        input.from.map(Into::into),
-        input.model.map(Into::into),
-    )?)
+    Ok(formats::load(path, input.from, input.model)?)
 }
 
 /// Runs `rigview calib …`, printing to `out`.
@@ -199,7 +145,7 @@ pub fn run(args: &CalibArgs, out: &mut dyn Write) -> Result<()> {
         }
         CalibCommand::Convert(a) => {
             let loaded = load(&a.input, &a.read)?;
-            let written = formats::save(&loaded.rig, &a.output, a.to.map(Into::into))?;
+            let written = formats::save(&loaded.rig, &a.output, a.to)?;
             for w in written {
                 writeln!(out, "wrote {}", w.display())?;
             }
@@ -216,8 +162,7 @@ fn intrinsics_cmd(a: &IntrinsicsArgs, out: &mut dyn Write) -> Result<()> {
         rows: a.board.1,
         square_m: a.square,
     };
-    let r =
-        intrinsics::calibrate(&a.images, board, a.model.into()).context("intrinsic calibration")?;
+    let r = intrinsics::calibrate(&a.images, board, a.model).context("intrinsic calibration")?;
     let k = &r.intrinsics;
     writeln!(
         out,
@@ -254,7 +199,7 @@ fn intrinsics_cmd(a: &IntrinsicsArgs, out: &mut dyn Write) -> Result<()> {
             vec![],
         )
         .map_err(|e| anyhow::anyhow!("{e}"))?;
-        for w in formats::save(&rig, o, a.to.map(Into::into))? {
+        for w in formats::save(&rig, o, a.to)? {
             writeln!(out, "wrote {}", w.display())?;
         }
     }
@@ -278,7 +223,7 @@ fn ground_cmd(a: &GroundArgs, out: &mut dyn Write) -> Result<()> {
         )?;
     }
     if let Some(o) = &a.output {
-        for w in formats::save(&rig, o, a.to.map(Into::into))? {
+        for w in formats::save(&rig, o, a.to)? {
             writeln!(out, "wrote {}", w.display())?;
         }
     }

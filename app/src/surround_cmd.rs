@@ -5,34 +5,13 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
-use clap::{Args, ValueEnum};
+use clap::Args;
 use rigview_calib::formats;
 use rigview_core::exposure::balance::pair_ratio;
 use rigview_core::exposure::{BalanceParams, FrameView, PixelFormat};
 use rigview_core::surround::{
     BlendMode, Canvas, CanvasSpec, Composer, SurroundOptions, SurroundView,
 };
-
-/// A blend mode on the command line.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum Blend {
-    /// Weights falling off with the distance from each camera's own region.
-    Linear,
-    /// Half and half in the overlaps.
-    Alpha,
-    /// A hard seam through each overlap: misalignment shows as broken lines.
-    Seams,
-}
-
-impl From<Blend> for BlendMode {
-    fn from(b: Blend) -> Self {
-        match b {
-            Blend::Linear => BlendMode::Linear,
-            Blend::Alpha => BlendMode::Alpha,
-            Blend::Seams => BlendMode::Seams,
-        }
-    }
-}
 
 /// Options of `rigview surround`.
 #[derive(Debug, Args)]
@@ -51,7 +30,7 @@ pub struct SurroundArgs {
     pub out: PathBuf,
     /// How overlapping cameras are mixed.
     #[arg(long, value_enum, default_value = "linear")]
-    pub blend: Blend,
+    pub blend: BlendMode,
     /// The ground shown: X_MIN X_MAX Y_MIN Y_MAX in metres (vehicle frame: x
     /// forward, y left).
     #[arg(long, num_args = 4, value_names = ["X_MIN", "X_MAX", "Y_MIN", "Y_MAX"], allow_negative_numbers = true)]
@@ -129,7 +108,7 @@ pub fn run(args: &SurroundArgs, out: &mut impl Write) -> Result<()> {
         })
         .collect::<rigview_core::Result<Vec<_>>>()?;
     let mut canvas = Canvas::new(0, 0, 3);
-    Composer::new().compose(&view, &frames, args.blend.into(), &mut canvas)?;
+    Composer::new().compose(&view, &frames, args.blend, &mut canvas)?;
     if let Some(path) = &args.vehicle_image {
         paste_vehicle(&mut canvas, &spec, path)?;
     }
@@ -148,7 +127,7 @@ pub fn run(args: &SurroundArgs, out: &mut impl Write) -> Result<()> {
         canvas.width,
         canvas.height,
         spec.px_per_m,
-        BlendMode::from(args.blend).name()
+        args.blend.name()
     )?;
     for (cam, mask) in rig.cameras.iter().zip(view.ground_masks()) {
         writeln!(
@@ -261,7 +240,7 @@ mod tests {
             rig: data(),
             images,
             out,
-            blend: Blend::Seams,
+            blend: BlendMode::Seams,
             extent_m: Some(vec![-8.0, 8.0, -6.0, 6.0]),
             vehicle_m: Some(vec![-2.5, 2.5, -1.0, 1.0]),
             px_per_m: 25.0,
