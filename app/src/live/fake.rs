@@ -316,3 +316,100 @@ fn fill(view: FakeView, db_per_step: f64) -> Box<super::ffi::FillFn> {
         }
     })
 }
+
+/// The fake cameras of a [`FakeRig`](super::open::FakeRig), ready to open.
+#[cfg(feature = "aravis")]
+#[derive(Debug)]
+pub(crate) struct FakeCameras {
+    /// One per simulated camera, named as in the simulated rig.
+    pub cameras: Vec<super::CameraSpec>,
+    /// The capture configuration they run with.
+    pub capture: super::CaptureConfig,
+    /// The simulated rig (its calibration gives the view).
+    pub rig: rigview_calib::Rig,
+}
+
+/// Builds the simulated rig of `fake` and one fake camera per simulated
+/// camera, captured as `capture` says except for the trigger: the
+/// in-process fake cameras ignore software triggers, so in trigger mode
+/// they fire on their own clock, like a trigger box. What it reports is
+/// added to `notes`.
+#[cfg(feature = "aravis")]
+pub(crate) fn cameras(
+    fake: &super::open::FakeRig,
+    capture: &super::CaptureConfig,
+    notes: &mut Vec<String>,
+) -> anyhow::Result<FakeCameras> {
+    use anyhow::Context;
+    use rigview_core::sim::{SimConfig, PRESETS};
+
+    use super::{CameraSpec, DeviceSpec, TriggerMode};
+
+    let mut capture = capture.clone();
+    if !matches!(capture.trigger, TriggerMode::FreeRun { .. }) {
+        capture.trigger = TriggerMode::Hardware {
+            line: "Line0".into(),
+        };
+    }
+    check_format(capture.pixel_format)?;
+    let scenario = fake.scenario.as_str();
+    if !PRESETS.iter().any(|p| p.0 == scenario) && !std::path::Path::new(scenario).exists() {
+        anyhow::bail!(
+            "--scenario {scenario}: neither a simulation preset ({}) nor a simulation file",
+            PRESETS.map(|p| p.0).join(", ")
+        );
+    }
+    let mut sim = SimConfig::named(scenario)
+        .with_context(|| format!("loading the simulation \"{scenario}\""))?;
+    sim.scale = fake.scale;
+    // The fake cameras fire at the simulation's trigger rate.
+    sim.trigger_hz = fake.rate_hz;
+    let started = std::time::Instant::now();
+    let render = Arc::new(SimRender::new(&sim).with_context(|| {
+        format!(
+            "building the simulation \"{scenario}\" (--scale {}, --rate {})",
+            sim.scale, fake.rate_hz
+        )
+    })?);
+    // The script starts when the controller takes over from the cameras'
+    // own start-up auto-exposure (give or take the time to open them).
+    let epoch_ns = clock_ns()
+        .saturating_add(u64::try_from(capture.auto_settle.as_nanos()).unwrap_or(u64::MAX));
+    let views = FakeView::rig(&render, capture.pixel_format, epoch_ns)?;
+    let mut sizes: Vec<String> = views
+        .iter()
+        .map(|v| format!("{}×{}", v.width, v.height))
+        .collect();
+    sizes.dedup();
+    notes.push(format!(
+        "simulation \"{}\": {} cameras of {} {}, traced in {:.1} s",
+        sim.name,
+        views.len(),
+        sizes.join(", "),
+        capture.pixel_format.genicam_name(),
+        started.elapsed().as_secs_f64()
+    ));
+    super::ffi::enable_interface("Fake");
+    let cameras = views
+        .into_iter()
+        .zip(render.cameras())
+        .enumerate()
+        .map(|(i, (view, info))| {
+            let name = info.name.clone();
+            // Aravis takes serial numbers of at most 15 bytes.
+            let mut serial = format!("RV{i}-{name}");
+            while serial.len() > 15 {
+                serial.pop();
+            }
+            CameraSpec {
+                name,
+                device: DeviceSpec::Fake { serial, view },
+            }
+        })
+        .collect();
+    Ok(FakeCameras {
+        cameras,
+        capture,
+        rig: render.rig().clone(),
+    })
+}

@@ -12,13 +12,13 @@
 //! | `LiveSource` | all of it as a [`rigview_core::source::FrameSource`] |
 //! | [`fake`] | what Aravis's in-process fake cameras show: the simulated rig ([`rigview_core::sim`]), each frame rendered at the fake camera's exposure time and gain, with the noise of its frame id and the light of its timestamp; and the fake cameras' wiring (their fill callback and region) |
 //! | `error` | [`LiveError`] when capture starts, [`CameraError`] naming the camera and the feature |
-//! | [`cmd`] | `rigview live`: capture and exposure control, headless, with a status line per second (`--fake`: on fake cameras showing a simulation) |
+//! | `open` | which cameras a live source opens ([`LiveSpec`]: a rig file's, or fake cameras showing a simulated rig) and opening them |
+//! | [`headless`] | `rigview live --headless`: capture and exposure control without the window, with a status block per second |
 //!
 //! Everything that needs Aravis is behind the `aravis` feature (on by
 //! default).
 
 pub mod assemble;
-pub mod cmd;
 pub mod config;
 #[cfg(feature = "aravis")]
 mod device;
@@ -26,7 +26,9 @@ mod error;
 pub mod fake;
 #[cfg(feature = "aravis")]
 pub mod ffi;
+pub mod headless;
 pub mod health;
+mod open;
 #[cfg(feature = "aravis")]
 mod source;
 pub mod tracker;
@@ -42,6 +44,9 @@ pub use device::DeviceSpec;
 pub use error::CameraError;
 pub use error::LiveError;
 pub use health::CameraStatus;
+#[cfg(feature = "aravis")]
+pub use open::{open, Opened};
+pub use open::{FakeRig, LiveCameras, LiveSpec};
 #[cfg(feature = "aravis")]
 pub use source::{CameraSpec, LiveSource, LiveStatus};
 

@@ -1,15 +1,16 @@
-//! `rigview calib`: show, convert and make calibrations.
+//! `rigview calib`: show, convert, and make intrinsics and ground
+//! extrinsics.
 
 use std::io::Write;
 use std::path::PathBuf;
 
-use anyhow::{bail, Context, Result};
+use anyhow::Result;
 use clap::{Args, Subcommand};
-use rigview_calib::formats::{self, Format};
-use rigview_calib::rig::{Camera, Frame, Rig};
-use rigview_calib::tools::ground::{self, GroundLayout};
-use rigview_calib::tools::intrinsics::{self, Board, ImageStatus};
-use rigview_calib::{report, ModelKind};
+use rigview_calib::formats::Format;
+use rigview_calib::tools::intrinsics::Board;
+use rigview_calib::ModelKind;
+
+use crate::calibration::{self, GroundJob, IntrinsicsJob, Reading, Writing};
 
 /// Options of `rigview calib`.
 #[derive(Debug, Args)]
@@ -132,102 +133,61 @@ fn parse_board(s: &str) -> std::result::Result<(u32, u32), String> {
     Ok((p(a)?, p(b)?))
 }
 
-fn load(path: &std::path::Path, input: &InputArgs) -> Result<formats::Loaded> {
-    Ok(formats::load(path, input.from, input.model)?)
+impl InputArgs {
+    /// How these options read a calibration.
+    pub fn reading(&self) -> Reading {
+        Reading {
+            format: self.from,
+            model: self.model,
+        }
+    }
+}
+
+/// Where `--output`/`-o` and `--to` write.
+fn writing(output: Option<&PathBuf>, to: Option<Format>) -> Option<Writing> {
+    output.map(|path| Writing {
+        path: path.clone(),
+        format: to,
+    })
 }
 
 /// Runs `rigview calib …`, printing to `out`.
 pub fn run(args: &CalibArgs, out: &mut dyn Write) -> Result<()> {
     match &args.command {
-        CalibCommand::Show(a) => {
-            let loaded = load(&a.file, &a.input)?;
-            write!(out, "{}", report::summary(&loaded))?;
-        }
-        CalibCommand::Convert(a) => {
-            let loaded = load(&a.input, &a.read)?;
-            let written = formats::save(&loaded.rig, &a.output, a.to)?;
-            for w in written {
-                writeln!(out, "wrote {}", w.display())?;
-            }
-        }
-        CalibCommand::Intrinsics(a) => intrinsics_cmd(a, out)?,
-        CalibCommand::Ground(a) => ground_cmd(a, out)?,
-    }
-    Ok(())
-}
-
-fn intrinsics_cmd(a: &IntrinsicsArgs, out: &mut dyn Write) -> Result<()> {
-    let board = Board {
-        cols: a.board.0,
-        rows: a.board.1,
-        square_m: a.square,
-    };
-    let r = intrinsics::calibrate(&a.images, board, a.model).context("intrinsic calibration")?;
-    let k = &r.intrinsics;
-    writeln!(
-        out,
-        "{} model from {} of {} images: RMS reprojection error {:.4} px (OpenCV's figure {:.4} px)",
-        k.distortion.model_name(),
-        r.used(),
-        r.images.len(),
-        r.rms_px,
-        r.opencv_rms_px
-    )?;
-    writeln!(
-        out,
-        "f = ({:.3}, {:.3}) px, principal point ({:.3}, {:.3}) px, distortion {:?}",
-        k.fx,
-        k.fy,
-        k.cx,
-        k.cy,
-        k.distortion.coefficients()
-    )?;
-    for img in &r.images {
-        match &img.status {
-            ImageStatus::Used { rms_px } => {
-                writeln!(out, "  used     {} ({rms_px:.3} px)", img.file.display())?;
-            }
-            ImageStatus::Rejected { reason } => {
-                writeln!(out, "  rejected {}: {reason}", img.file.display())?;
-            }
-        }
-    }
-    if let Some(o) = &a.output {
-        let rig = Rig::new(
-            Frame::Vehicle,
-            vec![Camera::new(a.name.clone(), *k)],
-            vec![],
-        )
-        .map_err(|e| anyhow::anyhow!("{e}"))?;
-        for w in formats::save(&rig, o, a.to)? {
-            writeln!(out, "wrote {}", w.display())?;
-        }
-    }
-    Ok(())
-}
-
-fn ground_cmd(a: &GroundArgs, out: &mut dyn Write) -> Result<()> {
-    let loaded = load(&a.rig, &a.input)?;
-    let layout = GroundLayout::load(&a.layout)?;
-    if layout.views.is_empty() {
-        bail!("{}: the layout has no views", a.layout.display());
-    }
-    let (rig, results) = ground::calibrate(&loaded.rig, &layout)?;
-    for g in &results {
-        let t = g.pose.translation();
-        let [yaw, pitch, roll] = g.pose.ypr_deg();
-        writeln!(
+        CalibCommand::Show(a) => calibration::show(&a.file, a.input.reading(), out),
+        CalibCommand::Convert(a) => calibration::convert(
+            &a.input,
+            a.read.reading(),
+            &Writing {
+                path: a.output.clone(),
+                format: a.to,
+            },
             out,
-            "{}: {} corners, reprojection RMS {:.3} px (max {:.3} px); at ({:.3}, {:.3}, {:.3}) m, yaw {yaw:.2}°, pitch {pitch:.2}°, roll {roll:.2}°",
-            g.camera, g.corners, g.rms_px, g.max_px, t.x, t.y, t.z
-        )?;
+        ),
+        CalibCommand::Intrinsics(a) => calibration::intrinsics(
+            &IntrinsicsJob {
+                images: a.images.clone(),
+                board: Board {
+                    cols: a.board.0,
+                    rows: a.board.1,
+                    square_m: a.square,
+                },
+                model: a.model,
+                name: a.name.clone(),
+                output: writing(a.output.as_ref(), a.to),
+            },
+            out,
+        ),
+        CalibCommand::Ground(a) => calibration::ground(
+            &GroundJob {
+                rig: a.rig.clone(),
+                reading: a.input.reading(),
+                layout: a.layout.clone(),
+                output: writing(a.output.as_ref(), a.to),
+            },
+            out,
+        ),
     }
-    if let Some(o) = &a.output {
-        for w in formats::save(&rig, o, a.to)? {
-            writeln!(out, "wrote {}", w.display())?;
-        }
-    }
-    Ok(())
 }
 
 #[cfg(test)]
