@@ -11,128 +11,33 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use anyhow::{Context, Result};
-use clap::Args;
-use rigview::run_cmd::ProcessingArgs;
-use rigview_core::exposure::{LawKind, NeighbourGraph, Simulation};
-use rigview_core::pipeline::{LockStep, MeterRoi, ProcessingSettings, Processor, Strategy};
+use rigview_core::exposure::NeighbourGraph;
+use rigview_core::pipeline::{LockStep, MeterRoi, ProcessingSettings, Processor};
 use rigview_core::sim::{truth, Pacing, SimConfig, SimRender, SimRig, SimRigOptions};
 use rigview_core::surround::{CanvasSpec, SurroundOptions, SurroundView};
 
-/// Options of `rigview demo`.
-#[derive(Clone, Debug, Args)]
-pub struct DemoArgs {
-    /// The simulation: a preset (reference, steps, ramp, tunnel, backlight,
-    /// overcast) or a simulation file (see assets/sim/).
-    #[arg(long, default_value = "reference")]
+/// A demo run.
+#[derive(Clone, Debug)]
+pub struct Demo {
+    /// What the simulation is called (a preset's name or a file).
     pub scenario: String,
-    /// Frame sets to run [default: the scenario's length at its trigger
-    /// rate].
-    #[arg(long)]
+    /// The simulated rig.
+    pub sim: SimConfig,
+    /// Frame sets to run (`None`: the scenario's length at its trigger
+    /// rate).
     pub frames: Option<u64>,
-    /// Print every K-th frame set.
-    #[arg(long, default_value_t = 1)]
+    /// Print every `every`-th frame set (and the last).
     pub every: u64,
-    /// How exposure is decided [default: multi, balanced gradient AE].
-    #[arg(long, value_enum)]
-    pub strategy: Option<Strategy>,
-    /// Update law [default: nonlinear].
-    #[arg(long, value_enum)]
-    pub law: Option<LawKind>,
-    /// Exposure simulation of the estimator [default: gamma].
-    #[arg(long, value_enum)]
-    pub simulation: Option<Simulation>,
-    /// Which pixels are metered [default: ground].
-    #[arg(long, value_enum, value_name = "ROI")]
-    pub meter: Option<MeterRoi>,
-    /// Frames between a command and the first frame that shows it, 0 to 2
-    /// [default: the scenario's].
-    #[arg(long)]
-    pub latency: Option<u32>,
-    /// Starting shutter time of every camera, µs [default: the scenario's].
-    #[arg(long)]
-    pub start_us: Option<f64>,
-    /// Render at this fraction of the rig's resolution (0.25: 322×241).
-    #[arg(long, default_value_t = 1.0)]
-    pub scale: f64,
-    /// Output bits of the cameras, 8 or 12 [default: the scenario's].
-    #[arg(long)]
-    pub bits: Option<u32>,
-    /// Seed of the sensor noise [default: the scenario's].
-    #[arg(long)]
-    pub seed: Option<u64>,
-    /// Produce frame sets at the trigger rate instead of as fast as possible.
-    #[arg(long)]
+    /// Produce frame sets at the trigger rate instead of as fast as
+    /// possible.
     pub realtime: bool,
 }
 
-impl Default for DemoArgs {
-    fn default() -> Self {
-        Self {
-            scenario: "reference".into(),
-            frames: None,
-            every: 1,
-            strategy: None,
-            law: None,
-            simulation: None,
-            meter: None,
-            latency: None,
-            start_us: None,
-            scale: 1.0,
-            bits: None,
-            seed: None,
-            realtime: false,
-        }
-    }
-}
-
-impl DemoArgs {
-    /// The processing settings: the defaults, with the options given.
-    pub fn settings(&self) -> ProcessingSettings {
-        let mut s = ProcessingSettings::default();
-        ProcessingArgs {
-            strategy: self.strategy,
-            law: self.law,
-            simulation: self.simulation,
-            meter: self.meter,
-            blend: None,
-        }
-        .apply(&mut s);
-        s
-    }
-}
-
-/// The simulation the options ask for.
-fn sim_config(args: &DemoArgs) -> Result<SimConfig> {
-    let mut c = SimConfig::named(&args.scenario)
-        .with_context(|| format!("loading the simulation \"{}\"", args.scenario))?;
-    c.scale = args.scale;
-    if let Some(l) = args.latency {
-        c.latency_frames = l;
-    }
-    if let Some(s) = args.start_us {
-        c.start.shutter_us = s;
-    }
-    if let Some(b) = args.bits {
-        c.sensor.bits = b;
-    }
-    if let Some(s) = args.seed {
-        c.seed = s;
-    }
-    c.validate().context("the demo's options")?;
-    Ok(c)
-}
-
-/// Runs the demo and prints what it does.
-pub fn run(args: &DemoArgs) -> Result<()> {
-    let out = std::io::stdout();
-    run_to(args, &mut out.lock())
-}
-
-/// Runs the demo, printing to `out`.
-pub fn run_to(args: &DemoArgs, out: &mut impl Write) -> Result<()> {
-    let config = sim_config(args)?;
+/// Runs the demo with the processing `settings`, printing to `out`.
+pub fn run(demo: &Demo, settings: &ProcessingSettings, out: &mut dyn Write) -> Result<()> {
+    let config = &demo.sim;
     let started = Instant::now();
-    let render = Arc::new(SimRender::new(&config).context("building the simulated rig")?);
+    let render = Arc::new(SimRender::new(config).context("building the simulated rig")?);
     let traced = started.elapsed().as_secs_f64();
     let cams = render.cameras();
     let n = cams.len();
@@ -143,16 +48,15 @@ pub fn run_to(args: &DemoArgs, out: &mut impl Write) -> Result<()> {
     )
     .context("building the surround view of the simulated rig")?;
     let dr = truth::dynamic_range(&render, 0.0)?;
-    let frames = args
+    let frames = demo
         .frames
         .unwrap_or_else(|| (config.duration_s * config.trigger_hz).round().max(1.0) as u64);
 
-    let settings = args.settings();
     let graph = NeighbourGraph::new(n, &render.rig().neighbours)?;
     let source = SimRig::new(
         render.clone(),
         SimRigOptions {
-            pacing: if args.realtime {
+            pacing: if demo.realtime {
                 Pacing::Realtime
             } else {
                 Pacing::AsFastAsAsked
@@ -169,13 +73,13 @@ pub fn run_to(args: &DemoArgs, out: &mut impl Write) -> Result<()> {
     writeln!(
         out,
         "rigview demo: simulated rig, scenario \"{}\": {n} cameras {}×{} {} ({}° fisheye), trigger {} Hz{}, latency {} frame(s)",
-        args.scenario,
+        demo.scenario,
         info.width,
         info.height,
         info.format.genicam_name(),
         config.lens_fov_deg,
         config.trigger_hz,
-        if args.realtime { "" } else { " (run as fast as possible)" },
+        if demo.realtime { "" } else { " (run as fast as possible)" },
         lp.source().latency()
     )?;
     writeln!(
@@ -187,10 +91,8 @@ pub fn run_to(args: &DemoArgs, out: &mut impl Write) -> Result<()> {
     )?;
     writeln!(
         out,
-        "control: {}, {} law, {} simulation, metering {}; E = shutter_us · 10^(gain_dB/20)",
-        settings.strategy.label(),
-        settings.controller.law.kind.name(),
-        settings.controller.estimator.simulation.name(),
+        "control: {}, metering {}; E = shutter_us · 10^(gain_dB/20)",
+        crate::report::control(settings),
         match settings.roi {
             MeterRoi::Ground => "the surround view's ground",
             MeterRoi::Full => "whole frames",
@@ -230,7 +132,7 @@ pub fn run_to(args: &DemoArgs, out: &mut impl Write) -> Result<()> {
             .collect();
         logs.sort_by(f64::total_cmp);
         last_spread = logs.get(logs.len() / 2).copied().unwrap_or(f64::NAN);
-        if f % args.every.max(1) != 0 && f + 1 != frames {
+        if f % demo.every.max(1) != 0 && f + 1 != frames {
             continue;
         }
         let light = render.levels(t).sun.log2();

@@ -1,20 +1,32 @@
 //! `rigview` as a library: the parts of the application that tests and
 //! other front ends use.
 //!
+//! - [`cli`]: the command line's arguments, one file per subcommand, and
+//!   how they map to the options below.
+//! - [`calibration`]: `rigview calib`'s tools (show, convert, intrinsics,
+//!   ground).
+//! - [`demo`]: the closed loop on the simulated rig, printed.
 //! - [`gui`]: the desktop app (eframe/egui).
+//! - [`headless`]: `rigview run --headless` (views, telemetry, plot and
+//!   summary to a folder).
 //! - [`live`]: live capture from GenICam cameras through Aravis (the
 //!   `aravis` feature, on by default), frame-set assembly, stream health and
-//!   the `rigview live` command.
+//!   `rigview live --headless`.
 //! - [`plot_png`]: a PNG plot of the exposure state (plotters).
 //! - [`report`]: the summary of a run (drops, latency, CPU use).
-//! - [`run_cmd`]: `rigview run`, in the window or headless.
 //! - [`session`]: a source, its calibration and the processing pipeline.
 //! - [`settings`]: the settings that persist between runs.
+//! - [`stills`]: still images of a calibrated rig composed into a
+//!   bird's-eye view (`rigview surround`).
 
+pub mod calibration;
+pub mod cli;
+pub mod demo;
 pub mod gui;
+pub mod headless;
 pub mod live;
 pub mod plot_png;
 pub mod report;
-pub mod run_cmd;
 pub mod session;
 pub mod settings;
+pub mod stills;

@@ -2,7 +2,18 @@
 
 use std::time::Instant;
 
-use rigview_core::pipeline::{PipelineStatus, Telemetry};
+use rigview_core::pipeline::{PipelineStatus, ProcessingSettings, Telemetry};
+
+/// How exposure is controlled, in a few words: the strategy, the update
+/// law and the estimator's exposure simulation.
+pub fn control(settings: &ProcessingSettings) -> String {
+    format!(
+        "{}, {} law, {} simulation",
+        settings.strategy.label(),
+        settings.controller.law.kind.name(),
+        settings.controller.estimator.simulation.name()
+    )
+}
 
 /// The `q`-quantile of `values` (sorted in place); NaN when empty.
 pub fn quantile(values: &mut [f64], q: f64) -> f64 {

@@ -16,6 +16,8 @@ use rigview_core::sim::{Pacing, SimConfig, SimRender, SimRig, SimRigOptions};
 use rigview_core::source::{Budget, CameraInfo, FrameSource};
 use rigview_core::surround::{CanvasSpec, SurroundOptions, SurroundView};
 
+use crate::live::LiveSpec;
+
 /// The simulated rig to run.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SimSpec {
@@ -46,8 +48,8 @@ impl Default for SimSpec {
 pub enum SourceSpec {
     /// The simulated rig.
     Sim(SimSpec),
-    /// Live cameras (the options of `rigview live`).
-    Live(Box<crate::live::cmd::LiveArgs>),
+    /// Live cameras.
+    Live(LiveSpec),
 }
 
 /// A running session.
@@ -111,7 +113,7 @@ pub fn start(
 ) -> Result<Session> {
     match spec {
         SourceSpec::Sim(s) => start_sim(s, processing, options, notify),
-        SourceSpec::Live(args) => start_live(args, processing, options, notify),
+        SourceSpec::Live(live) => start_live(live, processing, options, notify),
     }
 }
 
@@ -167,7 +169,7 @@ fn start_sim(
 
 #[cfg(not(feature = "aravis"))]
 fn start_live(
-    _args: &crate::live::cmd::LiveArgs,
+    _spec: &LiveSpec,
     _processing: &ProcessingSettings,
     _options: PipelineOptions,
     _notify: Notify,
@@ -177,18 +179,19 @@ fn start_live(
 
 #[cfg(feature = "aravis")]
 fn start_live(
-    args: &crate::live::cmd::LiveArgs,
+    spec: &LiveSpec,
     processing: &ProcessingSettings,
     options: PipelineOptions,
     notify: Notify,
 ) -> Result<Session> {
     let mut notes = Vec::new();
-    let (mut source, rig, what) = crate::live::cmd::open_source(args, &mut notes)?;
+    let crate::live::Opened { mut source, rig } = crate::live::open(spec, &mut notes)?;
+    let what = spec.describe();
     notes.extend(source.take_messages());
     let cameras = source.cameras().to_vec();
-    let (view, graph, calibration) = match rig.as_ref().map(|r| view_of(r, &cameras)) {
-        Some(Ok((v, g))) => (Some(v), g, what.clone()),
-        Some(Err(e)) => {
+    let (view, graph, calibration) = match view_of(&rig, &cameras) {
+        Ok((v, g)) => (Some(v), g, what.clone()),
+        Err(e) => {
             notes.push(format!(
                 "no surround view: {e:#}; whole frames are metered (File, Open calibration)"
             ));
@@ -198,18 +201,13 @@ fn start_live(
                 "none".into(),
             )
         }
-        None => (
-            None,
-            NeighbourGraph::new(cameras.len(), &[])?,
-            "none".into(),
-        ),
     };
     let mut processor = Processor::new(cameras.clone(), view, graph, processing.clone())?;
     // The controller starts from where the cameras' own start-up
     // auto-exposure left them.
     processor.sync(source.start_settings())?;
     let camera_auto = source.has_camera_auto();
-    let pipeline = match args.frames {
+    let pipeline = match spec.frames {
         Some(n) => Pipeline::start(Budget::new(source, n), processor, options, notify)?,
         None => Pipeline::start(source, processor, options, notify)?,
     };

@@ -32,12 +32,14 @@ use crate::error::FieldError;
 
 /// A camera model without its coefficients.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum ModelKind {
     /// OpenCV fisheye (Kannala–Brandt, k1..k4).
     Fisheye,
-    /// Pinhole with radial-tangential distortion.
+    /// Pinhole with radial-tangential distortion (k1, k2, p1, p2, k3).
     Pinhole,
-    /// Pinhole with OpenCV's rational distortion (k1..k6, p1, p2).
+    /// Pinhole with OpenCV's rational distortion (k1, k2, p1, p2, k3, k4,
+    /// k5, k6; ROS's rational_polynomial).
     Rational,
 }
 

@@ -8,13 +8,17 @@
 use std::path::PathBuf;
 
 use clap::Parser;
-use rigview::live::cmd::LiveArgs;
+use rigview::cli::live::LiveArgs;
+use rigview::cli::{Cli, Command};
 use rigview_core::pipeline::ProcessingSettings;
 
-#[derive(Debug, Parser)]
-struct Cli {
-    #[command(flatten)]
-    live: LiveArgs,
+/// `rigview live ARGS` as the command line parses it.
+fn parse(args: &[&str]) -> Result<LiveArgs, clap::Error> {
+    let cli = Cli::try_parse_from(["rigview", "live"].iter().chain(args))?;
+    match cli.command {
+        Some(Command::Live(live)) => Ok(live),
+        other => panic!("not `rigview live`: {other:?}"),
+    }
 }
 
 /// `rigview live --headless` as the command line runs it: the default
@@ -22,7 +26,7 @@ struct Cli {
 fn run(args: &LiveArgs, out: &mut Vec<u8>) -> anyhow::Result<()> {
     let mut settings = ProcessingSettings::default();
     args.processing.apply(&mut settings);
-    rigview::live::cmd::run(args, &settings, out)
+    rigview::cli::live::headless(args, &settings, out)
 }
 
 fn rig() -> String {
@@ -32,12 +36,12 @@ fn rig() -> String {
 
 #[test]
 fn live_runs_the_loop_on_fake_cameras_and_prints_status() {
-    let cli = Cli::try_parse_from([
-        "live", "--fake", "--scale", "0.25", "--frames", "30", "--settle", "0.2",
+    let cli = parse(&[
+        "--fake", "--scale", "0.25", "--frames", "30", "--settle", "0.2",
     ])
     .unwrap();
     let mut out = Vec::new();
-    run(&cli.live, &mut out).unwrap();
+    run(&cli, &mut out).unwrap();
     let text = String::from_utf8(out).unwrap();
     println!("{text}");
     assert!(
@@ -60,8 +64,7 @@ fn live_runs_the_loop_on_fake_cameras_and_prints_status() {
 /// are measured and every camera's command is balanced.
 #[test]
 fn live_headless_balances_the_cameras_through_their_overlaps() {
-    let cli = Cli::try_parse_from([
-        "live",
+    let cli = parse(&[
         "--fake",
         "--scale",
         "0.25",
@@ -76,7 +79,7 @@ fn live_headless_balances_the_cameras_through_their_overlaps() {
     ])
     .unwrap();
     let mut out = Vec::new();
-    run(&cli.live, &mut out).unwrap();
+    run(&cli, &mut out).unwrap();
     let text = String::from_utf8(out).unwrap();
     println!("{text}");
     assert!(text.contains("gradient AE (multi), fast law"), "{text}");
@@ -120,16 +123,16 @@ fn live_headless_balances_the_cameras_through_their_overlaps() {
 #[test]
 fn a_rig_without_device_ids_is_refused_with_the_camera_named() {
     let rig = rig();
-    let cli = Cli::try_parse_from(["live", "--rig", &rig, "--seconds", "1"]).unwrap();
-    let err = run(&cli.live, &mut Vec::new()).unwrap_err();
+    let cli = parse(&["--rig", &rig, "--seconds", "1"]).unwrap();
+    let err = run(&cli, &mut Vec::new()).unwrap_err();
     let msg = format!("{err:#}");
     assert!(msg.contains("camera \"front\" has no device"), "{msg}");
 }
 
 #[test]
 fn an_unknown_simulation_is_refused_with_the_presets_named() {
-    let cli = Cli::try_parse_from(["live", "--fake", "--scenario", "moonlight"]).unwrap();
-    let err = run(&cli.live, &mut Vec::new()).unwrap_err();
+    let cli = parse(&["--fake", "--scenario", "moonlight"]).unwrap();
+    let err = run(&cli, &mut Vec::new()).unwrap_err();
     let msg = format!("{err:#}");
     assert!(msg.contains("moonlight"), "{msg}");
     assert!(msg.contains("reference, steps, ramp, tunnel"), "{msg}");
@@ -138,11 +141,11 @@ fn an_unknown_simulation_is_refused_with_the_presets_named() {
 #[test]
 fn fake_and_rig_exclude_each_other_and_a_scenario_needs_fake() {
     let rig = rig();
-    let both = Cli::try_parse_from(["live", "--rig", &rig, "--fake"]).unwrap_err();
+    let both = parse(&["--rig", &rig, "--fake"]).unwrap_err();
     assert!(both.to_string().contains("cannot be used with"), "{both}");
-    let neither = Cli::try_parse_from(["live"]).unwrap_err();
+    let neither = parse(&[]).unwrap_err();
     assert!(neither.to_string().contains("--rig"), "{neither}");
-    let stray = Cli::try_parse_from(["live", "--rig", &rig, "--scenario", "tunnel"]).unwrap();
-    let err = run(&stray.live, &mut Vec::new()).unwrap_err();
+    let stray = parse(&["--rig", &rig, "--scenario", "tunnel"]).unwrap();
+    let err = run(&stray, &mut Vec::new()).unwrap_err();
     assert!(format!("{err:#}").contains("need --fake"), "{err:#}");
 }

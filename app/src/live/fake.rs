@@ -10,7 +10,6 @@
 //! as a frame's metadata does, can render the same bytes again.
 
 use std::sync::Arc;
-use std::time::{SystemTime, UNIX_EPOCH};
 
 use rigview_core::exposure::{ExposureSetting, PixelFormat};
 use rigview_core::sim::{FillRequest, SimRender};
@@ -46,9 +45,7 @@ pub struct FakeView {
 /// The fake camera's timestamp clock now: Aravis's in-process fake camera
 /// stamps each frame with the host's wall clock, ns since the Unix epoch.
 pub fn clock_ns() -> u64 {
-    SystemTime::now()
-        .duration_since(UNIX_EPOCH)
-        .map_or(0, |d| u64::try_from(d.as_nanos()).unwrap_or(u64::MAX))
+    super::host_now_ns()
 }
 
 impl FakeView {
@@ -191,4 +188,228 @@ pub fn render_into(
     };
     view.render
         .fill(&view.request(frame_id, timestamp_ns, setting), out)
+}
+
+/// An in-process fake camera of Aravis with its fill callback installed.
+/// Dropping it lets the device go, then removes the callback (the guard
+/// keeps the fake camera alive until then).
+#[cfg(feature = "aravis")]
+pub(crate) struct FakeDevice {
+    // Field order is drop order: the fill callback goes last.
+    _device: aravis::FakeDevice,
+    _fill: super::ffi::FillGuard,
+}
+
+#[cfg(feature = "aravis")]
+impl std::fmt::Debug for FakeDevice {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("FakeDevice").finish_non_exhaustive()
+    }
+}
+
+/// Creates the fake camera `serial` showing `view` for camera `name`: the
+/// camera to configure, the device that must outlive it, and `config` with
+/// the view's region and pixel format.
+#[cfg(feature = "aravis")]
+pub(crate) fn open(
+    name: &str,
+    serial: &str,
+    view: &FakeView,
+    config: &super::CaptureConfig,
+) -> Result<(aravis::Camera, FakeDevice, super::CaptureConfig), super::CameraError> {
+    use super::CameraError;
+
+    let opening = |source| CameraError::Open {
+        camera: name.to_owned(),
+        device: format!("in-process fake camera {serial}"),
+        source,
+    };
+    let device = aravis::FakeDevice::new(serial).map_err(opening)?;
+    let fake = device
+        .fake_camera()
+        .ok_or_else(|| CameraError::Unexpected {
+            camera: name.to_owned(),
+            feature: "the fake device",
+            expected: "a fake camera behind it".into(),
+            found: "none".into(),
+        })?;
+    // In trigger mode the in-process fake camera does not wait for software
+    // triggers: it fires on its own, aligned to the monotonic clock, like a
+    // trigger box shared by the rig; here at the simulation's trigger rate.
+    fake.set_trigger_frequency(view.render.config().trigger_hz);
+    let fill = super::ffi::install_fill(
+        &fake,
+        view.width,
+        view.height,
+        view.format.bytes_per_pixel(),
+        fill(view.clone(), config.gain_raw_db_per_step),
+    );
+    let camera = aravis::Camera::with_device(&device).map_err(opening)?;
+    let mut config = config.clone();
+    config.region = Some(super::Region {
+        x: 0,
+        y: 0,
+        width: u32::try_from(view.width).unwrap_or(u32::MAX),
+        height: u32::try_from(view.height).unwrap_or(u32::MAX),
+    });
+    config.pixel_format = view.format;
+    Ok((
+        camera,
+        FakeDevice {
+            _device: device,
+            _fill: fill,
+        },
+        config,
+    ))
+}
+
+/// Checks that the fake camera's buffers of `payload` bytes hold a whole
+/// frame of `view`: the fill callback writes one into each.
+#[cfg(feature = "aravis")]
+pub(crate) fn check_payload(
+    name: &str,
+    view: &FakeView,
+    payload: usize,
+) -> Result<(), super::CameraError> {
+    if payload >= view.buffer_len() {
+        return Ok(());
+    }
+    Err(super::CameraError::Unexpected {
+        camera: name.to_owned(),
+        feature: "PayloadSize",
+        expected: format!(
+            "at least a {}×{} {} frame ({} bytes)",
+            view.width,
+            view.height,
+            view.format.genicam_name(),
+            view.buffer_len()
+        ),
+        found: format!("{payload} bytes"),
+    })
+}
+
+/// The fill callback of a fake camera showing `view`: its registers' raw
+/// gain read as `db_per_step` dB a step (as the camera's thread reads it),
+/// its frame ids made monotonic (as the camera's thread makes them), so a
+/// frame's id, timestamp and `taken` setting are the ones it was rendered
+/// with.
+#[cfg(feature = "aravis")]
+fn fill(view: FakeView, db_per_step: f64) -> Box<super::ffi::FillFn> {
+    let ids = std::sync::Mutex::new(super::tracker::IdUnwrapper::default());
+    Box::new(move |pixels, args| {
+        let frame = ids
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .unwrap(args.frame_id);
+        let shown = render_into(
+            &view,
+            frame,
+            args.timestamp_ns,
+            f64::from(args.exposure_us),
+            f64::from(args.gain_raw) * db_per_step,
+            pixels,
+        );
+        // (Only an exposure time of 0 µs, which the fake camera's range
+        // excludes, makes the simulation refuse a frame.)
+        if shown.is_err() {
+            pixels.fill(0);
+        }
+    })
+}
+
+/// The fake cameras of a [`FakeRig`](super::open::FakeRig), ready to open.
+#[cfg(feature = "aravis")]
+#[derive(Debug)]
+pub(crate) struct FakeCameras {
+    /// One per simulated camera, named as in the simulated rig.
+    pub cameras: Vec<super::CameraSpec>,
+    /// The capture configuration they run with.
+    pub capture: super::CaptureConfig,
+    /// The simulated rig (its calibration gives the view).
+    pub rig: rigview_calib::Rig,
+}
+
+/// Builds the simulated rig of `fake` and one fake camera per simulated
+/// camera, captured as `capture` says except for the trigger: the
+/// in-process fake cameras ignore software triggers, so in trigger mode
+/// they fire on their own clock, like a trigger box. What it reports is
+/// added to `notes`.
+#[cfg(feature = "aravis")]
+pub(crate) fn cameras(
+    fake: &super::open::FakeRig,
+    capture: &super::CaptureConfig,
+    notes: &mut Vec<String>,
+) -> anyhow::Result<FakeCameras> {
+    use anyhow::Context;
+    use rigview_core::sim::{SimConfig, PRESETS};
+
+    use super::{CameraSpec, DeviceSpec, TriggerMode};
+
+    let mut capture = capture.clone();
+    if !matches!(capture.trigger, TriggerMode::FreeRun { .. }) {
+        capture.trigger = TriggerMode::Hardware {
+            line: "Line0".into(),
+        };
+    }
+    check_format(capture.pixel_format)?;
+    let scenario = fake.scenario.as_str();
+    if !PRESETS.iter().any(|p| p.0 == scenario) && !std::path::Path::new(scenario).exists() {
+        anyhow::bail!(
+            "--scenario {scenario}: neither a simulation preset ({}) nor a simulation file",
+            PRESETS.map(|p| p.0).join(", ")
+        );
+    }
+    let mut sim = SimConfig::named(scenario)
+        .with_context(|| format!("loading the simulation \"{scenario}\""))?;
+    sim.scale = fake.scale;
+    // The fake cameras fire at the simulation's trigger rate.
+    sim.trigger_hz = fake.rate_hz;
+    let started = std::time::Instant::now();
+    let render = Arc::new(SimRender::new(&sim).with_context(|| {
+        format!(
+            "building the simulation \"{scenario}\" (--scale {}, --rate {})",
+            sim.scale, fake.rate_hz
+        )
+    })?);
+    // The script starts when the controller takes over from the cameras'
+    // own start-up auto-exposure (give or take the time to open them).
+    let epoch_ns = clock_ns()
+        .saturating_add(u64::try_from(capture.auto_settle.as_nanos()).unwrap_or(u64::MAX));
+    let views = FakeView::rig(&render, capture.pixel_format, epoch_ns)?;
+    let mut sizes: Vec<String> = views
+        .iter()
+        .map(|v| format!("{}×{}", v.width, v.height))
+        .collect();
+    sizes.dedup();
+    notes.push(format!(
+        "simulation \"{}\": {} cameras of {} {}, traced in {:.1} s",
+        sim.name,
+        views.len(),
+        sizes.join(", "),
+        capture.pixel_format.genicam_name(),
+        started.elapsed().as_secs_f64()
+    ));
+    super::ffi::enable_interface("Fake");
+    let cameras = views
+        .into_iter()
+        .zip(render.cameras())
+        .enumerate()
+        .map(|(i, (view, info))| {
+            let name = info.name.clone();
+            // Aravis takes serial numbers of at most 15 bytes.
+            let mut serial = format!("RV{i}-{name}");
+            while serial.len() > 15 {
+                serial.pop();
+            }
+            CameraSpec {
+                name,
+                device: DeviceSpec::Fake { serial, view },
+            }
+        })
+        .collect();
+    Ok(FakeCameras {
+        cameras,
+        capture,
+        rig: render.rig().clone(),
+    })
 }

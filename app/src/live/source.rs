@@ -16,10 +16,13 @@ use rigview_core::source::{
 };
 
 use super::assemble::{Assembler, SetCounters};
-use super::camera::{CameraCommand, DeviceSpec, Event, Schedule, Worker};
 use super::config::{CaptureConfig, TriggerMode};
+use super::device::DeviceSpec;
+use super::error::{CameraError, LiveError};
 use super::health::{CameraStatus, HealthCell};
-use super::LiveError;
+use super::host_now_ns;
+use super::trigger::Schedule;
+use super::worker::{CameraCommand, Event, Worker};
 
 /// One camera to open.
 #[derive(Clone, Debug)]
@@ -77,6 +80,7 @@ struct Handle {
 /// stops answering is marked lost while the others go on, and rejoins when
 /// it comes back.
 pub struct LiveSource {
+    names: Vec<String>,
     infos: Vec<CameraInfo>,
     start: Vec<ExposureSetting>,
     handles: Vec<Handle>,
@@ -110,11 +114,7 @@ impl LiveSource {
             return Err(LiveError::NoCameras);
         }
         let schedule = match config.trigger {
-            TriggerMode::Software { .. } => config.trigger.period().map(|period| Schedule {
-                epoch: Instant::now(),
-                epoch_wall_ns: host_now_ns(),
-                period,
-            }),
+            TriggerMode::Software { .. } => config.trigger.period().map(Schedule::starting_now),
             _ => None,
         };
         let stop = Arc::new(AtomicBool::new(false));
@@ -134,27 +134,27 @@ impl LiveSource {
                 health: health.clone(),
                 stop: stop.clone(),
             };
-            let (events, cell) = (tx.clone(), health.clone());
+            let (events, cell, name) = (tx.clone(), health.clone(), spec.name.clone());
             let thread = std::thread::Builder::new()
                 .name(format!("camera {}", spec.name))
                 .spawn(move || {
                     // A panic in Aravis's bindings ends this camera only.
                     if catch_unwind(AssertUnwindSafe(|| worker.run())).is_err() {
-                        let message =
-                            "its thread failed; restart rigview to bring it back".to_owned();
+                        let failed = || CameraError::Panicked {
+                            camera: name.clone(),
+                        };
                         cell.set_state(StreamState::Lost);
-                        cell.error(message.clone());
-                        let _ = events.send(Event::OpenFailed {
-                            error: message.clone(),
-                        });
-                        let _ = events.send(Event::State {
+                        cell.error(failed().to_string());
+                        // (While starting, the first ends the start; later,
+                        // the second marks the camera lost.)
+                        let _ = events.send(Event::OpenFailed(failed()));
+                        let _ = events.send(Event::Lost {
                             camera: index,
-                            state: StreamState::Lost,
-                            message,
+                            error: failed(),
                         });
                     }
                 })
-                .map_err(|e| LiveError::Thread(e.to_string()))?;
+                .map_err(LiveError::Thread)?;
             handles.push(Handle {
                 thread: Some(thread),
                 commands: ctx,
@@ -164,6 +164,7 @@ impl LiveSource {
         drop(tx);
         let n = cameras.len();
         let mut source = LiveSource {
+            names: cameras.iter().map(|c| c.name.clone()).collect(),
             infos: Vec::new(),
             start: Vec::new(),
             handles,
@@ -210,29 +211,19 @@ impl LiveSource {
                         *s = StreamState::Streaming;
                     }
                 }
-                Ok(Event::OpenFailed { error, .. }) => return Err(LiveError::Open(error)),
+                Ok(Event::OpenFailed(error)) => return Err(LiveError::Camera(error)),
                 Ok(Event::Frame(_)) => {}
-                Ok(Event::State {
-                    camera, message, ..
-                })
-                | Ok(Event::Note { camera, message }) => {
-                    source.note(format!("camera {camera}: {message}"));
-                }
+                Ok(e) => source.handle(e),
                 Err(RecvTimeoutError::Timeout) => {
-                    let missing: Vec<&str> = infos
+                    let cameras = infos
                         .iter()
                         .zip(&cameras)
                         .filter(|(i, _)| i.is_none())
-                        .map(|(_, c)| c.name.as_str())
+                        .map(|(_, c)| c.name.clone())
                         .collect();
-                    return Err(LiveError::Open(format!(
-                        "timed out waiting for {}",
-                        missing.join(", ")
-                    )));
+                    return Err(LiveError::OpenTimeout { cameras });
                 }
-                Err(RecvTimeoutError::Disconnected) => {
-                    return Err(LiveError::Open("the camera threads ended".into()))
-                }
+                Err(RecvTimeoutError::Disconnected) => return Err(LiveError::ThreadsEnded),
             }
         }
         for (info, setting) in infos.into_iter().flatten() {
@@ -287,39 +278,34 @@ impl LiveSource {
                     self.assembler.push(a);
                 }
             }
-            Event::State {
-                camera,
-                state,
-                message,
-            } => {
-                let name = self
-                    .infos
-                    .get(camera)
-                    .map_or_else(|| format!("camera {camera}"), |i| i.name.clone());
+            Event::Lost { camera, error } => {
                 if let Some(s) = self.states.get_mut(camera) {
-                    *s = state;
+                    *s = StreamState::Lost;
                 }
-                if state != StreamState::Streaming {
-                    self.assembler.drop_camera(camera);
-                } else {
-                    self.assembler.restart_ids(camera);
+                self.assembler.drop_camera(camera);
+                self.note(format!("{error} (stream lost)"));
+            }
+            Event::Rejoined { camera, device } => {
+                if let Some(s) = self.states.get_mut(camera) {
+                    *s = StreamState::Streaming;
                 }
-                let word = match state {
-                    StreamState::Streaming => "streaming",
-                    StreamState::Lost => "LOST",
-                    StreamState::Reconnecting => "reconnecting",
-                };
-                self.note(format!("{name}: {word}: {message}"));
+                self.assembler.restart_ids(camera);
+                let name = self.name(camera);
+                self.note(format!("{name}: streaming: rejoined ({device})"));
             }
             Event::Note { camera, message } => {
-                let name = self
-                    .infos
-                    .get(camera)
-                    .map_or_else(|| format!("camera {camera}"), |i| i.name.clone());
+                let name = self.name(camera);
                 self.note(format!("{name}: {message}"));
             }
-            Event::Ready { .. } | Event::OpenFailed { .. } => {}
+            Event::Ready { .. } | Event::OpenFailed(_) => {}
         }
+    }
+
+    /// Camera `camera`'s name in messages.
+    fn name(&self, camera: usize) -> String {
+        self.names
+            .get(camera)
+            .map_or_else(|| format!("camera {camera}"), Clone::clone)
     }
 
     fn active(&self) -> Vec<bool> {
@@ -332,12 +318,6 @@ impl LiveSource {
 
 fn nanos(d: Duration) -> u64 {
     u64::try_from(d.as_nanos()).unwrap_or(u64::MAX)
-}
-
-fn host_now_ns() -> u64 {
-    std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0, nanos)
 }
 
 impl FrameSource for LiveSource {

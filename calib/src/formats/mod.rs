@@ -31,16 +31,20 @@ use crate::rig::{Camera, Frame, Rig};
 
 /// A calibration file format.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum Format {
-    /// rigview's own rig YAML.
+    /// rigview's rig YAML.
     Rig,
-    /// OpenCV FileStorage YAML, one camera a file.
+    /// OpenCV FileStorage YAML (one file a camera).
+    #[cfg_attr(feature = "clap", value(name = "opencv-yaml"))]
     OpenCvYaml,
-    /// OpenCV FileStorage XML, one camera a file.
+    /// OpenCV FileStorage XML (one file a camera).
+    #[cfg_attr(feature = "clap", value(name = "opencv-xml"))]
     OpenCvXml,
     /// Kalibr camchain YAML.
     Kalibr,
-    /// ROS camera_info YAML, one camera a file.
+    /// ROS camera_info (one file a camera): ROS 1's YAML, or a ROS 2
+    /// CameraInfo message as `ros2 topic echo` prints it (read only).
     Ros,
 }
 

@@ -1,65 +1,16 @@
-//! `rigview calib`: show, convert and make calibrations.
+//! `rigview calib`: show, convert, and make intrinsics and ground
+//! extrinsics.
 
 use std::io::Write;
 use std::path::PathBuf;
 
-use anyhow::{bail, Context, Result};
-use clap::{Args, Subcommand, ValueEnum};
-use rigview_calib::formats::{self, Format};
-use rigview_calib::rig::{Camera, Frame, Rig};
-use rigview_calib::tools::ground::{self, GroundLayout};
-use rigview_calib::tools::intrinsics::{self, Board, ImageStatus};
-use rigview_calib::{report, ModelKind};
+use anyhow::Result;
+use clap::{Args, Subcommand};
+use rigview_calib::formats::Format;
+use rigview_calib::tools::intrinsics::Board;
+use rigview_calib::ModelKind;
 
-/// A camera model on the command line.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum Model {
-    /// OpenCV fisheye (Kannala–Brandt, k1..k4).
-    Fisheye,
-    /// Pinhole with radial-tangential distortion (k1, k2, p1, p2, k3).
-    Pinhole,
-    /// Pinhole with OpenCV's rational distortion (k1, k2, p1, p2, k3, k4,
-    /// k5, k6; ROS's rational_polynomial).
-    Rational,
-}
-
-impl From<Model> for ModelKind {
-    fn from(m: Model) -> Self {
-        match m {
-            Model::Fisheye => ModelKind::Fisheye,
-            Model::Pinhole => ModelKind::Pinhole,
-            Model::Rational => ModelKind::Rational,
-        }
-    }
-}
-
-/// A calibration format on the command line.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum FormatArg {
-    /// rigview's rig YAML.
-    Rig,
-    /// OpenCV FileStorage YAML (one file a camera).
-    OpencvYaml,
-    /// OpenCV FileStorage XML (one file a camera).
-    OpencvXml,
-    /// Kalibr camchain YAML.
-    Kalibr,
-    /// ROS camera_info (one file a camera): ROS 1's YAML, or a ROS 2
-    /// CameraInfo message as `ros2 topic echo` prints it (read only).
-    Ros,
-}
-
-impl From<FormatArg> for Format {
-    fn from(f: FormatArg) -> Self {
-        match f {
-            FormatArg::Rig => Format::Rig,
-            FormatArg::OpencvYaml => Format::OpenCvYaml,
-            FormatArg::OpencvXml => Format::OpenCvXml,
-            FormatArg::Kalibr => Format::Kalibr,
-            FormatArg::Ros => Format::Ros,
-        }
-    }
-}
+use crate::calibration::{self, GroundJob, IntrinsicsJob, Reading, Writing};
 
 /// Options of `rigview calib`.
 #[derive(Debug, Args)]
@@ -89,12 +40,12 @@ pub enum CalibCommand {
 pub struct InputArgs {
     /// Input format (default: told from the file).
     #[arg(long, value_enum)]
-    pub from: Option<FormatArg>,
+    pub from: Option<Format>,
     /// Camera model for OpenCV files that do not say which (4 coefficients
     /// fit fisheye and pinhole; rational keeps 8 as the rational model even
     /// when k4..k6 are 0).
     #[arg(long, value_enum)]
-    pub model: Option<Model>,
+    pub model: Option<ModelKind>,
 }
 
 /// Options of `rigview calib show`.
@@ -119,7 +70,7 @@ pub struct ConvertArgs {
     pub read: InputArgs,
     /// Output format (default: .xml → opencv-xml, otherwise rig).
     #[arg(long, value_enum)]
-    pub to: Option<FormatArg>,
+    pub to: Option<Format>,
 }
 
 /// Options of `rigview calib intrinsics`.
@@ -135,8 +86,8 @@ pub struct IntrinsicsArgs {
     #[arg(long, default_value_t = 0.025)]
     pub square: f64,
     /// Lens model to fit.
-    #[arg(long, value_enum, default_value_t = Model::Pinhole)]
-    pub model: Model,
+    #[arg(long, value_enum, default_value_t = ModelKind::Pinhole)]
+    pub model: ModelKind,
     /// Camera name in the output.
     #[arg(long, default_value = "camera")]
     pub name: String,
@@ -145,7 +96,7 @@ pub struct IntrinsicsArgs {
     pub output: Option<PathBuf>,
     /// Output format.
     #[arg(long, value_enum)]
-    pub to: Option<FormatArg>,
+    pub to: Option<Format>,
 }
 
 /// Options of `rigview calib ground`.
@@ -163,7 +114,7 @@ pub struct GroundArgs {
     pub output: Option<PathBuf>,
     /// Output format.
     #[arg(long, value_enum)]
-    pub to: Option<FormatArg>,
+    pub to: Option<Format>,
     #[command(flatten)]
     pub input: InputArgs,
 }
@@ -182,107 +133,61 @@ fn parse_board(s: &str) -> std::result::Result<(u32, u32), String> {
     Ok((p(a)?, p(b)?))
 }
 
-fn load(path: &std::path::Path, input: &InputArgs) -> Result<formats::Loaded> {
-    Ok(formats::load(
-        path,
-        input.from.map(Into::into),
-        input.model.map(Into::into),
-    )?)
+impl InputArgs {
+    /// How these options read a calibration.
+    pub fn reading(&self) -> Reading {
+        Reading {
+            format: self.from,
+            model: self.model,
+        }
+    }
+}
+
+/// Where `--output`/`-o` and `--to` write.
+fn writing(output: Option<&PathBuf>, to: Option<Format>) -> Option<Writing> {
+    output.map(|path| Writing {
+        path: path.clone(),
+        format: to,
+    })
 }
 
 /// Runs `rigview calib …`, printing to `out`.
 pub fn run(args: &CalibArgs, out: &mut dyn Write) -> Result<()> {
     match &args.command {
-        CalibCommand::Show(a) => {
-            let loaded = load(&a.file, &a.input)?;
-            write!(out, "{}", report::summary(&loaded))?;
-        }
-        CalibCommand::Convert(a) => {
-            let loaded = load(&a.input, &a.read)?;
-            let written = formats::save(&loaded.rig, &a.output, a.to.map(Into::into))?;
-            for w in written {
-                writeln!(out, "wrote {}", w.display())?;
-            }
-        }
-        CalibCommand::Intrinsics(a) => intrinsics_cmd(a, out)?,
-        CalibCommand::Ground(a) => ground_cmd(a, out)?,
-    }
-    Ok(())
-}
-
-fn intrinsics_cmd(a: &IntrinsicsArgs, out: &mut dyn Write) -> Result<()> {
-    let board = Board {
-        cols: a.board.0,
-        rows: a.board.1,
-        square_m: a.square,
-    };
-    let r =
-        intrinsics::calibrate(&a.images, board, a.model.into()).context("intrinsic calibration")?;
-    let k = &r.intrinsics;
-    writeln!(
-        out,
-        "{} model from {} of {} images: RMS reprojection error {:.4} px (OpenCV's figure {:.4} px)",
-        k.distortion.model_name(),
-        r.used(),
-        r.images.len(),
-        r.rms_px,
-        r.opencv_rms_px
-    )?;
-    writeln!(
-        out,
-        "f = ({:.3}, {:.3}) px, principal point ({:.3}, {:.3}) px, distortion {:?}",
-        k.fx,
-        k.fy,
-        k.cx,
-        k.cy,
-        k.distortion.coefficients()
-    )?;
-    for img in &r.images {
-        match &img.status {
-            ImageStatus::Used { rms_px } => {
-                writeln!(out, "  used     {} ({rms_px:.3} px)", img.file.display())?;
-            }
-            ImageStatus::Rejected { reason } => {
-                writeln!(out, "  rejected {}: {reason}", img.file.display())?;
-            }
-        }
-    }
-    if let Some(o) = &a.output {
-        let rig = Rig::new(
-            Frame::Vehicle,
-            vec![Camera::new(a.name.clone(), *k)],
-            vec![],
-        )
-        .map_err(|e| anyhow::anyhow!("{e}"))?;
-        for w in formats::save(&rig, o, a.to.map(Into::into))? {
-            writeln!(out, "wrote {}", w.display())?;
-        }
-    }
-    Ok(())
-}
-
-fn ground_cmd(a: &GroundArgs, out: &mut dyn Write) -> Result<()> {
-    let loaded = load(&a.rig, &a.input)?;
-    let layout = GroundLayout::load(&a.layout)?;
-    if layout.views.is_empty() {
-        bail!("{}: the layout has no views", a.layout.display());
-    }
-    let (rig, results) = ground::calibrate(&loaded.rig, &layout)?;
-    for g in &results {
-        let t = g.pose.translation();
-        let [yaw, pitch, roll] = g.pose.ypr_deg();
-        writeln!(
+        CalibCommand::Show(a) => calibration::show(&a.file, a.input.reading(), out),
+        CalibCommand::Convert(a) => calibration::convert(
+            &a.input,
+            a.read.reading(),
+            &Writing {
+                path: a.output.clone(),
+                format: a.to,
+            },
             out,
-            "{}: {} corners, reprojection RMS {:.3} px (max {:.3} px); at ({:.3}, {:.3}, {:.3}) m, yaw {yaw:.2}°, pitch {pitch:.2}°, roll {roll:.2}°",
-            g.camera, g.corners, g.rms_px, g.max_px, t.x, t.y, t.z
-        )?;
+        ),
+        CalibCommand::Intrinsics(a) => calibration::intrinsics(
+            &IntrinsicsJob {
+                images: a.images.clone(),
+                board: Board {
+                    cols: a.board.0,
+                    rows: a.board.1,
+                    square_m: a.square,
+                },
+                model: a.model,
+                name: a.name.clone(),
+                output: writing(a.output.as_ref(), a.to),
+            },
+            out,
+        ),
+        CalibCommand::Ground(a) => calibration::ground(
+            &GroundJob {
+                rig: a.rig.clone(),
+                reading: a.input.reading(),
+                layout: a.layout.clone(),
+                output: writing(a.output.as_ref(), a.to),
+            },
+            out,
+        ),
     }
-    if let Some(o) = &a.output {
-        for w in formats::save(&rig, o, a.to.map(Into::into))? {
-            writeln!(out, "wrote {}", w.display())?;
-        }
-    }
-    Ok(())
 }
 
 #[cfg(test)]

@@ -1,11 +1,10 @@
-//! `rigview surround`: compose still images into a bird's-eye view, to check
-//! a calibration.
+//! Still images of a calibrated rig composed into a bird's-eye view
+//! (`rigview surround`), to check a calibration.
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
-use clap::{Args, ValueEnum};
 use rigview_calib::formats;
 use rigview_core::exposure::balance::pair_ratio;
 use rigview_core::exposure::{BalanceParams, FrameView, PixelFormat};
@@ -13,88 +12,32 @@ use rigview_core::surround::{
     BlendMode, Canvas, CanvasSpec, Composer, SurroundOptions, SurroundView,
 };
 
-/// A blend mode on the command line.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum Blend {
-    /// Weights falling off with the distance from each camera's own region.
-    Linear,
-    /// Half and half in the overlaps.
-    Alpha,
-    /// A hard seam through each overlap: misalignment shows as broken lines.
-    Seams,
-}
-
-impl From<Blend> for BlendMode {
-    fn from(b: Blend) -> Self {
-        match b {
-            Blend::Linear => BlendMode::Linear,
-            Blend::Alpha => BlendMode::Alpha,
-            Blend::Seams => BlendMode::Seams,
-        }
-    }
-}
-
-/// Options of `rigview surround`.
-#[derive(Debug, Args)]
-pub struct SurroundArgs {
-    /// The rig: a rig file or calibration in any supported format (a folder
-    /// of per-camera files works too). Its poses must be in the vehicle
-    /// frame.
-    #[arg(long)]
+/// What to compose.
+#[derive(Clone, Debug)]
+pub struct Stills {
+    /// The rig: a rig file or calibration in any supported format (or a
+    /// folder of per-camera files), its poses in the vehicle frame.
     pub rig: PathBuf,
-    /// One image per camera, in rig order, or as NAME=PATH (e.g.
-    /// front=front.png). Any format the `image` crate reads.
-    #[arg(long, num_args = 1.., required = true)]
+    /// One image per camera, in rig order, or as `NAME=PATH`.
     pub images: Vec<String>,
     /// Where to write the bird's-eye view (PNG).
-    #[arg(long)]
     pub out: PathBuf,
     /// How overlapping cameras are mixed.
-    #[arg(long, value_enum, default_value = "linear")]
-    pub blend: Blend,
-    /// The ground shown: X_MIN X_MAX Y_MIN Y_MAX in metres (vehicle frame: x
-    /// forward, y left).
-    #[arg(long, num_args = 4, value_names = ["X_MIN", "X_MAX", "Y_MIN", "Y_MAX"], allow_negative_numbers = true)]
-    pub extent_m: Option<Vec<f64>>,
-    /// The vehicle's rectangle: X_MIN X_MAX Y_MIN Y_MAX in metres.
-    #[arg(long, num_args = 4, value_names = ["X_MIN", "X_MAX", "Y_MIN", "Y_MAX"], allow_negative_numbers = true)]
-    pub vehicle_m: Option<Vec<f64>>,
-    /// Canvas pixels per metre.
-    #[arg(long, default_value_t = 100.0)]
-    pub px_per_m: f64,
+    pub blend: BlendMode,
+    /// The ground shown, its resolution and the vehicle's rectangle.
+    pub canvas: CanvasSpec,
     /// A top-down picture of the vehicle to paste over its rectangle.
-    #[arg(long)]
     pub vehicle_image: Option<PathBuf>,
 }
 
-/// Runs `rigview surround`, reporting to `out`.
-pub fn run(args: &SurroundArgs, out: &mut impl Write) -> Result<()> {
-    let loaded = formats::load(&args.rig, None, None)
-        .with_context(|| format!("loading the rig {}", args.rig.display()))?;
+/// Composes `stills`, reporting to `out`: the file written, each camera's
+/// ground mask, and each overlap's brightness ratio.
+pub fn run(stills: &Stills, out: &mut dyn Write) -> Result<()> {
+    let loaded = formats::load(&stills.rig, None, None)
+        .with_context(|| format!("loading the rig {}", stills.rig.display()))?;
     let rig = loaded.rig;
-    let defaults = CanvasSpec::default();
-    let four = |v: &Option<Vec<f64>>, d: [f64; 4]| match v.as_deref() {
-        Some([a, b, c, e]) => [*a, *b, *c, *e],
-        _ => d,
-    };
-    let [x_min_m, x_max_m, y_min_m, y_max_m] = four(
-        &args.extent_m,
-        [
-            defaults.x_min_m,
-            defaults.x_max_m,
-            defaults.y_min_m,
-            defaults.y_max_m,
-        ],
-    );
-    let spec = CanvasSpec {
-        x_min_m,
-        x_max_m,
-        y_min_m,
-        y_max_m,
-        px_per_m: args.px_per_m,
-        vehicle_m: four(&args.vehicle_m, defaults.vehicle_m),
-    };
-    let paths = image_paths(&args.images, &rig)?;
+    let spec = &stills.canvas;
+    let paths = image_paths(&stills.images, &rig)?;
     let images = paths
         .iter()
         .map(|p| {
@@ -115,7 +58,7 @@ pub fn run(args: &SurroundArgs, out: &mut impl Write) -> Result<()> {
             );
         }
     }
-    let view = SurroundView::build(&rig, &spec, &SurroundOptions::default())
+    let view = SurroundView::build(&rig, spec, &SurroundOptions::default())
         .context("building the surround view")?;
     let frames = images
         .iter()
@@ -129,26 +72,26 @@ pub fn run(args: &SurroundArgs, out: &mut impl Write) -> Result<()> {
         })
         .collect::<rigview_core::Result<Vec<_>>>()?;
     let mut canvas = Canvas::new(0, 0, 3);
-    Composer::new().compose(&view, &frames, args.blend.into(), &mut canvas)?;
-    if let Some(path) = &args.vehicle_image {
-        paste_vehicle(&mut canvas, &spec, path)?;
+    Composer::new().compose(&view, &frames, stills.blend, &mut canvas)?;
+    if let Some(path) = &stills.vehicle_image {
+        paste_vehicle(&mut canvas, spec, path)?;
     }
     image::save_buffer(
-        &args.out,
+        &stills.out,
         &canvas.data,
         canvas.width as u32,
         canvas.height as u32,
         image::ColorType::Rgb8,
     )
-    .with_context(|| format!("writing {}", args.out.display()))?;
+    .with_context(|| format!("writing {}", stills.out.display()))?;
     writeln!(
         out,
         "wrote {} ({}×{} px, {} px/m, {} blending)",
-        args.out.display(),
+        stills.out.display(),
         canvas.width,
         canvas.height,
         spec.px_per_m,
-        BlendMode::from(args.blend).name()
+        stills.blend.name()
     )?;
     for (cam, mask) in rig.cameras.iter().zip(view.ground_masks()) {
         writeln!(
@@ -180,9 +123,9 @@ pub fn run(args: &SurroundArgs, out: &mut impl Write) -> Result<()> {
 }
 
 /// The image of each camera, in rig order.
-fn image_paths(args: &[String], rig: &rigview_calib::rig::Rig) -> Result<Vec<PathBuf>> {
+fn image_paths(images: &[String], rig: &rigview_calib::rig::Rig) -> Result<Vec<PathBuf>> {
     let n = rig.cameras.len();
-    let named: Vec<Option<(&str, &str)>> = args.iter().map(|a| a.split_once('=')).collect();
+    let named: Vec<Option<(&str, &str)>> = images.iter().map(|a| a.split_once('=')).collect();
     if named.iter().all(Option::is_some) {
         let mut paths = vec![None; n];
         for (name, path) in named.into_iter().flatten() {
@@ -204,14 +147,14 @@ fn image_paths(args: &[String], rig: &rigview_calib::rig::Rig) -> Result<Vec<Pat
             })
             .collect();
     }
-    if args.len() != n {
+    if images.len() != n {
         bail!(
             "--images: {} images for a rig of {n} cameras ({}): give one per camera in rig order, or NAME=PATH",
-            args.len(),
+            images.len(),
             names(rig)
         );
     }
-    Ok(args.iter().map(PathBuf::from).collect())
+    Ok(images.iter().map(PathBuf::from).collect())
 }
 
 fn names(rig: &rigview_calib::rig::Rig) -> String {
@@ -256,15 +199,20 @@ mod tests {
         Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/data/surround-nz")
     }
 
-    fn args(images: Vec<String>, out: PathBuf) -> SurroundArgs {
-        SurroundArgs {
+    fn args(images: Vec<String>, out: PathBuf) -> Stills {
+        Stills {
             rig: data(),
             images,
             out,
-            blend: Blend::Seams,
-            extent_m: Some(vec![-8.0, 8.0, -6.0, 6.0]),
-            vehicle_m: Some(vec![-2.5, 2.5, -1.0, 1.0]),
-            px_per_m: 25.0,
+            blend: BlendMode::Seams,
+            canvas: CanvasSpec {
+                x_min_m: -8.0,
+                x_max_m: 8.0,
+                y_min_m: -6.0,
+                y_max_m: 6.0,
+                px_per_m: 25.0,
+                vehicle_m: [-2.5, 2.5, -1.0, 1.0],
+            },
             vehicle_image: Some(data().join("car.png")),
         }
     }

@@ -1,0 +1,173 @@
+//! The command line of `rigview`: the arguments of each subcommand (one
+//! file each) and how they map to the library's options. With no
+//! subcommand, the desktop app on the simulated rig.
+
+pub mod calib;
+pub mod demo;
+pub mod live;
+pub mod run;
+pub mod surround;
+
+use std::path::PathBuf;
+use std::time::Duration;
+
+use anyhow::{Context, Result};
+use clap::{Args, Parser, Subcommand};
+use rigview_core::exposure::{LawKind, Simulation};
+use rigview_core::pipeline::{MeterRoi, PipelineOptions, ProcessingSettings, Strategy};
+use rigview_core::surround::BlendMode;
+
+use crate::gui::AppOptions;
+use crate::session::SourceSpec;
+use crate::settings::{Settings, SettingsStore};
+
+/// rigview: capture, exposure control and surround view for rigs of
+/// synchronised cameras.
+#[derive(Debug, Parser)]
+#[command(name = "rigview", version, about, long_about = None)]
+pub struct Cli {
+    /// The subcommand (none: the window on the simulated rig).
+    #[command(subcommand)]
+    pub command: Option<Command>,
+    /// Window options (with no subcommand).
+    #[command(flatten)]
+    pub view: ViewArgs,
+}
+
+/// The subcommands.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// The pipeline on a chosen source: in the window, or headless with
+    /// views, telemetry and a plot written to a folder.
+    Run(run::RunArgs),
+    /// Closed-loop exposure control on the simulated four-camera fisheye rig,
+    /// printed frame by frame.
+    Demo(demo::DemoArgs),
+    /// Calibration: show, convert, and make intrinsics and ground extrinsics.
+    Calib(calib::CalibArgs),
+    /// Compose still images of a calibrated rig into a bird's-eye view.
+    Surround(surround::SurroundArgs),
+    /// The desktop app on the rig's GenICam cameras (`--headless`: a status
+    /// block per second on the terminal instead).
+    Live(live::LiveArgs),
+}
+
+/// Options of the window and of `rigview run`.
+#[derive(Clone, Debug, Default, Args)]
+pub struct ViewArgs {
+    /// The settings file [default: ~/.config/rigview/settings.yaml].
+    #[arg(long, value_name = "FILE", global = true)]
+    pub settings: Option<PathBuf>,
+    /// Close the window after this many seconds (for scripted runs).
+    #[arg(long, value_name = "S", global = true)]
+    pub quit_after: Option<f64>,
+    /// Save a screenshot of the window to FILE (PNG) after
+    /// `--screenshot-after` seconds, then close it.
+    #[arg(long, value_name = "FILE", global = true)]
+    pub screenshot: Option<PathBuf>,
+    /// Seconds before the screenshot.
+    #[arg(long, value_name = "S", default_value_t = 8.0, global = true)]
+    pub screenshot_after: f64,
+}
+
+impl ViewArgs {
+    /// The saved settings (`--settings FILE` or the default file), with
+    /// `overrides` applied; a settings file that cannot be read is reported
+    /// on stderr and the defaults are used.
+    pub fn settings(&self, overrides: &ProcessingArgs) -> Settings {
+        let mut store = SettingsStore::new(self.settings.clone());
+        let (mut settings, err) = store.load();
+        if let Some(e) = err {
+            eprintln!("{e:#}");
+        }
+        overrides.apply(&mut settings.processing);
+        settings
+    }
+
+    /// `--screenshot` and `--screenshot-after`.
+    pub fn screenshot(&self) -> Result<Option<(PathBuf, Duration)>> {
+        let Some(p) = &self.screenshot else {
+            return Ok(None);
+        };
+        let after = Duration::try_from_secs_f64(self.screenshot_after)
+            .context("--screenshot-after: expected a number of seconds ≥ 0")?;
+        Ok(Some((p.clone(), after)))
+    }
+
+    /// `--quit-after` as a duration.
+    pub fn quit_after(&self) -> Result<Option<Duration>> {
+        self.quit_after
+            .map(Duration::try_from_secs_f64)
+            .transpose()
+            .context("--quit-after: expected a number of seconds ≥ 0")
+    }
+
+    /// The window on `source`, with `overrides` saved into the settings it
+    /// opens with.
+    pub fn window(&self, overrides: &ProcessingArgs, source: SourceSpec) -> Result<()> {
+        let mut store = SettingsStore::new(self.settings.clone());
+        let (mut settings, err) = store.load();
+        if let Some(e) = err {
+            eprintln!("{e:#}");
+        } else {
+            overrides.apply(&mut settings.processing);
+            store.save(&settings)?;
+        }
+        crate::gui::run(AppOptions {
+            source,
+            settings: self.settings.clone(),
+            quit_after: self.quit_after()?,
+            screenshot: self.screenshot()?,
+            pipeline: PipelineOptions::default(),
+        })
+    }
+}
+
+/// Processing options that override the saved settings, for every command
+/// that runs the processor.
+#[derive(Clone, Debug, Default, Args)]
+pub struct ProcessingArgs {
+    /// How exposure is decided (overrides the saved strategy).
+    #[arg(long, value_enum)]
+    pub strategy: Option<Strategy>,
+    /// The update law (overrides the saved one).
+    #[arg(long, value_enum)]
+    pub law: Option<LawKind>,
+    /// The estimator's exposure simulation (overrides the saved one).
+    #[arg(long, value_enum)]
+    pub simulation: Option<Simulation>,
+    /// Which pixels are metered (overrides the saved choice).
+    #[arg(long, value_enum, value_name = "ROI")]
+    pub meter: Option<MeterRoi>,
+    /// How the overlaps of the view are blended (overrides the saved
+    /// choice).
+    #[arg(long, value_enum)]
+    pub blend: Option<BlendMode>,
+}
+
+impl ProcessingArgs {
+    /// Applies the options given to `p`.
+    pub fn apply(&self, p: &mut ProcessingSettings) {
+        if let Some(s) = self.strategy {
+            p.strategy = s;
+        }
+        if let Some(l) = self.law {
+            p.controller.law.kind = l;
+        }
+        if let Some(s) = self.simulation {
+            p.controller.estimator.simulation = s;
+        }
+        if let Some(m) = self.meter {
+            p.roi = m;
+        }
+        if let Some(b) = self.blend {
+            p.blend = b;
+        }
+    }
+}
+
+/// A number of seconds ≥ 0 given as `--what`.
+fn seconds(what: &str, s: f64) -> Result<Duration> {
+    Duration::try_from_secs_f64(s)
+        .with_context(|| format!("--{what} {s}: expected a number of seconds ≥ 0"))
+}

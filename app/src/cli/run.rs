@@ -1,0 +1,195 @@
+//! `rigview run`: the pipeline on a chosen source, in the window or
+//! headless.
+
+use std::path::PathBuf;
+
+use anyhow::{Context, Result};
+use clap::{Args, ValueEnum};
+
+use super::{ProcessingArgs, ViewArgs};
+use crate::headless::{self, HeadlessRun};
+use crate::live::{CaptureConfig, FakeRig, LiveCameras, LiveSpec};
+use crate::session::{SimSpec, SourceSpec};
+
+/// Where frame sets come from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum SourceKind {
+    /// The simulated four-camera rig.
+    Sim,
+    /// Live cameras (`--rig FILE`, or `--fake` for Aravis's fake cameras).
+    Live,
+}
+
+/// Options of `rigview run`.
+#[derive(Clone, Debug, Args)]
+pub struct RunArgs {
+    /// Without the window: write views, telemetry and a plot to `--out`.
+    #[arg(long)]
+    pub headless: bool,
+    /// Where frame sets come from.
+    #[arg(long, value_enum, default_value_t = SourceKind::Sim)]
+    pub source: SourceKind,
+    /// Frame sets to run (headless) [default: 100].
+    #[arg(long, value_name = "N")]
+    pub frames: Option<u64>,
+    /// Output folder of the headless run (created if missing).
+    #[arg(long, value_name = "DIR")]
+    pub out: Option<PathBuf>,
+    /// Write the composed view of every K-th set (and of the last).
+    #[arg(long, value_name = "K", default_value_t = 10)]
+    pub every: u64,
+    /// The simulation (`--source sim`): a preset (reference, steps, ramp,
+    /// tunnel, backlight, overcast) or a simulation file.
+    #[arg(long, default_value = "reference")]
+    pub scenario: String,
+    /// Render scale of the simulated rig (0.25: 322×241).
+    #[arg(long, default_value_t = 1.0)]
+    pub scale: f64,
+    /// Run the simulated rig at its trigger rate (headless runs go as fast
+    /// as processing takes the sets, in lock step, unless this is given).
+    #[arg(long)]
+    pub realtime: bool,
+    /// The rig file of `--source live`.
+    #[arg(long, value_name = "FILE")]
+    pub rig: Option<PathBuf>,
+    /// `--source live` on Aravis's in-process fake cameras showing the
+    /// simulation.
+    #[arg(long)]
+    pub fake: bool,
+    /// Processing overrides.
+    #[command(flatten)]
+    pub processing: ProcessingArgs,
+}
+
+/// Frame sets of a headless run unless `--frames` says.
+const FRAMES: u64 = 100;
+
+impl RunArgs {
+    /// The source these options name, for a headless run or the window.
+    pub fn source(&self, headless: bool) -> Result<SourceSpec> {
+        match self.source {
+            SourceKind::Sim => {
+                if self.rig.is_some() || self.fake {
+                    anyhow::bail!("--rig and --fake are options of --source live");
+                }
+                Ok(SourceSpec::Sim(SimSpec {
+                    scenario: self.scenario.clone(),
+                    scale: self.scale,
+                    realtime: self.realtime || !headless,
+                    frames: headless.then(|| self.frames.unwrap_or(FRAMES)),
+                }))
+            }
+            SourceKind::Live => {
+                let cameras = match (&self.rig, self.fake) {
+                    (Some(r), false) => LiveCameras::Rig(r.clone()),
+                    (None, true) => LiveCameras::Fake(FakeRig {
+                        scenario: self.scenario.clone(),
+                        scale: self.scale,
+                        ..FakeRig::default()
+                    }),
+                    _ => anyhow::bail!("--source live needs either --rig FILE or --fake"),
+                };
+                Ok(SourceSpec::Live(LiveSpec {
+                    cameras,
+                    capture: CaptureConfig::default(),
+                    frames: None,
+                }))
+            }
+        }
+    }
+}
+
+/// Runs `rigview run`: headless, printing its summary, or in the window.
+pub fn run(args: &RunArgs, view: &ViewArgs) -> Result<()> {
+    if args.headless {
+        let out = args.out.clone().context("--headless needs --out DIR")?;
+        let run = HeadlessRun {
+            source: args.source(true)?,
+            frames: args.frames.unwrap_or(FRAMES),
+            out,
+            every: args.every,
+        };
+        let settings = view.settings(&args.processing);
+        let summary = headless::run(&run, &settings.processing, true)?;
+        println!("{summary}");
+        Ok(())
+    } else {
+        if args.out.is_some() {
+            anyhow::bail!("--out is for --headless runs");
+        }
+        view.window(&args.processing, args.source(false)?)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use clap::Parser;
+
+    use super::*;
+    use crate::cli::{Cli, Command};
+
+    fn parse(args: &[&str]) -> Command {
+        let cli = Cli::try_parse_from(["rigview"].iter().chain(args)).unwrap();
+        cli.command.unwrap()
+    }
+
+    fn run_args(args: &[&str]) -> RunArgs {
+        let mut all = vec!["run"];
+        all.extend(args);
+        match parse(&all) {
+            Command::Run(a) => a,
+            other => panic!("{other:?}"),
+        }
+    }
+
+    #[test]
+    fn live_sources_of_run_are_those_of_live() {
+        let run = run_args(&[
+            "--source",
+            "live",
+            "--fake",
+            "--scenario",
+            "tunnel",
+            "--scale",
+            "0.25",
+        ]);
+        let Ok(SourceSpec::Live(from_run)) = run.source(true) else {
+            panic!("not a live source");
+        };
+        let Command::Live(live) =
+            parse(&["live", "--fake", "--scenario", "tunnel", "--scale", "0.25"])
+        else {
+            panic!("not rigview live");
+        };
+        assert_eq!(from_run, live.spec().unwrap());
+        assert_eq!(
+            from_run.cameras,
+            LiveCameras::Fake(FakeRig {
+                scenario: "tunnel".into(),
+                scale: 0.25,
+                rate_hz: 20.0,
+            })
+        );
+        let rig = run_args(&["--source", "live", "--rig", "rig.yaml"]);
+        let Ok(SourceSpec::Live(spec)) = rig.source(false) else {
+            panic!("not a live source");
+        };
+        assert_eq!(spec.cameras, LiveCameras::Rig("rig.yaml".into()));
+    }
+
+    #[test]
+    fn the_simulated_rig_runs_in_lock_step_headless_and_live_options_are_refused() {
+        let Ok(SourceSpec::Sim(sim)) = run_args(&["--frames", "7"]).source(true) else {
+            panic!("not the simulated rig");
+        };
+        assert_eq!((sim.realtime, sim.frames), (false, Some(7)));
+        let Ok(SourceSpec::Sim(sim)) = run_args(&[]).source(false) else {
+            panic!("not the simulated rig");
+        };
+        assert_eq!((sim.realtime, sim.frames), (true, None));
+        let e = run_args(&["--fake"]).source(true).unwrap_err();
+        assert!(e.to_string().contains("options of --source live"), "{e}");
+        let e = run_args(&["--source", "live"]).source(true).unwrap_err();
+        assert!(e.to_string().contains("--rig FILE or --fake"), "{e}");
+    }
+}

@@ -1,0 +1,146 @@
+//! `rigview run --headless`: the pipeline on a source without the window.
+//! It writes the composed views as PNG, the telemetry as CSV, a PNG plot of
+//! the exposure state and a summary, with a progress bar on the terminal.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::Duration;
+
+use anyhow::{Context, Result};
+use rigview_core::pipeline::{Output, PipelineOptions, ProcessingSettings};
+use rigview_core::surround::Canvas;
+
+use crate::report::{self, CpuMeter};
+use crate::session::{self, SourceSpec};
+
+/// A headless run.
+#[derive(Debug)]
+pub struct HeadlessRun {
+    /// Where frame sets come from.
+    pub source: SourceSpec,
+    /// Frame sets to run.
+    pub frames: u64,
+    /// The output folder (created if missing).
+    pub out: PathBuf,
+    /// Write the composed view of every `every`-th set (and of the last).
+    pub every: u64,
+}
+
+fn write_canvas(c: &Canvas, path: &Path) -> Result<()> {
+    let (w, h) = (
+        u32::try_from(c.width).context("canvas width")?,
+        u32::try_from(c.height).context("canvas height")?,
+    );
+    let r = if c.channels == 3 {
+        image::RgbImage::from_raw(w, h, c.data.clone()).map(|i| i.save(path))
+    } else {
+        image::GrayImage::from_raw(w, h, c.data.clone()).map(|i| i.save(path))
+    };
+    r.context("the canvas has the wrong size")?
+        .with_context(|| format!("writing the view {}", path.display()))
+}
+
+/// Runs `run` with the processing `settings`; returns its summary (also
+/// written to `summary.txt`). `progress` shows a progress bar.
+pub fn run(run: &HeadlessRun, settings: &ProcessingSettings, progress: bool) -> Result<String> {
+    let out = run.out.as_path();
+    std::fs::create_dir_all(out.join("views"))
+        .with_context(|| format!("creating the output folder {}", out.display()))?;
+    let frames = run.frames;
+    let spec = &run.source;
+    let lockstep = matches!(spec, SourceSpec::Sim(s) if !s.realtime);
+    let cpu = CpuMeter::start();
+    let mut session = session::start(
+        spec,
+        settings,
+        PipelineOptions {
+            lockstep,
+            output_queue: 8,
+            history: usize::try_from(frames)
+                .unwrap_or(usize::MAX)
+                .saturating_add(16),
+            ..Default::default()
+        },
+        Arc::new(|| {}),
+    )?;
+    let bar = if progress {
+        indicatif::ProgressBar::new(frames)
+    } else {
+        indicatif::ProgressBar::hidden()
+    };
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{spinner} [{elapsed_precise}] {bar:40} {pos}/{len} sets ({per_sec}) {msg}",
+        )
+        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
+    let mut done = 0u64;
+    let mut last: Option<Arc<Output>> = None;
+    let mut written = 0usize;
+    let every = run.every.max(1);
+    while done < frames {
+        let Some(o) = session.pipeline.next_output(Duration::from_millis(200)) else {
+            if session.pipeline.is_stopped() {
+                break;
+            }
+            continue;
+        };
+        done = session.pipeline.telemetry().total();
+        bar.set_position(done);
+        if o.trigger % every == 0 {
+            if let Some(c) = &o.canvas {
+                write_canvas(
+                    c,
+                    &out.join("views").join(format!("view_{:06}.png", o.trigger)),
+                )?;
+                written += 1;
+            }
+        }
+        last = Some(o);
+    }
+    session.pipeline.stop();
+    bar.finish_and_clear();
+    if let Some(o) = &last {
+        if o.trigger % every != 0 {
+            if let Some(c) = &o.canvas {
+                write_canvas(
+                    c,
+                    &out.join("views").join(format!("view_{:06}.png", o.trigger)),
+                )?;
+                written += 1;
+            }
+        }
+    }
+    let status = session.pipeline.status();
+    let telemetry = session.pipeline.telemetry().clone();
+    let csv = out.join("telemetry.csv");
+    {
+        let f =
+            std::fs::File::create(&csv).with_context(|| format!("creating {}", csv.display()))?;
+        let mut w = std::io::BufWriter::new(f);
+        telemetry.write_csv_header(&mut w)?;
+        for r in telemetry.rows() {
+            telemetry.write_csv_row(&mut w, r)?;
+        }
+        w.flush()
+            .with_context(|| format!("writing {}", csv.display()))?;
+    }
+    crate::plot_png::write(&telemetry, &out.join("exposure.png"), 1400, 1500)?;
+    let mut summary = format!(
+        "rigview run: {} on {}; {} of {frames} sets processed; {written} views in {}, telemetry {}, plot {}\n{}",
+        settings.strategy.label(),
+        session.source_name,
+        telemetry.total(),
+        out.join("views").display(),
+        csv.display(),
+        out.join("exposure.png").display(),
+        report::summary(&status, &telemetry)
+    );
+    if let Some(c) = cpu.cores() {
+        summary += &format!("\nCPU use: {c:.2} cores");
+    }
+    std::fs::write(out.join("summary.txt"), &summary)
+        .with_context(|| format!("writing {}", out.join("summary.txt").display()))?;
+    Ok(summary)
+}

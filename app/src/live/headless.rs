@@ -1,0 +1,187 @@
+//! `rigview live --headless`: the rig's cameras in closed-loop exposure
+//! control without the window, with a status block per second.
+
+use std::io::Write;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use anyhow::Result;
+use rigview_core::pipeline::{Output, PipelineOptions, PipelineStatus, ProcessingSettings};
+use rigview_core::source::StreamState;
+
+use super::open::LiveSpec;
+use crate::session::{self, SourceSpec};
+
+fn state_word(s: StreamState) -> &'static str {
+    match s {
+        StreamState::Streaming => "streaming",
+        StreamState::Lost => "LOST",
+        StreamState::Reconnecting => "reconnecting",
+    }
+}
+
+/// The status block printed once a second: one line for the sets, one per
+/// camera (its stream, the exposure its last frame was taken with, γ̂, the
+/// command sent and, when balanced, α of Eq. 6), and one for the overlaps'
+/// brightness ratios.
+pub fn format_status(
+    elapsed: Duration,
+    names: &[String],
+    status: &PipelineStatus,
+    last: Option<&Output>,
+) -> String {
+    let mut s = format!(
+        "[{:7.1} s] sets: {} from the cameras, {} processed, {} incomplete, {} dropped (processing behind)",
+        elapsed.as_secs_f64(),
+        status.sets,
+        status.processed,
+        status.incomplete,
+        status.capture_queue.dropped,
+    );
+    if let Some(a) = &status.assembly {
+        s += &format!(
+            "; {} frames broken, {} missing; skew last {:.2} ms, max {:.2} ms",
+            a.broken_frames,
+            a.missing_frames,
+            a.last_skew_ns as f64 / 1e6,
+            a.max_skew_ns as f64 / 1e6,
+        );
+    }
+    s.push('\n');
+    for (i, name) in names.iter().enumerate() {
+        let h = status.health.get(i).cloned().unwrap_or_default();
+        let cam = last.and_then(|o| o.cameras.get(i));
+        let step = last.and_then(|o| o.step.cameras.get(i));
+        let (e, gain) = cam.map_or((f64::NAN, f64::NAN), |c| {
+            (c.taken.exposure(), c.taken.gain_db)
+        });
+        let gamma = cam
+            .and_then(|c| c.estimate.as_ref())
+            .map_or(f64::NAN, |e| e.gamma_hat);
+        let command = match cam.and_then(|c| c.command) {
+            Some(c) => format!("→ {:>9.0}", c.exposure()),
+            None => format!("{:>11}", "no command"),
+        };
+        let alpha = step
+            .and_then(|c| c.alpha)
+            .map_or_else(String::new, |a| format!("  balanced α {a:.2}"));
+        s += &format!(
+            "  {name:<10} {:<12} {:5.1} fps  E {e:>9.0}  gain {gain:5.2} dB  γ̂ {gamma:5.2}  {command}{alpha}  completed {:>6} failed {:>4} underruns {:>3} packets missing {:>5} resent {:>5}\n",
+            state_word(h.state),
+            h.fps,
+            h.completed,
+            h.failed,
+            h.underruns,
+            h.missing_packets,
+            h.resent_packets,
+        );
+    }
+    if let Some(o) = last.filter(|o| !o.pairs.is_empty()) {
+        let pairs: Vec<String> = o
+            .pairs
+            .iter()
+            .map(|p| {
+                let label = format!(
+                    "{}-{}",
+                    names.get(p.i).map_or("?", String::as_str),
+                    names.get(p.j).map_or("?", String::as_str)
+                );
+                match p.log2_r {
+                    Some(r) => format!("{label} {r:+.2}"),
+                    None => format!("{label} n/a"),
+                }
+            })
+            .collect();
+        s += &format!("  overlaps, log2 r_ij: {}\n", pairs.join(", "));
+    }
+    s
+}
+
+/// The entries of `recent` (the newest of `total` so far) not seen yet;
+/// `seen` moves on to `total`.
+fn fresh<'a>(
+    recent: &'a std::collections::VecDeque<String>,
+    total: u64,
+    seen: &mut u64,
+) -> impl Iterator<Item = &'a String> {
+    let new = usize::try_from(total.saturating_sub(*seen)).unwrap_or(usize::MAX);
+    *seen = total;
+    recent.iter().skip(recent.len().saturating_sub(new))
+}
+
+/// Runs the live cameras of `spec` headless, with the processing
+/// `settings` (the same processor as the window), for `limit` or until the
+/// source ends; prints a status block per second, the cameras' messages as
+/// they come, and a last block and a summary at the end.
+pub fn run(
+    spec: &LiveSpec,
+    limit: Option<Duration>,
+    settings: &ProcessingSettings,
+    out: &mut dyn Write,
+) -> Result<()> {
+    writeln!(
+        out,
+        "rigview live: {}; {}; opening the cameras one after another…",
+        crate::report::control(settings),
+        spec.capture.trigger.describe()
+    )?;
+    let t0 = Instant::now();
+    let mut session = session::start(
+        &SourceSpec::Live(spec.clone()),
+        settings,
+        PipelineOptions::default(),
+        Arc::new(|| {}),
+    )?;
+    writeln!(
+        out,
+        "{}; calibration: {}",
+        session.source_name, session.calibration
+    )?;
+    for m in &session.notes {
+        writeln!(out, "  {m}")?;
+    }
+    let names = session.camera_names();
+    let pipeline = &mut session.pipeline;
+    let mut next_print = Instant::now() + Duration::from_secs(1);
+    let (mut last, mut notes_seen, mut errors_seen) = (None, 0u64, 0u64);
+    loop {
+        if let Some(o) = pipeline.latest() {
+            last = Some(o);
+        }
+        let status = pipeline.status();
+        // New messages from the cameras and new problems, as they come.
+        let at = t0.elapsed().as_secs_f64();
+        for line in fresh(&status.notes, status.notes_total, &mut notes_seen).chain(fresh(
+            &status.errors,
+            status.errors_total,
+            &mut errors_seen,
+        )) {
+            writeln!(out, "  [{at:7.1} s] {line}")?;
+        }
+        if status.stopped || limit.is_some_and(|l| t0.elapsed() >= l) {
+            break;
+        }
+        if Instant::now() >= next_print {
+            let block = format_status(t0.elapsed(), &names, &status, last.as_deref());
+            write!(out, "{block}")?;
+            next_print += Duration::from_secs(1);
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    pipeline.stop();
+    if let Some(o) = pipeline.latest() {
+        last = Some(o);
+    }
+    let status = pipeline.status();
+    write!(
+        out,
+        "{}",
+        format_status(t0.elapsed(), &names, &status, last.as_deref())
+    )?;
+    writeln!(
+        out,
+        "done: {} frame sets, {} fed to the controller, {} incomplete kept from it, {} dropped",
+        status.sets, status.processed, status.incomplete, status.capture_queue.dropped
+    )?;
+    Ok(())
+}
