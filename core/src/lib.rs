@@ -26,6 +26,7 @@
 
 pub mod cpu;
 pub mod error;
+pub mod eval;
 pub mod exposure;
 pub mod image;
 pub mod pipeline;

@@ -808,7 +808,7 @@ fn reference_frame_size_and_roi_mask() {
 // ---------- controller and latency ----------
 
 #[test]
-fn the_controller_waits_for_its_command_and_never_reacts_twice() {
+fn the_controller_commands_every_frame_and_never_reacts_twice() {
     let config = ControllerConfig {
         balancing: None,
         ..Default::default()
@@ -827,16 +827,62 @@ fn the_controller_waits_for_its_command_and_never_reacts_twice() {
     let (cmd, _) = cam.command(u.desired, at(0, 2000.0).taken);
     let cmd = cmd.expect("a dark image asks for more exposure");
     assert!(cmd.exposure() > 2000.0);
-    // Latency: the next frame still shows the old exposure.
+    assert_eq!(cam.in_flight(), 1);
+    // Latency: the next frame still shows the old exposure. The controller
+    // reacts to it, but a step anchored to the frame asks for what is in
+    // flight already: no second command on top of the first.
     let u = cam.unary(&config, &at(1, 2000.0), &dark).unwrap();
-    assert_eq!(u.hold, Some(Hold::AwaitingCommand));
+    assert_eq!(u.hold, None);
+    let (again, _) = cam.command(u.desired, at(1, 2000.0).taken);
+    assert_eq!(again, None, "the same step must not be sent twice");
+    assert_eq!(cam.in_flight(), 1);
     // The same frame again.
     let u = cam.unary(&config, &at(1, 2000.0), &dark).unwrap();
     assert_eq!(u.hold, Some(Hold::RepeatedFrame));
-    // The command shows: free to react.
+    // The command shows: nothing in flight any more.
     let shown = metered_scene(cmd.exposure());
     let u = cam.unary(&config, &at(2, cmd.shutter_us), &shown).unwrap();
     assert_eq!(u.hold, None);
+    assert_eq!(cam.in_flight(), 0);
+}
+
+#[test]
+fn a_frame_that_shows_a_change_of_light_is_answered_before_the_last_command_shows() {
+    let config = ControllerConfig {
+        balancing: None,
+        probe: None,
+        ..Default::default()
+    };
+    let at = |id: u64, us: f64| FrameInfo {
+        frame_id: id,
+        taken: ExposureSetting {
+            shutter_us: us,
+            gain_db: 0.0,
+        },
+    };
+    let mut cam = CameraController::new(&config, ExposureRange::default()).unwrap();
+    // A bright frame: the controller asks for less.
+    let u = cam
+        .unary(&config, &at(0, 8000.0), &metered_scene(8000.0))
+        .unwrap();
+    let (first, _) = cam.command(u.desired, at(0, 8000.0).taken);
+    let first = first.expect("a bright image asks for less exposure");
+    assert!(first.exposure() < 8000.0);
+    // The light falls by eight: the next frame, still at the old exposure,
+    // is much darker, and the controller answers it at once.
+    let u = cam
+        .unary(&config, &at(1, 8000.0), &metered_scene(1000.0))
+        .unwrap();
+    assert_eq!(u.hold, None);
+    let (second, _) = cam.command(u.desired, at(1, 8000.0).taken);
+    let second = second.expect("a darker scene asks for a new command at once");
+    assert!(
+        second.exposure() > first.exposure(),
+        "{} after {}",
+        second.exposure(),
+        first.exposure()
+    );
+    assert_eq!(cam.in_flight(), 2);
 }
 
 #[test]
@@ -869,17 +915,19 @@ fn a_command_the_camera_quantises_counts_as_shown() {
         let u = cam
             .unary(&config, &at(1, applied), &metered_scene(applied))
             .unwrap();
+        assert_eq!(u.hold, None);
         assert_eq!(
-            u.hold, None,
+            cam.in_flight(),
+            0,
             "grid {grid} µs: the applied command must count as shown"
         );
     }
-    // A frame still at the old exposure keeps waiting.
+    // A frame still at the old exposure leaves the command in flight.
     let mut cam = CameraController::new(&config, ExposureRange::default()).unwrap();
     let u = cam.unary(&config, &at(0, 40.0), &dark).unwrap();
     let _ = cam.command(u.desired, at(0, 40.0).taken);
-    let u = cam.unary(&config, &at(1, 40.0), &dark).unwrap();
-    assert_eq!(u.hold, Some(Hold::AwaitingCommand));
+    let _ = cam.unary(&config, &at(1, 40.0), &dark).unwrap();
+    assert_eq!(cam.in_flight(), 1);
 }
 
 // ---------- bad input ----------

@@ -244,7 +244,7 @@ fn evaluate(preset: &'static str, scale: Res) -> Vec<Outcome> {
         let trace = run(&render, view(&render), simulation);
         for (cam, sweep) in sweeps.iter().enumerate() {
             let t = trace.steady(cam);
-            let tail = &t[t.len() - TAIL..];
+            let tail = &t[t.len().saturating_sub(TAIL)..];
             let lo = tail.iter().copied().fold(f64::MAX, f64::min);
             let hi = tail.iter().copied().fold(f64::MIN, f64::max);
             let mean = tail.iter().sum::<f64>() / TAIL as f64;
@@ -416,9 +416,9 @@ fn constant_light_settles_every_camera_at_its_fixed_point() {
     }
 }
 
-/// The range of the last [`TAIL`] values.
+/// The range of the last [`TAIL`] values (of all, when fewer).
 fn tail_band(t: &[f64]) -> f64 {
-    let tail = &t[t.len() - TAIL..];
+    let tail = &t[t.len().saturating_sub(TAIL)..];
     tail.iter().copied().fold(f64::MIN, f64::max) - tail.iter().copied().fold(f64::MAX, f64::min)
 }
 
@@ -686,6 +686,9 @@ fn a_change_of_light_retires_the_probe_frame() {
         &[],
     );
     let mut log2_e = vec![Vec::new(); n];
+    // Whether each frame was a probe's (left out of the bands: a probe is
+    // darker on purpose).
+    let mut probe = vec![Vec::new(); n];
     // The exposures each camera took frames with after the step.
     let mut after: Vec<Vec<f64>> = vec![Vec::new(); n];
     let mut kept_before = 0;
@@ -695,6 +698,7 @@ fn a_change_of_light_retires_the_probe_frame() {
         for (cam, c) in output.cameras.iter().enumerate() {
             let e = c.taken.exposure();
             log2_e[cam].push(e.log2());
+            probe[cam].push(c.probe_frame);
             if frame >= STEP_AT {
                 after[cam].push(e);
             }
@@ -727,11 +731,14 @@ fn a_change_of_light_retires_the_probe_frame() {
         sweeps(&render, &surround, 8.0),
     );
     let k = STEP_AT as usize;
-    for (cam, l) in log2_e.iter().enumerate() {
-        let (before, end) = (&l[k - TAIL..k], &l[l.len() - TAIL..]);
+    for (cam, (l, p)) in log2_e.iter().zip(&probe).enumerate() {
+        let unprobed = |r: std::ops::Range<usize>| -> Vec<f64> {
+            r.filter(|&f| !p[f]).map(|f| l[f]).collect()
+        };
+        let (before, end) = (unprobed(k - TAIL..k), unprobed(l.len() - TAIL..l.len()));
         for (what, tail, sweep) in [
-            ("before", before, &old_light[cam]),
-            ("after", end, &new_light[cam]),
+            ("before", &before[..], &old_light[cam]),
+            ("after", &end[..], &new_light[cam]),
         ] {
             let ratio = sweep.score_at(mean(tail).exp2()) / sweep.best_score;
             println!(

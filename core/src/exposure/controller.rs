@@ -9,14 +9,17 @@
 //! (Eq. 5/6) when balancing is on, and splits the result into shutter and
 //! gain.
 
+use std::collections::VecDeque;
+
 use serde::{Deserialize, Serialize};
 
 use super::balance::{self, BalanceParams, NeighbourGraph, PatchPair};
 use super::baselines::{MeanIntensityParams, PidParams, PidState};
+use super::bracket::{Bracket, BracketParams, Secant};
 use super::estimator::{
     Darker, Estimate, EstimateOptions, Estimator, EstimatorConfig, Simulation, DARKER_MIN_EV,
 };
-use super::laws::{LawKind, LawParams};
+use super::laws::{LawKind, LawParams, LawStep};
 use super::metering::Metered;
 use super::probe::{ProbeEvent, ProbeInput, ProbeParams, Prober};
 use super::split::{Clamped, ExposureRange, ExposureSetting, SplitParams, Splitter};
@@ -49,8 +52,10 @@ impl ControlMode {
     }
 }
 
-/// Everything the controllers need to know.
+/// Everything the controllers need to know. In a settings file every
+/// field may be left out (its default stands).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct ControllerConfig {
     /// What decides the exposure.
     pub mode: ControlMode,
@@ -75,6 +80,9 @@ pub struct ControllerConfig {
     /// (`None`: never).
     #[serde(default = "default_probe")]
     pub probe: Option<ProbeParams>,
+    /// The bracket that keeps a camera's own law from circling
+    /// ([`super::bracket`]).
+    pub bracket: BracketParams,
 }
 
 /// A configuration written before probing existed probes (`null`: never).
@@ -95,6 +103,7 @@ impl Default for ControllerConfig {
             fixed_exposure: 5_000.0,
             latency_timeout_frames: 4,
             probe: default_probe(),
+            bracket: BracketParams::default(),
         }
     }
 }
@@ -113,6 +122,7 @@ impl ControllerConfig {
         if let Some(p) = &self.probe {
             p.validate()?;
         }
+        self.bracket.validate()?;
         check_range(
             "fixed_exposure",
             self.fixed_exposure,
@@ -152,21 +162,30 @@ pub const SATURATED_FALLBACK: f32 = 0.8;
 /// Tolerance (relative) for "this frame shows the commanded exposure".
 const SETTLED_TOLERANCE: f64 = 2e-3;
 
+/// A command sent that no frame has shown yet.
 #[derive(Clone, Copy, Debug, PartialEq)]
-struct Pending {
-    /// The setting the frame before the command was taken with.
+struct InFlight {
+    /// The setting in force before it: the previous command's, or the
+    /// frame's when it was sent.
     from: ExposureSetting,
     /// The command.
     setting: ExposureSetting,
-    waited: u32,
+    /// The controller's frame count when it was sent.
+    sent: u64,
+    /// Whether the camera reacts to no frame until this command shows (a
+    /// probe, the return from one, a PID step).
+    must_show: bool,
+    /// Whether it is a probe's darker exposure.
+    probe: bool,
 }
 
-impl Pending {
+impl InFlight {
     /// Whether a frame taken with `taken` shows this command: its exposure
-    /// equals the command's to 0.2 %, or it has moved from the old setting
-    /// and lies nearer the command than the old setting (in log exposure).
-    /// Cameras quantise exposure time (whole microseconds, sensor rows), so
-    /// what they apply may differ slightly from what was commanded.
+    /// equals the command's to 0.2 %, or it has moved from the setting
+    /// before and lies nearer the command than that setting (in log
+    /// exposure). Cameras quantise exposure time (whole microseconds,
+    /// sensor rows), so what they apply may differ slightly from what was
+    /// commanded.
     fn shown_by(&self, taken: &ExposureSetting) -> bool {
         let (e, to, from) = (
             taken.exposure(),
@@ -176,6 +195,10 @@ impl Pending {
         (e / to - 1.0).abs() <= SETTLED_TOLERANCE || (e / to).ln().abs() < (e / from).ln().abs()
     }
 }
+
+/// At most this many commands are remembered in flight (more than any
+/// camera's latency in frames).
+const MAX_IN_FLIGHT: usize = 8;
 
 /// The unary step of one camera.
 #[derive(Clone, Debug, PartialEq)]
@@ -195,6 +218,10 @@ pub struct UnaryStep {
     /// What a darker probe did on this frame ([`super::probe`]); when set,
     /// `desired` is the probe's or the settled exposure, not the law's.
     pub probe: Option<ProbeEvent>,
+    /// Whether the frame was taken at a probe's darker exposure (a view
+    /// shows it at its neighbours' brightness; measures of the loop leave
+    /// it out).
+    pub probe_frame: bool,
 }
 
 /// One camera's controller.
@@ -203,7 +230,18 @@ pub struct CameraController {
     estimator: Estimator,
     splitter: Splitter,
     pid: PidState,
-    pending: Option<Pending>,
+    /// Commands sent that no frame has shown yet, oldest first.
+    in_flight: VecDeque<InFlight>,
+    /// Frames seen: the clock of `in_flight`.
+    frames: u64,
+    /// Whether the next command must show before the camera reacts again.
+    must_show: bool,
+    /// Whether the next command is a probe.
+    probe_next: bool,
+    /// Whether the latest frame was taken at a probe's exposure (from the
+    /// frame that shows a probe until the next command shows, or the probe
+    /// is taken).
+    probe_frame: bool,
     last_frame: Option<u64>,
     manual: Option<f64>,
     damping: balance::Damping,
@@ -214,6 +252,28 @@ pub struct CameraController {
     /// saturated pixels hide. (A metered frame: about 1 MB at the
     /// default 322×241 with a mask and block saturation.)
     darker: Option<ProbeFrame>,
+    /// The latest frame after which the camera's own law sent it brighter
+    /// (scale-and-clip): the frames that follow are brighter, and read
+    /// from it what their saturated pixels hide while it matches their
+    /// scene. Kept only while the camera moves up, so a camera at rest
+    /// copies nothing.
+    passed: Option<ProbeFrame>,
+    /// The bracket of the best exposure under the camera's own law.
+    bracket: Bracket,
+    /// The secant slope of the fast law on the γ-mapping.
+    secant: Secant,
+}
+
+/// A kept frame as the estimator reads it, when it is at least
+/// [`DARKER_MIN_EV`] darker than a frame taken at `taken`.
+fn usable_darker(kept: Option<&ProbeFrame>, taken: f64) -> Option<Darker<'_>> {
+    kept.and_then(|d| {
+        let ratio = d.exposure / taken;
+        (ratio.log2() <= -DARKER_MIN_EV).then_some(Darker {
+            image: &d.image,
+            ratio,
+        })
+    })
 }
 
 /// A probe frame kept for the estimator.
@@ -231,13 +291,20 @@ impl CameraController {
             estimator: Estimator::new(config.estimator.clone())?,
             splitter: Splitter::new(range, config.split)?,
             pid: PidState::default(),
-            pending: None,
+            in_flight: VecDeque::new(),
+            frames: 0,
+            must_show: false,
+            probe_next: false,
+            probe_frame: false,
             last_frame: None,
             manual: None,
             damping: balance::Damping::default(),
             prober: Prober::default(),
             last_probe: None,
             darker: None,
+            passed: None,
+            bracket: Bracket::default(),
+            secant: Secant::default(),
         })
     }
 
@@ -281,9 +348,46 @@ impl CameraController {
     pub fn sync(&mut self, current: ExposureSetting) {
         self.splitter.sync(current);
         self.pid.reset();
-        self.pending = None;
+        self.in_flight.clear();
+        self.must_show = false;
+        self.probe_next = false;
+        self.probe_frame = false;
         self.prober.reset();
         self.darker = None;
+        self.passed = None;
+        self.bracket.reset();
+        self.secant.reset();
+    }
+
+    /// The setting the camera will have once the commands in flight have
+    /// shown: the newest command's, or `taken` when none is in flight.
+    pub fn base(&self, taken: ExposureSetting) -> ExposureSetting {
+        self.in_flight.back().map_or(taken, |c| c.setting)
+    }
+
+    /// Commands in flight (sent, not yet shown by a frame).
+    pub fn in_flight(&self) -> usize {
+        self.in_flight.len()
+    }
+
+    /// Takes a new frame taken with `taken` into account: the newest
+    /// command it shows and every older one are no longer in flight; when
+    /// the oldest left has waited more than `timeout` frames, the camera
+    /// has not applied it, and none of them is expected any more.
+    fn track(&mut self, taken: &ExposureSetting, timeout: u32) {
+        self.frames += 1;
+        // A probe's exposure lasts until the next command shows.
+        if let Some(k) = self.in_flight.iter().rposition(|c| c.shown_by(taken)) {
+            self.probe_frame = self.in_flight[k].probe;
+            self.in_flight.drain(..=k);
+        }
+        if self
+            .in_flight
+            .front()
+            .is_some_and(|c| self.frames - c.sent > u64::from(timeout))
+        {
+            self.in_flight.clear();
+        }
     }
 
     /// The camera's own desired exposure for this frame.
@@ -306,16 +410,12 @@ impl CameraController {
             hold = Some(Hold::RepeatedFrame);
         } else {
             self.last_frame = Some(info.frame_id);
-            if let Some(p) = self.pending.as_mut() {
-                let shows = p.shown_by(&info.taken);
-                if shows || p.waited >= config.latency_timeout_frames {
-                    self.pending = None;
-                } else {
-                    p.waited += 1;
-                    hold = Some(Hold::AwaitingCommand);
-                }
+            self.track(&info.taken, config.latency_timeout_frames);
+            if self.in_flight.iter().any(|c| c.must_show) {
+                hold = Some(Hold::AwaitingCommand);
             }
         }
+        let base = self.base(info.taken).exposure();
         let needs_estimate = matches!(config.mode, ControlMode::Gradient | ControlMode::Pid);
         let wants_slope = config.mode == ControlMode::Gradient && config.law.kind == LawKind::Fast;
         // Probes belong to a camera under its own gradient law.
@@ -326,51 +426,80 @@ impl CameraController {
         if !keeps_frames {
             self.darker = None;
         }
-        let darker = self.darker.as_ref().and_then(|d| {
-            let ratio = d.exposure / taken;
-            (ratio.log2() <= -DARKER_MIN_EV).then_some(Darker {
-                image: &d.image,
-                ratio,
-            })
-        });
-        let estimate = if needs_estimate {
+        if !(needs_estimate && config.estimator.simulation == Simulation::ScaleClip) {
+            self.passed = None;
+        }
+        let from_probe = usable_darker(self.darker.as_ref(), taken);
+        let darker = from_probe.or_else(|| usable_darker(self.passed.as_ref(), taken));
+        let mut estimate = if needs_estimate {
             let e = self.estimator.estimate_with(
                 metered,
                 EstimateOptions {
                     slope: wants_slope,
                     darker,
+                    extend: wants_slope,
                     ..Default::default()
                 },
             )?;
-            if darker.is_some() && !e.declipped {
-                // The scene is no longer the probe frame's.
-                self.darker = None;
-            }
             Some(e)
         } else {
             None
         };
+        let (read_darker, read_probe) = (darker.is_some(), from_probe.is_some());
+        if read_darker && estimate.as_ref().is_some_and(|e| !e.declipped) {
+            // The scene is no longer the kept frame's.
+            if read_probe {
+                self.darker = None;
+            } else {
+                self.passed = None;
+            }
+        }
         let stats = metered.stats();
+        let mean = f64::from(stats.mean);
+        if let Some(e) = estimate
+            .as_mut()
+            .filter(|_| own_law && wants_slope && config.estimator.simulation == Simulation::Gamma)
+        {
+            if hold.is_none() {
+                let usable = !e.flat && e.at_bound.is_none() && !e.extended;
+                if let Some(k) = self.secant.slope(taken.ln(), e.gamma_hat, mean, usable) {
+                    e.slope = Some(k);
+                }
+            }
+        } else {
+            self.secant.reset();
+        }
         let mut fallback = false;
-        let ratio = match (config.mode, &estimate) {
-            (ControlMode::Fixed, _) => config.fixed_exposure / taken,
+        let step = match (config.mode, &estimate) {
+            (ControlMode::Fixed, _) => LawStep::Relative(config.fixed_exposure / taken),
             (ControlMode::MeanIntensity, _) => {
-                config.law.bound(config.mean.ratio(f64::from(stats.mean)))
+                LawStep::Relative(config.law.bound(config.mean.ratio(f64::from(stats.mean))))
             }
             (_, Some(e)) if e.flat || stats.saturated_fraction > SATURATED_FALLBACK => {
                 fallback = true;
-                config.law.bound(config.mean.ratio(f64::from(stats.mean)))
+                LawStep::Relative(config.law.bound(config.mean.ratio(f64::from(stats.mean))))
             }
-            (ControlMode::Gradient, Some(e)) => config.law.ratio(e, stats),
-            (ControlMode::Pid, Some(e)) if hold.is_none() => config
-                .law
-                .bound(self.pid.update(&config.pid, 1.0 - e.gamma_hat)),
-            _ => 1.0,
+            (ControlMode::Gradient, Some(e)) => config.law.step(e, stats),
+            (ControlMode::Pid, Some(e)) if hold.is_none() => LawStep::Relative(
+                config
+                    .law
+                    .bound(self.pid.update(&config.pid, 1.0 - e.gamma_hat)),
+            ),
+            _ => LawStep::Relative(1.0),
         };
         let mut desired = match self.manual {
             Some(m) => m,
-            None => taken * ratio,
+            None => config.law.next_exposure(step, taken, base),
         };
+        if own_law {
+            if hold.is_none() {
+                self.bracket
+                    .observe(&config.bracket, taken.log2(), mean, step.frame_ev());
+            }
+            desired = self.bracket.clamp(desired.log2()).exp2();
+        } else {
+            self.bracket.reset();
+        }
         // Frames the camera does not react to leave the prober as it is.
         let probe_params = config.probe.filter(|_| own_law && !fallback);
         let mut probe = None;
@@ -385,7 +514,7 @@ impl CameraController {
                             saturated: f64::from(stats.saturated_fraction),
                             desired,
                             wants_frame: keeps_frames,
-                            read_probe_frame: e.declipped,
+                            read_probe_frame: e.declipped && read_probe,
                         },
                     );
                     desired = d;
@@ -409,7 +538,33 @@ impl CameraController {
                 self.darker = None;
             }
         }
+        // A probe frame, and the return from it, must show before the
+        // camera reacts again; so must every PID step (its integral counts
+        // frames, not commands).
+        self.must_show = config.mode == ControlMode::Pid
+            || matches!(
+                probe,
+                Some(ProbeEvent::Sent { .. } | ProbeEvent::Rejected { .. } | ProbeEvent::Abandoned)
+            );
+        self.probe_next = matches!(probe, Some(ProbeEvent::Sent { .. }));
+        let probe_frame = self.probe_frame;
+        if matches!(probe, Some(ProbeEvent::Taken { .. })) {
+            // The law goes on from the probe's exposure: it is the
+            // camera's own from now on.
+            self.probe_frame = false;
+        }
+        if estimate.is_some()
+            && config.estimator.simulation == Simulation::ScaleClip
+            && hold.is_none()
+            && (desired / taken).log2() >= DARKER_MIN_EV
+        {
+            self.passed = Some(ProbeFrame {
+                exposure: taken,
+                image: metered.clone(),
+            });
+        }
         Ok(UnaryStep {
+            probe_frame,
             estimate,
             taken,
             desired,
@@ -419,23 +574,33 @@ impl CameraController {
         })
     }
 
-    /// Splits `target` and records the command as pending; returns the
-    /// setting to send, or `None` when the camera already has it.
+    /// Splits `target` and records the command as in flight; returns the
+    /// setting to send, or `None` when the camera has it already or will
+    /// have it once the commands in flight show (`taken`: the setting of
+    /// the frame the target was computed on).
     pub fn command(
         &mut self,
         target: f64,
         taken: ExposureSetting,
     ) -> (Option<ExposureSetting>, Option<Clamped>) {
         let (setting, clamped) = self.splitter.split(target);
-        let same = (setting.shutter_us / taken.shutter_us - 1.0).abs() <= SETTLED_TOLERANCE / 4.0
-            && (setting.gain_db - taken.gain_db).abs() <= 0.01;
+        let base = self.base(taken);
+        let must_show = std::mem::take(&mut self.must_show);
+        let probe = std::mem::take(&mut self.probe_next);
+        let same = (setting.shutter_us / base.shutter_us - 1.0).abs() <= SETTLED_TOLERANCE / 4.0
+            && (setting.gain_db - base.gain_db).abs() <= 0.01;
         if same {
             return (None, clamped);
         }
-        self.pending = Some(Pending {
-            from: taken,
+        if self.in_flight.len() == MAX_IN_FLIGHT {
+            self.in_flight.pop_front();
+        }
+        self.in_flight.push_back(InFlight {
+            from: base,
             setting,
-            waited: 0,
+            sent: self.frames,
+            must_show,
+            probe,
         });
         (Some(setting), clamped)
     }
@@ -504,6 +669,8 @@ pub struct CameraStep {
     pub fallback: bool,
     /// What a darker probe did on this frame ([`super::probe`]).
     pub probe: Option<ProbeEvent>,
+    /// Whether the frame was taken at a probe's darker exposure.
+    pub probe_frame: bool,
 }
 
 /// The outcome of one rig step.
@@ -563,7 +730,8 @@ impl RigController {
                 let mut fresh = CameraController::new(&config, *cam.splitter.range())?;
                 fresh.manual = cam.manual;
                 fresh.last_frame = cam.last_frame;
-                fresh.pending = cam.pending;
+                fresh.in_flight = cam.in_flight.clone();
+                fresh.frames = cam.frames;
                 *cam = fresh;
             }
         }
@@ -658,6 +826,15 @@ impl RigController {
                 });
             }
         }
+        // Where each camera will be once its commands in flight show: the
+        // balancing works there, so that a frame taken before the last
+        // command showed does not ask for the same step again.
+        let bases: Vec<f64> = self
+            .cameras
+            .iter()
+            .zip(inputs)
+            .map(|(c, input)| c.base(input.info.taken).exposure())
+            .collect();
         let mut steps = Vec::with_capacity(inputs.len());
         for (i, (u, input)) in unary.into_iter().zip(inputs).enumerate() {
             let cam = &mut self.cameras[i];
@@ -669,21 +846,27 @@ impl RigController {
                     .graph
                     .neighbours(i)
                     .filter_map(|j| {
+                        // r_ij as the two cameras will see the overlap at
+                        // their bases (a linear sensor's brightness follows
+                        // its exposure).
+                        let moved =
+                            (bases[j] / inputs[j].info.taken.exposure()) / (bases[i] / u.taken);
                         ratios
                             .iter()
                             .find(|r| r.i == i && r.j == j)
                             .and_then(|r| r.r_ij)
+                            .map(|r| r * moved)
                     })
                     .collect(),
                 None => Vec::new(),
             };
             let (target, alpha, damping) = match balancing.filter(|_| !neighbour.is_empty()) {
                 Some(params) => {
-                    let b = balance::balance(u.desired, u.taken, &neighbour);
+                    let b = balance::balance(u.desired, bases[i], &neighbour);
                     let (e, kappa) = if u.hold.is_some() {
                         (b.exposure, cam.damping.kappa())
                     } else {
-                        cam.damping.apply(u.taken, b.exposure, &params.damping)
+                        cam.damping.apply(bases[i], b.exposure, &params.damping)
                     };
                     (e, Some(b.alpha), Some(kappa))
                 }
@@ -718,6 +901,7 @@ impl RigController {
                 clamped,
                 fallback: u.fallback,
                 probe: u.probe,
+                probe_frame: u.probe_frame,
             });
         }
         Ok(RigStep {

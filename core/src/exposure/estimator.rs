@@ -389,6 +389,11 @@ pub struct Estimate {
     /// frame of the same scene ([`Darker`]) instead of holding them.
     #[serde(default)]
     pub declipped: bool,
+    /// Set when the maximiser sat at an end of the anchors' span and a
+    /// second search beyond that end ([`EstimateOptions::extend`]) gave
+    /// `x_hat`: then `anchors` and `poly` are the first search's.
+    #[serde(default)]
+    pub extended: bool,
 }
 
 impl Estimate {
@@ -435,6 +440,15 @@ pub struct EstimateOptions<'a> {
     /// γ-mapping, and left unused ([`Estimate::declipped`] false) when it
     /// does not match the current frame.
     pub darker: Option<Darker<'a>>,
+    /// Where the maximiser sits at an end of the anchors' span, search
+    /// once more beyond it: on the image mapped by the end anchor, with the
+    /// same anchors, whose estimate composes with it (`(I^a)^b = I^(ab)`,
+    /// `min(1, b·min(1, a·I)) = min(1, ab·I)` for `a, b ≥ 1`). This covers
+    /// the squared span (about ±1.9 EV by default) where a change of light
+    /// left the camera far from its best exposure. Scale-and-clip
+    /// searches beyond its upper end only: below its lower end, darkening
+    /// rests on assumptions about the saturated pixels.
+    pub extend: bool,
 }
 
 /// Computes [`Estimate`]s; holds buffers reused from frame to frame.
@@ -786,6 +800,9 @@ impl Estimator {
     ) -> Result<Estimate> {
         let mut estimate =
             self.estimate_inner(image, options.intensity || options.slope, options.darker)?;
+        if options.extend {
+            self.extend(image, &mut estimate)?;
+        }
         if options.slope {
             self.add_slope(image, &mut estimate)?;
         }
@@ -855,8 +872,60 @@ impl Estimator {
             info_intensity,
             slope: None,
             declipped,
+            extended: false,
         })
     }
+}
+
+impl Estimator {
+    /// The search beyond the anchors' span of [`EstimateOptions::extend`],
+    /// into `estimate`.
+    fn extend(&mut self, image: &Metered, estimate: &mut Estimate) -> Result<()> {
+        let Some(bound) = estimate.at_bound.filter(|_| !estimate.flat) else {
+            return Ok(());
+        };
+        let (Some(&lo), Some(&hi)) = (self.anchors.first(), self.anchors.last()) else {
+            return Ok(());
+        };
+        let end = match bound {
+            Bound::Lower => lo,
+            Bound::Upper => hi,
+        };
+        if self.config.simulation == Simulation::ScaleClip && bound == Bound::Lower {
+            return Ok(());
+        }
+        let e = end as f32;
+        let mapped = match self.config.simulation {
+            Simulation::Gamma => map_luma(image, |v| v.powf(e))?,
+            Simulation::ScaleClip => map_luma(image, |v| (v * e).min(1.0))?,
+        };
+        let beyond = self.estimate_inner(&mapped, false, None)?;
+        // The second search answers only if it looks further out: at its
+        // end towards the first search it would say the first end itself.
+        let back = match bound {
+            Bound::Lower => Bound::Upper,
+            Bound::Upper => Bound::Lower,
+        };
+        if beyond.flat || beyond.at_bound == Some(back) {
+            return Ok(());
+        }
+        let x = end * beyond.x_hat;
+        estimate.x_hat = x;
+        estimate.gamma_hat = self.config.simulation.gamma_equivalent(x);
+        estimate.at_bound = beyond.at_bound;
+        estimate.extended = true;
+        Ok(())
+    }
+}
+
+/// `image` with every intensity mapped by `f` (same size and weights).
+fn map_luma(image: &Metered, f: impl Fn(f32) -> f32) -> Result<Metered> {
+    Metered::from_luma(
+        image.width(),
+        image.height(),
+        image.luma().iter().map(|&v| f(v)).collect(),
+        image.weight().map(<[f32]>::to_vec),
+    )
 }
 
 /// The exposure step [`Estimator::estimate_with_slope`] simulates.
@@ -891,13 +960,7 @@ impl Estimator {
             SLOPE_STEP
         };
         let sf = s as f32;
-        let scaled: Vec<f32> = image.luma().iter().map(|&v| (v * sf).min(1.0)).collect();
-        let scaled = Metered::from_luma(
-            image.width(),
-            image.height(),
-            scaled,
-            image.weight().map(<[f32]>::to_vec),
-        )?;
+        let scaled = map_luma(image, |v| (v * sf).min(1.0))?;
         let other = self.estimate(&scaled)?;
         if !other.flat && other.at_bound.is_none() {
             estimate.slope = Some((other.gamma_hat - estimate.gamma_hat) / s.ln());

@@ -113,7 +113,8 @@ impl LawParams {
         ratio.clamp(1.0 / self.max_step, self.max_step)
     }
 
-    /// The exposure ratio `E_{t+1} / E_t` this law asks for.
+    /// The exposure ratio `E_{t+1} / E_t` this law asks for, from the
+    /// frame alone (no commands in flight).
     pub fn ratio(&self, estimate: &Estimate, stats: &ImageStats) -> f64 {
         let g = estimate.gamma_hat;
         let raw = match self.kind {
@@ -123,6 +124,80 @@ impl LawParams {
         };
         self.bound(raw)
     }
+
+    /// What this law asks for, as a [`LawStep`]: the fast law's estimate
+    /// inside the anchors' span predicts the best exposure; everything else
+    /// is a step from the frame.
+    pub fn step(&self, estimate: &Estimate, stats: &ImageStats) -> LawStep {
+        match self.kind {
+            LawKind::Fast if estimate.at_bound.is_none() => LawStep::Predicted {
+                ratio: fast_prediction(estimate, stats),
+            },
+            // At an end of the span the best exposure lies beyond what the
+            // estimate sees: the whole step, undamped.
+            LawKind::Fast => LawStep::AtLeast(self.bound(fast_ratio(1.0, estimate, stats))),
+            LawKind::Linear | LawKind::Nonlinear => LawStep::Relative(self.ratio(estimate, stats)),
+        }
+    }
+
+    /// The exposure to command next, for a frame taken at `taken` and
+    /// commands in flight that will leave the camera at `base` (`taken`
+    /// when there are none). This is the controller's predictor: the frame
+    /// is evaluated where it was taken, and the commands in flight are
+    /// accounted for instead of waited for.
+    ///
+    /// - [`LawStep::Relative`]: `taken · ratio`. A step computed on the
+    ///   frame is anchored to the frame, so a frame taken before the
+    ///   previous command showed asks for the same exposure again, never
+    ///   for the step on top of it.
+    /// - [`LawStep::AtLeast`]: as `Relative`, except that commands in flight
+    ///   that already go further that way stand.
+    /// - [`LawStep::Predicted`]: the best exposure is `taken · ratio`; the
+    ///   command moves `damping` of the way there from `base`, in log
+    ///   exposure, bounded to `max_step` per command.
+    pub fn next_exposure(&self, step: LawStep, taken: f64, base: f64) -> f64 {
+        match step {
+            LawStep::Relative(r) => taken * r,
+            LawStep::AtLeast(r) => {
+                let target = taken * r;
+                if (base / target).ln() * r.ln() > 0.0 {
+                    base
+                } else {
+                    target
+                }
+            }
+            LawStep::Predicted { ratio } => {
+                let best = taken * ratio;
+                base * self.bound((best / base).powf(self.damping))
+            }
+        }
+    }
+}
+
+impl LawStep {
+    /// Where the step puts the best exposure, seen from the frame: log2 of
+    /// the ratio to the frame's exposure.
+    pub fn frame_ev(self) -> f64 {
+        match self {
+            Self::Relative(r) | Self::AtLeast(r) | Self::Predicted { ratio: r } => r.log2(),
+        }
+    }
+}
+
+/// What an update law asks for on one frame ([`LawParams::step`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum LawStep {
+    /// Move to `ratio` times the frame's exposure.
+    Relative(f64),
+    /// Move at least to `ratio` times the frame's exposure: the best
+    /// exposure lies beyond what the estimate can see.
+    AtLeast(f64),
+    /// The best exposure is predicted at `ratio` times the frame's
+    /// exposure.
+    Predicted {
+        /// Best over the frame's exposure, undamped and unbounded.
+        ratio: f64,
+    },
 }
 
 /// α of Eq. 3 and 4.
@@ -153,15 +228,18 @@ pub fn nonlinear_ratio(kp: f64, d: f64, gamma_hat: f64) -> f64 {
 /// Mean intensity the fast law aims for when the estimate is at a bound.
 pub const FAST_MEAN_TARGET: f64 = 0.45;
 
-/// The fast law's ratio before the per-frame bound.
-pub fn fast_ratio(damping: f64, estimate: &Estimate, stats: &ImageStats) -> f64 {
-    let predicted = match estimate.simulation {
+/// The fast law's prediction of the best exposure over the frame's, before
+/// damping and bounds, for an estimate inside the anchors' span.
+fn fast_prediction(estimate: &Estimate, stats: &ImageStats) -> f64 {
+    match estimate.simulation {
         Simulation::ScaleClip => estimate.x_hat,
         Simulation::Gamma => {
             let g = estimate.gamma_hat;
+            // A slope is local: an estimate from beyond the anchors' span
+            // is too far out for its Newton step.
             let newton = estimate
                 .slope
-                .filter(|&k| k > 0.05 && estimate.at_bound.is_none())
+                .filter(|&k| k > 0.05 && estimate.at_bound.is_none() && !estimate.extended)
                 .map(|k| (-(g - 1.0) / k).exp());
             newton.unwrap_or_else(|| {
                 // Without the information-weighted intensity (an estimate
@@ -173,7 +251,12 @@ pub fn fast_ratio(damping: f64, estimate: &Estimate, stats: &ImageStats) -> f64 
                 mu.powf(g - 1.0)
             })
         }
-    };
+    }
+}
+
+/// The fast law's ratio before the per-frame bound.
+pub fn fast_ratio(damping: f64, estimate: &Estimate, stats: &ImageStats) -> f64 {
+    let predicted = fast_prediction(estimate, stats);
     let predicted = match (estimate.at_bound.is_some(), estimate.simulation) {
         // ŝ at its upper bound: brightening is simulated exactly, so the
         // optimum lies at least one span further. (Darkening rests on what

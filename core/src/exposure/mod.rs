@@ -13,6 +13,7 @@
 
 pub mod balance;
 pub mod baselines;
+pub mod bracket;
 pub mod controller;
 pub mod estimator;
 mod fastmath;
@@ -28,6 +29,7 @@ pub use crate::image::{FrameView, PixelFormat, RoiMask};
 
 pub use balance::{BalanceParams, NeighbourGraph, PatchPair};
 pub use baselines::{MeanIntensityParams, PidParams};
+pub use bracket::{Bracket, BracketParams, Secant};
 pub use controller::{
     CameraController, CameraInput, CameraStep, ControlMode, ControllerConfig, FrameInfo, Hold,
     PairObservation, PairRatio, RigController, RigStep,
@@ -36,7 +38,7 @@ pub use estimator::{
     Darker, Estimate, EstimateOptions, Estimator, EstimatorConfig, Simulation, DARKER_MIN_EV,
     DEFAULT_ANCHORS,
 };
-pub use laws::{LawKind, LawParams};
+pub use laws::{LawKind, LawParams, LawStep};
 pub use metering::{CameraMasks, ImageStats, Meter, Metered, MeteringConfig, PreparedMask};
 pub use metric::{GradientMetric, MetricParams};
 pub use probe::{ProbeEvent, ProbeParams};

@@ -97,7 +97,7 @@ impl Default for ProbeParams {
             settle_frames: 3,
             accept_gain: 0.005,
             rearm_change: 0.02,
-            cooldown_frames: 40,
+            cooldown_frames: 80,
         }
     }
 }

@@ -104,6 +104,8 @@ pub struct CameraOutput {
     /// The outcome of the camera's latest probe darker
     /// ([`crate::exposure::probe`]).
     pub last_probe: Option<ProbeEvent>,
+    /// Whether the frame was taken at a probe's darker exposure.
+    pub probe_frame: bool,
 }
 
 /// One overlap in one processed set.

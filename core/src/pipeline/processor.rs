@@ -302,6 +302,9 @@ impl Processor {
                 manual,
                 last_probe,
             ));
+            if let (Some(out), Some(c)) = (cameras.last_mut(), cs) {
+                out.probe_frame = c.probe_frame;
+            }
         }
         let pairs: Vec<PairOutput> = self
             .overlay
@@ -402,6 +405,7 @@ fn camera_output(
         command,
         manual,
         last_probe,
+        probe_frame: false,
     }
 }
 

@@ -58,6 +58,8 @@ pub struct CameraRow {
     pub mean: f64,
     /// The exposure level commanded after this frame, if a command was sent.
     pub command: Option<f64>,
+    /// Whether the frame was taken at a probe's darker exposure.
+    pub probe: bool,
 }
 
 /// One frame set.
@@ -97,6 +99,7 @@ impl TelemetryRow {
                     m: c.estimate.as_ref().map(|e| e.m_current),
                     mean: f64::from(c.mean),
                     command: c.command.map(|s| s.exposure()),
+                    probe: c.probe_frame,
                 })
                 .collect(),
             log2_r: output.pairs.iter().map(|p| p.log2_r).collect(),
@@ -210,6 +213,7 @@ impl Telemetry {
                 "m",
                 "mean",
                 "command",
+                "probe",
             ] {
                 cols.push(format!("{c}.{f}"));
             }
@@ -241,6 +245,7 @@ impl Telemetry {
             f.push(opt(c.m));
             f.push(format!("{}", c.mean));
             f.push(opt(c.command));
+            f.push(u8::from(c.probe).to_string());
         }
         for k in 0..self.pair_names.len() {
             f.push(opt(row.log2_r.get(k).copied().flatten()));
@@ -266,6 +271,7 @@ mod tests {
                     m: Some(3000.0),
                     mean: 0.4,
                     command: None,
+                    probe: true,
                 };
                 2
             ],
@@ -301,6 +307,7 @@ mod tests {
         let at = |name: &str| header.iter().position(|h| *h == name);
         assert_eq!(at("front.gamma_hat").map(|k| fields[k]), Some("1.25"));
         assert_eq!(at("left.command").map(|k| fields[k]), Some(""));
+        assert_eq!(at("left.probe").map(|k| fields[k]), Some("1"));
         assert_eq!(at("log2_r.front-left").map(|k| fields[k]), Some("-0.5"));
         assert_eq!(fields[0], "7");
     }

@@ -1,0 +1,394 @@
+//! Safeguards of a camera's own law: the bracket of its best exposure and
+//! the secant slope.
+//!
+//! # The bracket
+//!
+//! A camera's own law looks for the exposure where its estimate says
+//! "neither brighter nor darker". Where the estimate is smooth and
+//! monotonic in exposure, any of the laws gets there. Where it is not, a
+//! law circles: scale-and-clip's estimate can jump from one end of the
+//! anchors' span to the other as the exposure crosses a point (a surface
+//! saturates: below the point, brightening is better by at least a span;
+//! above it, the held saturated pixels make darkening look better by a
+//! span), and the γ-mapping's can fall again past a saturation event. Each
+//! frame then says "far too dark" or "far too bright", and every finite
+//! step overshoots.
+//!
+//! A [`Bracket`] keeps what the frames have said: the brightest exposure
+//! whose frame asked for more (`lo`) and the darkest whose frame asked for
+//! less (`hi`). Once both are known, the best exposure lies between them
+//! (for a monotonic estimate; where the estimate jumps, at the jump), and a
+//! command outside is replaced by the midpoint in log exposure: a safeguarded
+//! search, which converges wherever the law's own step would circle and
+//! leaves the law's step alone wherever it stays inside.
+//!
+//! The bracket must not outlive its scene:
+//! - a frame whose mean intensity contradicts an end's shows that the
+//!   light changed, and both ends go. A linear sensor's mean intensity
+//!   grows at most in proportion to the exposure (clipping only slows it)
+//!   and never falls with it: a frame taken at `k` times an end's
+//!   exposure whose mean lies below `min(1, k)` or above `max(1, k)` times
+//!   that end's, by more than `light_tolerance`, contradicts it;
+//! - a frame at or beyond an end that still asks to go past it removes
+//!   that end;
+//! - when the ends are closer than `narrow_ev` and `narrow_frames`
+//!   frames in a row ask for the same direction, the end in that direction
+//!   goes (the light drifted past it);
+//! - ends older than `max_age_frames` go.
+//!
+//! # The secant slope
+//!
+//! The fast law's Newton step on the γ-mapping needs `dγ̂/d ln E`. The
+//! slope measured on the image itself (scaled by a simulated exposure
+//! change) misjudges saturated regions, which a simulated darkening leaves
+//! flat: on the simulated rig it came out up to twice the true one, and the
+//! law crept towards its fixed point in a dozen frames. Two frames taken
+//! at different exposures of the same scene measure it directly: a
+//! [`Secant`] keeps the latest frames and gives the slope between the
+//! newest one and the latest earlier one taken at least `min_ev` away,
+//! when both estimates lie inside the anchors' span, the scene is the same
+//! (mean intensities in the order of the exposures) and the slope is
+//! plausible (positive, not huge). It replaces the image's own slope.
+
+use std::collections::VecDeque;
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::{check_range, Result};
+
+/// When the bracket's ends hold (module documentation).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct BracketParams {
+    /// Law steps smaller than this (|log2|, EV) say nothing about the
+    /// direction.
+    pub dead_band_ev: f64,
+    /// Ends closer than this (EV) are dropped after `narrow_frames` frames
+    /// asking the same way.
+    pub narrow_ev: f64,
+    /// See `narrow_ev`.
+    pub narrow_frames: u32,
+    /// Frames an end is kept.
+    pub max_age_frames: u32,
+    /// The relative change of mean intensity that counts as a change of
+    /// light.
+    pub light_tolerance: f64,
+}
+
+impl Default for BracketParams {
+    fn default() -> Self {
+        Self {
+            dead_band_ev: 0.02,
+            narrow_ev: 0.03,
+            narrow_frames: 3,
+            max_age_frames: 40,
+            light_tolerance: 0.1,
+        }
+    }
+}
+
+impl BracketParams {
+    /// Checks the parameters.
+    pub fn validate(&self) -> Result<()> {
+        check_range(
+            "controller.bracket.dead_band_ev",
+            self.dead_band_ev,
+            0.0,
+            1.0,
+            "an exposure step in EV in [0, 1]",
+        )?;
+        check_range(
+            "controller.bracket.narrow_ev",
+            self.narrow_ev,
+            0.0,
+            1.0,
+            "an exposure span in EV in [0, 1]",
+        )?;
+        check_range(
+            "controller.bracket.narrow_frames",
+            f64::from(self.narrow_frames),
+            1.0,
+            1000.0,
+            "a number of frames in [1, 1000]",
+        )?;
+        check_range(
+            "controller.bracket.max_age_frames",
+            f64::from(self.max_age_frames),
+            1.0,
+            1e6,
+            "a number of frames in [1, 1000000]",
+        )?;
+        check_range(
+            "controller.bracket.light_tolerance",
+            self.light_tolerance,
+            1e-3,
+            1.0,
+            "a relative change of mean intensity in [0.001, 1]",
+        )?;
+        Ok(())
+    }
+}
+
+/// One end of a [`Bracket`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct End {
+    /// log2 of the exposure.
+    at: f64,
+    /// The frame's mean intensity.
+    mean: f64,
+    /// When (the bracket's frame count).
+    frame: u64,
+}
+
+/// The bracket of one camera's best exposure (module documentation). All
+/// exposures in log2.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Bracket {
+    lo: Option<End>,
+    hi: Option<End>,
+    frame: u64,
+    /// The direction of the latest frames that had one, and how many in a
+    /// row.
+    run: (i8, u32),
+}
+
+impl Bracket {
+    /// The ends, `(lo, hi)`, in log2 exposure.
+    pub fn ends(&self) -> (Option<f64>, Option<f64>) {
+        (self.lo.map(|e| e.at), self.hi.map(|e| e.at))
+    }
+
+    /// Forgets both ends.
+    pub fn reset(&mut self) {
+        self.lo = None;
+        self.hi = None;
+        self.run = (0, 0);
+    }
+
+    /// Takes a frame taken at `at` (log2 exposure) with mean intensity
+    /// `mean`, whose law puts the best exposure `step_ev` away (log2 of the
+    /// best over the frame's exposure).
+    pub fn observe(&mut self, params: &BracketParams, at: f64, mean: f64, step_ev: f64) {
+        self.frame += 1;
+        if !(at.is_finite() && mean.is_finite() && step_ev.is_finite()) {
+            self.reset();
+            return;
+        }
+        let age = u64::from(params.max_age_frames);
+        let frame = self.frame;
+        self.lo = self.lo.filter(|e| frame - e.frame <= age);
+        self.hi = self.hi.filter(|e| frame - e.frame <= age);
+        let tol = params.light_tolerance;
+        // A linear sensor's mean intensity grows at most in proportion to
+        // the exposure (clipping only slows it) and never falls with it.
+        let changed = |e: &End| {
+            let k = (at - e.at).exp2();
+            mean < e.mean * k.min(1.0) * (1.0 - tol) || mean > e.mean * k.max(1.0) * (1.0 + tol)
+        };
+        if self.lo.iter().chain(self.hi.iter()).any(changed) {
+            self.reset();
+        }
+        if step_ev.abs() < params.dead_band_ev {
+            return;
+        }
+        let dir: i8 = if step_ev > 0.0 { 1 } else { -1 };
+        self.run = if self.run.0 == dir {
+            (dir, self.run.1.saturating_add(1))
+        } else {
+            (dir, 1)
+        };
+        let end = End { at, mean, frame };
+        if dir > 0 {
+            if self.hi.is_some_and(|h| at >= h.at) {
+                self.hi = None;
+            }
+            if self.lo.is_none_or(|l| at >= l.at) {
+                self.lo = Some(end);
+            }
+        } else {
+            if self.lo.is_some_and(|l| at <= l.at) {
+                self.lo = None;
+            }
+            if self.hi.is_none_or(|h| at <= h.at) {
+                self.hi = Some(end);
+            }
+        }
+        if let (Some(l), Some(h)) = (self.lo, self.hi) {
+            if h.at - l.at < params.narrow_ev && self.run.1 >= params.narrow_frames {
+                if dir > 0 {
+                    self.hi = None;
+                } else {
+                    self.lo = None;
+                }
+            }
+        }
+    }
+
+    /// Where a command the law proposes at `proposed` (log2 exposure) goes:
+    /// itself when it lies strictly between the ends (or an end is
+    /// unknown), the midpoint of the ends otherwise.
+    pub fn clamp(&self, proposed: f64) -> f64 {
+        match (self.lo, self.hi) {
+            (Some(l), Some(h)) if proposed <= l.at || proposed >= h.at => 0.5 * (l.at + h.at),
+            _ => proposed,
+        }
+    }
+}
+
+/// One frame as [`Secant`] keeps it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Point {
+    ln_e: f64,
+    gamma_hat: f64,
+    mean: f64,
+}
+
+/// The frames a [`Secant`] keeps.
+const SECANT_FRAMES: usize = 3;
+
+/// The secant slope `dγ̂/d ln E` from the latest frames (module
+/// documentation).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Secant {
+    recent: VecDeque<Point>,
+}
+
+impl Secant {
+    /// Forgets the frames.
+    pub fn reset(&mut self) {
+        self.recent.clear();
+    }
+
+    /// The slope between a frame at `ln_e` (natural log of its exposure)
+    /// with estimate `gamma_hat` and mean `mean`, and the latest kept frame
+    /// at least [`SECANT_MIN_EV`] away. Keeps the frame when `usable` (its
+    /// estimate inside the anchors' span); forgets every frame otherwise.
+    pub fn slope(&mut self, ln_e: f64, gamma_hat: f64, mean: f64, usable: bool) -> Option<f64> {
+        let min_ln = SECANT_MIN_EV * std::f64::consts::LN_2;
+        let slope = if usable {
+            self.recent
+                .iter()
+                .rev()
+                .find(|p| (p.ln_e - ln_e).abs() >= min_ln)
+                .filter(|p| (p.mean - mean) * (p.ln_e - ln_e) >= 0.0)
+                .map(|p| (p.gamma_hat - gamma_hat) / (p.ln_e - ln_e))
+                .filter(|k| *k > SECANT_MIN_SLOPE && *k < SECANT_MAX_SLOPE)
+        } else {
+            None
+        };
+        if usable {
+            if self.recent.len() == SECANT_FRAMES {
+                self.recent.pop_front();
+            }
+            self.recent.push_back(Point {
+                ln_e,
+                gamma_hat,
+                mean,
+            });
+        } else {
+            self.recent.clear();
+        }
+        slope
+    }
+}
+
+/// The smallest exposure difference (EV) a secant is taken over.
+pub const SECANT_MIN_EV: f64 = 0.05;
+/// Secant slopes outside (`SECANT_MIN_SLOPE`, `SECANT_MAX_SLOPE`) are
+/// taken for noise or another scene.
+pub const SECANT_MIN_SLOPE: f64 = 0.05;
+/// See [`SECANT_MIN_SLOPE`].
+pub const SECANT_MAX_SLOPE: f64 = 20.0;
+
+#[cfg(test)]
+#[allow(clippy::float_cmp)] // midpoints of exact values
+mod tests {
+    use super::*;
+
+    fn step_towards(best: f64, at: f64) -> f64 {
+        best - at
+    }
+
+    #[test]
+    fn a_law_that_overshoots_both_ways_is_bisected_to_its_jump() {
+        // An estimate that jumps at 10 EV: below, "1.5 EV brighter"; above,
+        // "0.75 EV darker"; taken literally the camera circles.
+        let p = BracketParams::default();
+        let mut b = Bracket::default();
+        let mut at = 9.0;
+        let mut trace = Vec::new();
+        for _ in 0..30 {
+            let step = if at < 10.0 { 1.5 } else { -0.75 };
+            // Brighter frames have a brighter mean: the same scene.
+            b.observe(&p, at, at / 20.0, step);
+            at = b.clamp(at + step);
+            trace.push(at);
+        }
+        let tail = &trace[20..];
+        let (lo, hi) = tail
+            .iter()
+            .fold((f64::MAX, f64::MIN), |(a, c), &v| (a.min(v), c.max(v)));
+        assert!(hi - lo < 0.05, "still circling: {trace:?}");
+        assert!((lo - 10.0).abs() < 0.05, "{trace:?}");
+    }
+
+    #[test]
+    fn a_change_of_light_releases_the_bracket() {
+        let p = BracketParams::default();
+        let mut b = Bracket::default();
+        b.observe(&p, 9.0, 0.40, 0.5);
+        b.observe(&p, 9.2, 0.45, -0.5);
+        assert_eq!(b.ends(), (Some(9.0), Some(9.2)));
+        assert_eq!(b.clamp(7.0), 9.1);
+        // Two stops more light: at 9.1 the frame is much brighter than the
+        // one at 9.2 was.
+        b.observe(&p, 9.1, 0.9, -2.0);
+        assert_eq!(b.ends(), (None, Some(9.1)));
+        assert_eq!(b.clamp(7.1), 7.1);
+    }
+
+    #[test]
+    fn a_drift_past_a_narrow_end_releases_it() {
+        let p = BracketParams::default();
+        let mut b = Bracket::default();
+        b.observe(&p, 9.00, 0.40, 0.1);
+        b.observe(&p, 9.02, 0.41, -0.1);
+        let mut released = false;
+        for k in 0..p.narrow_frames + 1 {
+            // The light fades slowly: every frame asks for more.
+            b.observe(&p, 9.01, 0.40 - 0.001 * f64::from(k), 0.1);
+            released |= b.ends().1.is_none();
+        }
+        assert!(released, "{:?}", b.ends());
+    }
+
+    #[test]
+    fn a_law_inside_the_bracket_is_left_alone() {
+        let p = BracketParams::default();
+        let mut b = Bracket::default();
+        b.observe(&p, 8.0, 0.2, step_towards(9.0, 8.0));
+        b.observe(&p, 10.0, 0.6, step_towards(9.0, 10.0));
+        assert_eq!(b.clamp(9.3), 9.3);
+        assert_eq!(b.clamp(10.5), 9.0);
+        // Steps in the dead band say nothing.
+        b.observe(&p, 9.3, 0.4, 0.001);
+        assert_eq!(b.ends(), (Some(8.0), Some(10.0)));
+    }
+
+    #[test]
+    fn the_secant_measures_the_slope_between_frames_of_one_scene() {
+        let mut s = Secant::default();
+        let ln2 = std::f64::consts::LN_2;
+        assert_eq!(s.slope(8.0 * ln2, 1.3, 0.5, true), None);
+        // Same exposure: no secant.
+        assert_eq!(s.slope(8.0 * ln2, 1.3, 0.5, true), None);
+        let k = s.slope(7.5 * ln2, 1.1, 0.4, true).unwrap();
+        assert!((k - 0.2 / (0.5 * ln2)).abs() < 1e-12, "{k}");
+        // A darker frame with a brighter mean is another scene.
+        assert_eq!(s.slope(7.0 * ln2, 0.9, 0.6, true), None);
+        // A slope near zero is noise.
+        let mut s = Secant::default();
+        s.slope(8.0 * ln2, 1.3, 0.5, true);
+        assert_eq!(s.slope(7.5 * ln2, 1.299, 0.4, true), None);
+    }
+}
