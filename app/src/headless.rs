@@ -11,6 +11,7 @@ use anyhow::{Context, Result};
 use rigview_core::pipeline::{Output, PipelineOptions, ProcessingSettings};
 use rigview_core::surround::Canvas;
 
+use crate::logging::{LogBuffer, StatusLog};
 use crate::report::{self, CpuMeter};
 use crate::session::{self, SourceSpec};
 
@@ -42,8 +43,15 @@ fn write_canvas(c: &Canvas, path: &Path) -> Result<()> {
 }
 
 /// Runs `run` with the processing `settings`; returns its summary (also
-/// written to `summary.txt`). `progress` shows a progress bar.
-pub fn run(run: &HeadlessRun, settings: &ProcessingSettings, progress: bool) -> Result<String> {
+/// written to `summary.txt`), which ends with the events that reached `log`
+/// during the run (what the window's Messages panel shows). `progress`
+/// shows a progress bar with the newest event.
+pub fn run(
+    run: &HeadlessRun,
+    settings: &ProcessingSettings,
+    log: &LogBuffer,
+    progress: bool,
+) -> Result<String> {
     let out = run.out.as_path();
     std::fs::create_dir_all(out.join("views"))
         .with_context(|| format!("creating the output folder {}", out.display()))?;
@@ -51,6 +59,9 @@ pub fn run(run: &HeadlessRun, settings: &ProcessingSettings, progress: bool) -> 
     let spec = &run.source;
     let lockstep = matches!(spec, SourceSpec::Sim(s) if !s.realtime);
     let cpu = CpuMeter::start();
+    let first = log.next_seq();
+    let mut seen = first;
+    let mut status_log = StatusLog::default();
     let mut session = session::start(
         spec,
         settings,
@@ -88,6 +99,10 @@ pub fn run(run: &HeadlessRun, settings: &ProcessingSettings, progress: bool) -> 
         };
         done = session.pipeline.telemetry().total();
         bar.set_position(done);
+        status_log.forward(&session.pipeline.status());
+        if let Some(e) = log.read(&mut seen).last() {
+            bar.set_message(e.line());
+        }
         if o.trigger % every == 0 {
             if let Some(c) = &o.canvas {
                 write_canvas(
@@ -113,6 +128,7 @@ pub fn run(run: &HeadlessRun, settings: &ProcessingSettings, progress: bool) -> 
         }
     }
     let status = session.pipeline.status();
+    status_log.forward(&status);
     let telemetry = session.pipeline.telemetry().clone();
     let csv = out.join("telemetry.csv");
     {
@@ -140,6 +156,7 @@ pub fn run(run: &HeadlessRun, settings: &ProcessingSettings, progress: bool) -> 
     if let Some(c) = cpu.cores() {
         summary += &format!("\nCPU use: {c:.2} cores");
     }
+    summary += &report::messages(&log.since(first));
     std::fs::write(out.join("summary.txt"), &summary)
         .with_context(|| format!("writing {}", out.join("summary.txt").display()))?;
     Ok(summary)

@@ -12,6 +12,8 @@
 //! - [`live`]: live capture from GenICam cameras through Aravis (the
 //!   `aravis` feature, on by default), frame-set assembly, stream health and
 //!   `rigview live --headless`.
+//! - [`logging`]: rigview's messages as `tracing` events, on stderr and in
+//!   the buffer the window and the headless modes show.
 //! - [`plot_png`]: a PNG plot of the exposure state (plotters).
 //! - [`report`]: the summary of a run (drops, latency, CPU use).
 //! - [`session`]: a source, its calibration and the processing pipeline.
@@ -25,6 +27,7 @@ pub mod demo;
 pub mod gui;
 pub mod headless;
 pub mod live;
+pub mod logging;
 pub mod plot_png;
 pub mod report;
 pub mod session;

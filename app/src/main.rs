@@ -8,6 +8,7 @@ use rigview::session::{SimSpec, SourceSpec};
 
 fn main() -> Result<()> {
     let cli = Cli::parse();
+    rigview::logging::init(cli.verbose)?;
     let out = &mut std::io::stdout().lock();
     match &cli.command {
         None => cli.view.window(

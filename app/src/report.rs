@@ -4,6 +4,8 @@ use std::time::Instant;
 
 use rigview_core::pipeline::{PipelineStatus, ProcessingSettings, Telemetry};
 
+use crate::logging::Entry;
+
 /// How exposure is controlled, in a few words: the strategy, the update
 /// law and the estimator's exposure simulation.
 pub fn control(settings: &ProcessingSettings) -> String {
@@ -66,6 +68,19 @@ impl CpuMeter {
     }
 }
 
+/// The events of a run, a line each after a line `messages:` (nothing
+/// when there are none).
+pub fn messages(entries: &[Entry]) -> String {
+    let mut s = String::new();
+    if !entries.is_empty() {
+        s += "\nmessages:";
+        for e in entries {
+            s += &format!("\n  {}", e.line());
+        }
+    }
+    s
+}
+
 /// A few lines on a finished run.
 pub fn summary(status: &PipelineStatus, telemetry: &Telemetry) -> String {
     let mut processing: Vec<f64> = telemetry.rows().iter().map(|r| r.times.total_ms).collect();
@@ -93,12 +108,6 @@ pub fn summary(status: &PipelineStatus, telemetry: &Telemetry) -> String {
             quantile(&mut display, 1.0),
             display.len()
         );
-    }
-    for n in &status.notes {
-        s += &format!("\nsource: {n}");
-    }
-    for e in &status.errors {
-        s += &format!("\nproblem: {e}");
     }
     s
 }

@@ -63,9 +63,6 @@ pub struct Session {
     pub calibration: String,
     /// Whether the cameras have their own auto-exposure.
     pub camera_auto: bool,
-    /// Messages from starting up (tracing time, cameras opened, why there is
-    /// no view).
-    pub notes: Vec<String>,
 }
 
 impl Session {
@@ -131,7 +128,7 @@ fn start_sim(
         .with_context(|| format!("the simulation \"{}\"", spec.scenario))?;
     let t = Instant::now();
     let render = Arc::new(SimRender::new(&config).context("building the simulated rig")?);
-    let traced = t.elapsed().as_secs_f64();
+    tracing::info!("scene traced in {:.1} s", t.elapsed().as_secs_f64());
     let cameras = render.cameras().to_vec();
     let (view, graph) =
         view_of(render.rig(), &cameras).context("the surround view of the simulated rig")?;
@@ -163,7 +160,6 @@ fn start_sim(
         ),
         calibration: "the simulated rig's exact calibration".into(),
         camera_auto,
-        notes: vec![format!("scene traced in {traced:.1} s")],
     })
 }
 
@@ -184,17 +180,15 @@ fn start_live(
     options: PipelineOptions,
     notify: Notify,
 ) -> Result<Session> {
-    let mut notes = Vec::new();
-    let crate::live::Opened { mut source, rig } = crate::live::open(spec, &mut notes)?;
+    let crate::live::Opened { source, rig } = crate::live::open(spec)?;
     let what = spec.describe();
-    notes.extend(source.take_messages());
     let cameras = source.cameras().to_vec();
     let (view, graph, calibration) = match view_of(&rig, &cameras) {
         Ok((v, g)) => (Some(v), g, what.clone()),
         Err(e) => {
-            notes.push(format!(
+            tracing::warn!(
                 "no surround view: {e:#}; whole frames are metered (File, Open calibration)"
-            ));
+            );
             (
                 None,
                 NeighbourGraph::new(cameras.len(), &[])?,
@@ -216,6 +210,5 @@ fn start_live(
         source_name: format!("live: {} cameras ({what})", cameras.len()),
         calibration,
         camera_auto,
-        notes,
     })
 }

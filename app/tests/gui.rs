@@ -14,6 +14,7 @@ use std::time::Duration;
 use egui_kittest::kittest::Queryable;
 use egui_kittest::{Harness, SnapshotOptions, SnapshotResults};
 use rigview::gui::{panels, plots, AppOptions, RigviewApp};
+use rigview::logging::{self, LogBuffer};
 use rigview::session::{self, SimSpec, SourceSpec};
 use rigview_core::exposure::{LawKind, NeighbourGraph};
 use rigview_core::pipeline::{
@@ -32,7 +33,9 @@ fn sim(frames: Option<u64>) -> SourceSpec {
     })
 }
 
-fn app(dir: &Path, frames: Option<u64>) -> RigviewApp {
+/// The app on the quarter-resolution simulated rig; its Messages panel
+/// shows the events of this thread (the window's own, the session's).
+fn app(dir: &Path, frames: Option<u64>, log: &LogBuffer) -> RigviewApp {
     let ctx = egui::Context::default();
     RigviewApp::new(
         &ctx,
@@ -45,6 +48,7 @@ fn app(dir: &Path, frames: Option<u64>) -> RigviewApp {
                 lockstep: true,
                 ..Default::default()
             },
+            log: log.clone(),
         },
     )
 }
@@ -77,7 +81,9 @@ fn step_until(
 #[test]
 fn the_main_view_cameras_and_plots_show_data() {
     let dir = tempfile::tempdir().unwrap();
-    let mut h = harness(app(dir.path(), None));
+    let log = LogBuffer::new();
+    let _events = logging::capture(&log);
+    let mut h = harness(app(dir.path(), None, &log));
     step_until(&mut h, 120.0, "ten frame sets shown", |a| a.shown() >= 10);
     h.step();
     let app = h.state();
@@ -138,12 +144,20 @@ fn the_main_view_cameras_and_plots_show_data() {
         h.query_by_label_contains("source: simulated rig").is_some(),
         "no source in the status bar"
     );
+    // The session's start-up note, an event, is in the Messages panel.
+    assert!(
+        h.query_by_label_contains("scene traced in").is_some(),
+        "no start-up note in the Messages panel: {:?}",
+        h.state().messages()
+    );
 }
 
 #[test]
 fn switching_the_strategy_and_parameters_changes_the_controller() {
     let dir = tempfile::tempdir().unwrap();
-    let mut h = harness(app(dir.path(), None));
+    let log = LogBuffer::new();
+    let _events = logging::capture(&log);
+    let mut h = harness(app(dir.path(), None, &log));
     step_until(&mut h, 120.0, "first set", |a| a.shown() >= 2);
     // Fixed manual: every camera goes to the manual level.
     h.get_by_label("fixed manual").click();
@@ -192,7 +206,7 @@ fn switching_the_strategy_and_parameters_changes_the_controller() {
     // The change persists.
     let saved = h.state_mut().finish();
     assert!(saved.contains("processed"), "{saved}");
-    let again = app(dir.path(), Some(1));
+    let again = app(dir.path(), Some(1), &log);
     assert_eq!(again.settings().processing.strategy, Strategy::Single);
     assert_eq!(
         again.settings().processing.controller.law.kind,
@@ -204,7 +218,9 @@ fn switching_the_strategy_and_parameters_changes_the_controller() {
 #[test]
 fn a_bad_calibration_file_shows_an_error_and_the_app_keeps_running() {
     let dir = tempfile::tempdir().unwrap();
-    let mut h = harness(app(dir.path(), None));
+    let log = LogBuffer::new();
+    let _events = logging::capture(&log);
+    let mut h = harness(app(dir.path(), None, &log));
     step_until(&mut h, 120.0, "first set", |a| a.shown() >= 2);
     // A rig file with a broken field: the reference rig with a word for a
     // focal length.

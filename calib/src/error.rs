@@ -153,7 +153,22 @@ pub enum CalibError {
         /// What the image decoder said.
         source: image::ImageError,
     },
+    /// A file of a format this build cannot read or write: its reader or
+    /// writer needs a feature of `rigview-calib` that the build was made
+    /// without.
+    #[error(
+        "{file}: {format} files need rigview-calib's `{feature}` feature, and this build has it off"
+    )]
+    NeedsFeature {
+        /// The file.
+        file: String,
+        /// The format, in words.
+        format: String,
+        /// The feature.
+        feature: &'static str,
+    },
     /// OpenCV failed.
+    #[cfg(feature = "opencv")]
     #[error("{context}: OpenCV: {source}")]
     OpenCv {
         /// What was being done.
@@ -176,6 +191,7 @@ pub enum CalibError {
 pub type Result<T, E = CalibError> = std::result::Result<T, E>;
 
 /// Wraps an OpenCV error with what was being done.
+#[cfg(feature = "opencv")]
 pub(crate) fn cv<T>(context: &str, r: opencv::Result<T>) -> Result<T> {
     r.map_err(|source| CalibError::OpenCv {
         context: context.to_owned(),

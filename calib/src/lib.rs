@@ -4,15 +4,25 @@
 //! calibration tools.
 //!
 //! This crate opens no camera and draws no UI.
+//!
+//! Its `opencv` feature (on by default) brings what needs OpenCV: the
+//! OpenCV FileStorage formats and the surround layout built on them
+//! ([`formats::opencv`], [`formats::surround`]) and the calibration tools
+//! ([`tools`]). Without it, reading or writing an OpenCV file is a
+//! [`CalibError::NeedsFeature`] naming the file.
 
+#[cfg(feature = "opencv")]
 mod cvutil;
 pub mod error;
 pub mod formats;
+// (Its users, the pose refinements, need OpenCV for their first guess.)
+#[cfg(feature = "opencv")]
 mod lm;
 pub mod model;
 pub mod pose;
 pub mod report;
 pub mod rig;
+#[cfg(feature = "opencv")]
 pub mod tools;
 
 pub use error::{CalibError, FieldError, Result};

@@ -228,6 +228,7 @@ pub fn summary(loaded: &Loaded) -> String {
             let _ = writeln!(s, "  warning: {w}");
         }
     }
+    #[cfg(feature = "opencv")]
     if let Some(imp) = &loaded.surround {
         let _ = writeln!(
             s,

@@ -10,6 +10,7 @@ use std::path::PathBuf;
 use clap::Parser;
 use rigview::cli::live::LiveArgs;
 use rigview::cli::{Cli, Command};
+use rigview::logging::LogBuffer;
 use rigview_core::pipeline::ProcessingSettings;
 
 /// `rigview live ARGS` as the command line parses it.
@@ -22,11 +23,14 @@ fn parse(args: &[&str]) -> Result<LiveArgs, clap::Error> {
 }
 
 /// `rigview live --headless` as the command line runs it: the default
-/// settings with the options' overrides.
+/// settings with the options' overrides, the events of this thread (the
+/// cameras' start-up among them) printed with the status.
 fn run(args: &LiveArgs, out: &mut Vec<u8>) -> anyhow::Result<()> {
     let mut settings = ProcessingSettings::default();
     args.processing.apply(&mut settings);
-    rigview::cli::live::headless(args, &settings, out)
+    let log = LogBuffer::new();
+    let _events = rigview::logging::capture(&log);
+    rigview::cli::live::headless(args, &settings, &log, out)
 }
 
 fn rig() -> String {

@@ -15,6 +15,7 @@ use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
 use rigview::live::{CameraSpec, CaptureConfig, DeviceSpec, LiveSource, TriggerMode};
+use rigview::logging::LogBuffer;
 use rigview_core::exposure::NeighbourGraph;
 use rigview_core::pipeline::{LockStep, ProcessingSettings, Processor, Strategy};
 use rigview_core::source::{FrameSource, StreamState};
@@ -264,6 +265,10 @@ fn with_one_percent_packet_loss_incomplete_frames_are_counted_and_kept_from_the_
 
 #[test]
 fn a_killed_camera_is_lost_while_the_others_go_on_and_rejoins_after_a_restart() {
+    // The source reports losses and rejoins as events of the thread that
+    // drives it: this one.
+    let log = LogBuffer::new();
+    let _events = rigview::logging::capture(&log);
     let _one = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
     let (mut rig, mut lp) = open(None, config());
     run(&mut lp, Duration::from_secs(2), |_, _| {});
@@ -312,9 +317,23 @@ fn a_killed_camera_is_lost_while_the_others_go_on_and_rejoins_after_a_restart() 
         }
     });
     let st = lp.source().status();
-    for m in lp.source_mut().take_messages() {
-        println!("  {m}");
+    let lines: Vec<String> = log.since(0).iter().map(|e| e.line()).collect();
+    for l in &lines {
+        println!("  {l}");
     }
+    // The loss is a warning naming the camera, the rejoin a note.
+    assert!(
+        lines
+            .iter()
+            .any(|l| l.starts_with("warning: gv3: ") && l.ends_with("(stream lost)")),
+        "{lines:?}"
+    );
+    assert!(
+        lines
+            .iter()
+            .any(|l| l.starts_with("gv3: streaming: rejoined")),
+        "{lines:?}"
+    );
     let rejoined = rejoined.expect("camera 3 did not rejoin within 5 s");
     println!(
         "restarted gv3: rejoined (first complete set) after {:.2} s; sets before kill {} complete, at the end {} complete / {} incomplete",

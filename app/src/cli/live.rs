@@ -13,6 +13,7 @@ use rigview_core::pipeline::ProcessingSettings;
 
 use super::{seconds, ProcessingArgs, ViewArgs};
 use crate::live::{self, CaptureConfig, FakeRig, LiveCameras, LiveSpec, Region, TriggerMode};
+use crate::logging::LogBuffer;
 use crate::session::SourceSpec;
 
 /// How the cameras are triggered.
@@ -188,13 +189,19 @@ impl LiveArgs {
 pub fn run(args: &LiveArgs, view: &ViewArgs, out: &mut dyn Write) -> Result<()> {
     if args.headless {
         let settings = view.settings(&args.processing);
-        headless(args, &settings.processing, out)
+        headless(args, &settings.processing, LogBuffer::global(), out)
     } else {
         view.window(&args.processing, SourceSpec::Live(args.spec()?))
     }
 }
 
-/// Runs `rigview live --headless` with the processing `settings`.
-pub fn headless(args: &LiveArgs, settings: &ProcessingSettings, out: &mut dyn Write) -> Result<()> {
-    live::headless::run(&args.spec()?, args.limit()?, settings, out)
+/// Runs `rigview live --headless` with the processing `settings`,
+/// printing the events that reach `log` with its status.
+pub fn headless(
+    args: &LiveArgs,
+    settings: &ProcessingSettings,
+    log: &LogBuffer,
+    out: &mut dyn Write,
+) -> Result<()> {
+    live::headless::run(&args.spec()?, args.limit()?, settings, log, out)
 }

@@ -18,6 +18,7 @@ use rigview_core::pipeline::{MeterRoi, PipelineOptions, ProcessingSettings, Stra
 use rigview_core::surround::BlendMode;
 
 use crate::gui::AppOptions;
+use crate::logging::LogBuffer;
 use crate::session::SourceSpec;
 use crate::settings::{Settings, SettingsStore};
 
@@ -32,6 +33,10 @@ pub struct Cli {
     /// Window options (with no subcommand).
     #[command(flatten)]
     pub view: ViewArgs,
+    /// More messages on stderr: -v what rigview reports, -vv its details
+    /// (RUST_LOG, if set, chooses instead).
+    #[arg(short, long, action = clap::ArgAction::Count, global = true)]
+    pub verbose: u8,
 }
 
 /// The subcommands.
@@ -78,7 +83,7 @@ impl ViewArgs {
         let mut store = SettingsStore::new(self.settings.clone());
         let (mut settings, err) = store.load();
         if let Some(e) = err {
-            eprintln!("{e:#}");
+            tracing::warn!("{e:#}");
         }
         overrides.apply(&mut settings.processing);
         settings
@@ -108,7 +113,7 @@ impl ViewArgs {
         let mut store = SettingsStore::new(self.settings.clone());
         let (mut settings, err) = store.load();
         if let Some(e) = err {
-            eprintln!("{e:#}");
+            tracing::warn!("{e:#}");
         } else {
             overrides.apply(&mut settings.processing);
             store.save(&settings)?;
@@ -119,6 +124,7 @@ impl ViewArgs {
             quit_after: self.quit_after()?,
             screenshot: self.screenshot()?,
             pipeline: PipelineOptions::default(),
+            log: LogBuffer::global().clone(),
         })
     }
 }

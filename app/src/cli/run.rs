@@ -9,6 +9,7 @@ use clap::{Args, ValueEnum};
 use super::{ProcessingArgs, ViewArgs};
 use crate::headless::{self, HeadlessRun};
 use crate::live::{CaptureConfig, FakeRig, LiveCameras, LiveSpec};
+use crate::logging::LogBuffer;
 use crate::session::{SimSpec, SourceSpec};
 
 /// Where frame sets come from.
@@ -110,7 +111,7 @@ pub fn run(args: &RunArgs, view: &ViewArgs) -> Result<()> {
             every: args.every,
         };
         let settings = view.settings(&args.processing);
-        let summary = headless::run(&run, &settings.processing, true)?;
+        let summary = headless::run(&run, &settings.processing, LogBuffer::global(), true)?;
         println!("{summary}");
         Ok(())
     } else {

@@ -24,17 +24,22 @@ use rigview_core::pipeline::{
 };
 use rigview_core::surround::SurroundView;
 
+use crate::logging::{self, LogBuffer, StatusLog};
 use crate::session::{self, Session, SourceSpec};
 use crate::settings::{Settings, SettingsStore};
 
-/// A message shown in the window.
+/// A message shown in the window: an event that reached the app's
+/// [`LogBuffer`].
 #[derive(Clone, Debug)]
 pub struct Message {
     /// The text.
     pub text: String,
-    /// An error (red) or a note.
+    /// A problem (red: a warning or an error) or a note.
     pub error: bool,
 }
+
+/// Messages the window keeps.
+const MESSAGES: usize = 20;
 
 type Loaded = Result<(SurroundView, NeighbourGraph)>;
 
@@ -56,7 +61,9 @@ pub struct RigviewApp {
     manual: Vec<(bool, f64)>,
     calibration: String,
     shown: u64,
-    notes_seen: u64,
+    log: LogBuffer,
+    log_seen: u64,
+    status_log: StatusLog,
     displayed_trigger: Option<u64>,
     quit_at: Option<Instant>,
     want_close: bool,
@@ -87,20 +94,20 @@ pub struct AppOptions {
     pub screenshot: Option<(PathBuf, Duration)>,
     /// Pipeline options (lock step for repeatable tests).
     pub pipeline: PipelineOptions,
+    /// The events the Messages panel shows (those from the app's start on):
+    /// [`LogBuffer::global`] when [`logging::init`] has set up the process.
+    pub log: LogBuffer,
 }
 
 impl RigviewApp {
     /// Starts the session; a failure is shown in the window, which stays
     /// open so that the operator can read it.
     pub fn new(ctx: &egui::Context, options: AppOptions) -> Self {
+        let log_seen = options.log.next_seq();
         let mut store = SettingsStore::new(options.settings);
         let (settings, settings_error) = store.load();
-        let mut messages = Vec::new();
         if let Some(e) = settings_error {
-            messages.push(Message {
-                text: format!("{e:#}"),
-                error: true,
-            });
+            tracing::warn!("{e:#}");
         }
         let repaint = ctx.clone();
         let notify = Arc::new(move || repaint.request_repaint());
@@ -110,20 +117,9 @@ impl RigviewApp {
             options.pipeline,
             notify,
         ) {
-            Ok(s) => {
-                for n in &s.notes {
-                    messages.push(Message {
-                        text: n.clone(),
-                        error: false,
-                    });
-                }
-                Some(s)
-            }
+            Ok(s) => Some(s),
             Err(e) => {
-                messages.push(Message {
-                    text: format!("cannot start the source: {e:#}"),
-                    error: true,
-                });
+                tracing::error!("cannot start the source: {e:#}");
                 None
             }
         };
@@ -132,7 +128,7 @@ impl RigviewApp {
         let calibration = session
             .as_ref()
             .map_or_else(|| "none".into(), |s| s.calibration.clone());
-        Self {
+        let mut app = Self {
             session,
             settings,
             store,
@@ -141,21 +137,25 @@ impl RigviewApp {
             status: None,
             canvas_tex: None,
             thumb_tex: vec![None; n],
-            messages,
+            messages: Vec::new(),
             loading: None,
             dialog: None,
             open_path: String::new(),
             manual: vec![(false, start_level); n],
             calibration,
             shown: 0,
-            notes_seen: 0,
+            log: options.log,
+            log_seen,
+            status_log: StatusLog::default(),
             displayed_trigger: None,
             quit_at: options.quit_after.map(|d| Instant::now() + d),
             want_close: false,
             screenshot: options.screenshot.map(|(p, d)| (p, Instant::now() + d)),
             screenshot_done: None,
             cpu: crate::report::CpuMeter::start(),
-        }
+        };
+        app.read_log();
+        app
     }
 
     /// The newest output shown.
@@ -198,11 +198,26 @@ impl RigviewApp {
         self.want_close
     }
 
+    /// Reports a problem (`error`) or a note as an event, and shows it.
     fn note(&mut self, text: String, error: bool) {
-        self.messages.push(Message { text, error });
-        if self.messages.len() > 20 {
-            self.messages.remove(0);
+        if error {
+            tracing::error!("{text}");
+        } else {
+            tracing::info!("{text}");
         }
+        self.read_log();
+    }
+
+    /// Shows the events that reached the log since the last call.
+    fn read_log(&mut self) {
+        for e in self.log.read(&mut self.log_seen) {
+            self.messages.push(Message {
+                error: e.is_problem(),
+                text: e.message,
+            });
+        }
+        let extra = self.messages.len().saturating_sub(MESSAGES);
+        self.messages.drain(..extra);
     }
 
     /// Sends the processing settings to the pipeline and marks them for
@@ -333,21 +348,13 @@ impl RigviewApp {
         }
     }
 
-    /// Shows the source's new messages.
-    fn take_notes(&mut self) {
-        let Some(st) = &self.status else {
-            return;
-        };
-        let new = st.notes_total.saturating_sub(self.notes_seen);
-        self.notes_seen = st.notes_total;
-        let skip = st
-            .notes
-            .len()
-            .saturating_sub(usize::try_from(new).unwrap_or(usize::MAX));
-        let fresh: Vec<String> = st.notes.iter().skip(skip).cloned().collect();
-        for n in fresh {
-            self.note(n, false);
+    /// Passes the pipeline's new messages and problems on as events, and
+    /// shows what reached the log.
+    fn take_messages(&mut self) {
+        if let Some(st) = &self.status {
+            self.status_log.forward(st);
         }
+        self.read_log();
     }
 
     /// Takes the newest output and uploads its images.
@@ -390,7 +397,7 @@ impl RigviewApp {
         let ctx = ui.ctx().clone();
         self.poll_background();
         self.status = self.session.as_ref().map(|s| s.pipeline.status());
-        self.take_notes();
+        self.take_messages();
         self.take_output(&ctx);
         panels::menu_bar(self, ui);
         panels::status_bar(self, ui);
@@ -428,7 +435,7 @@ impl RigviewApp {
                 Ok(r) => {
                     self.screenshot_done = None;
                     if let Err(e) = r {
-                        eprintln!("{e:#}");
+                        tracing::error!("{e:#}");
                     }
                     self.want_close = true;
                 }
@@ -516,7 +523,7 @@ impl eframe::App for RigviewApp {
 
     fn on_exit(&mut self, _gl: Option<&eframe::glow::Context>) {
         let summary = self.finish();
-        eprintln!("{summary}");
+        tracing::info!(target: logging::NOTE, "{summary}");
     }
 }
 

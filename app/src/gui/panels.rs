@@ -1,8 +1,6 @@
 //! The window's panels: menu, controls, cameras, the big view, status bar.
 
-use egui::{
-    Align2, Color32, ColorImage, FontId, Rect, RichText, Sense, Stroke, StrokeKind, Ui, Vec2,
-};
+use egui::{Color32, ColorImage, Rect, RichText, Sense, Stroke, StrokeKind, Ui, Vec2};
 use rigview_core::exposure::{LawKind, ProbeEvent, ProbeParams, Simulation};
 use rigview_core::pipeline::{CameraOutput, MeterRoi, Strategy};
 use rigview_core::source::StreamState;
@@ -537,27 +535,26 @@ pub(super) fn central(app: &mut RigviewApp, ui: &mut Ui) {
                 ui.centered_and_justified(|ui| ui.label(msg));
                 return;
             };
-            let avail = ui.available_size();
+            // The caption is a line of its own above the view, never over
+            // its pixels.
+            let caption = app.latest.as_ref().map(|out| {
+                format!(
+                    "set {} · {} · {}",
+                    out.trigger,
+                    out.settings.strategy.label(),
+                    out.settings.blend.name()
+                )
+            });
+            let caption_h =
+                ui.text_style_height(&egui::TextStyle::Body) + ui.spacing().item_spacing.y;
+            let avail = ui.available_size() - Vec2::new(0.0, caption_h);
             let [w, h] = t.size();
             let scale = (avail.x / w as f32).min(avail.y / h as f32).max(0.05);
             let size = Vec2::new(w as f32 * scale, h as f32 * scale);
-            ui.centered_and_justified(|ui| {
+            ui.vertical_centered(|ui| {
+                ui.add(egui::Label::new(caption.unwrap_or_default()).truncate());
                 let (rect, _) = ui.allocate_exact_size(size, Sense::hover());
                 egui::Image::new(egui::load::SizedTexture::new(t.id(), size)).paint_at(ui, rect);
-                if let Some(out) = &app.latest {
-                    ui.painter_at(rect).text(
-                        rect.left_top() + Vec2::new(6.0, 4.0),
-                        Align2::LEFT_TOP,
-                        format!(
-                            "set {} · {} · {}",
-                            out.trigger,
-                            out.settings.strategy.label(),
-                            out.settings.blend.name()
-                        ),
-                        FontId::proportional(13.0),
-                        Color32::WHITE,
-                    );
-                }
             });
         }
         ViewMode::Panorama => {

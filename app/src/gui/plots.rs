@@ -12,6 +12,33 @@ use super::{camera_colour, RigviewApp};
 /// The series of one plot: a name and its points.
 pub type Series = Vec<(String, Vec<[f64; 2]>)>;
 
+/// The span over which the frame-set rate is counted, s.
+pub const RATE_WINDOW_S: f64 = 1.0;
+
+/// The frame-set rate at each of `times` (seconds, ascending: one per set),
+/// over the sets within the `window_s` up to it: the intervals between
+/// them per second of their span. There is no rate until a whole window
+/// has passed since the first set, so the first sets, which arrive in a
+/// burst, never make a rate of their own from the microseconds between
+/// them.
+pub fn set_rate(times: &[f64], window_s: f64) -> Vec<[f64; 2]> {
+    let Some(&first) = times.first() else {
+        return Vec::new();
+    };
+    let mut oldest = 0;
+    let mut rates = Vec::new();
+    for (k, &t) in times.iter().enumerate() {
+        while times.get(oldest).is_some_and(|&o| o <= t - window_s) {
+            oldest += 1;
+        }
+        let span = times.get(oldest).map_or(0.0, |&o| t - o);
+        if t - first >= window_s && span > 0.0 {
+            rates.push([t, (k - oldest) as f64 / span]);
+        }
+    }
+    rates
+}
+
 /// The rows within `seconds` of the newest.
 fn recent(t: &Telemetry, seconds: f64) -> impl Iterator<Item = &TelemetryRow> {
     let t_end = t.last().map_or(0.0, |r| r.time_s);
@@ -62,9 +89,18 @@ fn pair_colour(k: usize) -> Color32 {
 }
 
 fn plot(ui: &mut Ui, id: &str, title: &str, series: &Series, colour: impl Fn(usize) -> Color32) {
+    plot_with(ui, Plot::new(id), title, series, colour);
+}
+
+fn plot_with(
+    ui: &mut Ui,
+    plot: Plot<'_>,
+    title: &str,
+    series: &Series,
+    colour: impl Fn(usize) -> Color32,
+) {
     ui.label(title);
-    Plot::new(id)
-        .height(110.0)
+    plot.height(110.0)
         .legend(Legend::default())
         .allow_drag(false)
         .allow_zoom(false)
@@ -182,6 +218,8 @@ fn plots_inner(app: &mut RigviewApp, ui: &mut Ui) {
         let t = s.pipeline.telemetry();
         exposure_plots(ui, &t, secs);
         let rows: Vec<_> = recent(&t, secs).collect();
+        let times: Vec<f64> = t.rows().iter().map(|r| r.time_s).collect();
+        let t_start = rows.first().map_or(f64::INFINITY, |r| r.time_s);
         let stages = StageTimes::NAMES
             .iter()
             .enumerate()
@@ -196,7 +234,10 @@ fn plots_inner(app: &mut RigviewApp, ui: &mut Ui) {
             .collect();
         let rate = vec![(
             "sets/s".to_owned(),
-            rows.iter().map(|r| [r.time_s, r.set_rate_hz]).collect(),
+            set_rate(&times, RATE_WINDOW_S)
+                .into_iter()
+                .filter(|p| p[0] >= t_start)
+                .collect(),
         )];
         (rate, stages)
     };
@@ -207,9 +248,14 @@ fn plots_inner(app: &mut RigviewApp, ui: &mut Ui) {
             .map(|st| st.display_latency.iter().copied().collect())
             .unwrap_or_default(),
     )];
-    plot(ui, "rate", "frame-set rate (sets/s)", &rate, |_| {
-        Color32::LIGHT_GREEN
-    });
+    // From 0, so that the rate's small changes look small.
+    plot_with(
+        ui,
+        Plot::new("rate").include_y(0.0),
+        "frame-set rate (sets/s)",
+        &rate,
+        |_| Color32::LIGHT_GREEN,
+    );
     plot(ui, "latency", "end-to-end latency (ms)", &latency, |_| {
         Color32::LIGHT_RED
     });
@@ -240,4 +286,48 @@ fn plots_inner(app: &mut RigviewApp, ui: &mut Ui) {
         sel,
         names.get(sel).map_or("camera", String::as_str),
     );
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_rate_leaves_out_the_start_up_burst() {
+        // Ten sets within a millisecond, then one every 50 ms for 3 s, each
+        // up to 5 ms late.
+        let late = |k: u32| f64::from(k * 7 % 11) * 0.0005;
+        let mut times: Vec<f64> = (0..10).map(|k| f64::from(k) * 1e-4).collect();
+        times.extend((1..=60).map(|k| 0.001 + f64::from(k) * 0.05 + late(k)));
+        let rates = set_rate(&times, 1.0);
+        assert!(rates.len() > 35, "{rates:?}");
+        // Nothing before a whole window has passed, and then 20/s within
+        // the lateness.
+        assert!(rates.iter().all(|p| p[0] >= 1.0), "{rates:?}");
+        assert!(
+            rates.iter().all(|p| (19.5..=20.5).contains(&p[1])),
+            "{rates:?}"
+        );
+    }
+
+    #[test]
+    fn the_rate_counts_the_sets_of_the_last_window() {
+        // 10 sets/s for 2 s, then 5 sets/s.
+        let mut times: Vec<f64> = (0..20).map(|k| f64::from(k) * 0.1).collect();
+        times.extend((0..20).map(|k| 2.0 + f64::from(k) * 0.2));
+        let rates = set_rate(&times, 1.0);
+        let at = |t: f64| {
+            rates
+                .iter()
+                .find(|p| (p[0] - t).abs() < 1e-9)
+                .map(|p| p[1])
+                .unwrap()
+        };
+        assert!((at(1.5) - 10.0).abs() < 1e-9, "{rates:?}");
+        assert!((at(5.0) - 5.0).abs() < 1e-9, "{rates:?}");
+        assert!(set_rate(&[], 1.0).is_empty());
+        assert!(set_rate(&[0.0, 0.5], 1.0).is_empty());
+        // A set alone in its window has no rate.
+        assert!(set_rate(&[0.0, 3.0], 1.0).is_empty());
+    }
 }

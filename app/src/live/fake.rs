@@ -332,13 +332,11 @@ pub(crate) struct FakeCameras {
 /// Builds the simulated rig of `fake` and one fake camera per simulated
 /// camera, captured as `capture` says except for the trigger: the
 /// in-process fake cameras ignore software triggers, so in trigger mode
-/// they fire on their own clock, like a trigger box. What it reports is
-/// added to `notes`.
+/// they fire on their own clock, like a trigger box.
 #[cfg(feature = "aravis")]
 pub(crate) fn cameras(
     fake: &super::open::FakeRig,
     capture: &super::CaptureConfig,
-    notes: &mut Vec<String>,
 ) -> anyhow::Result<FakeCameras> {
     use anyhow::Context;
     use rigview_core::sim::{SimConfig, PRESETS};
@@ -381,14 +379,14 @@ pub(crate) fn cameras(
         .map(|v| format!("{}×{}", v.width, v.height))
         .collect();
     sizes.dedup();
-    notes.push(format!(
+    tracing::info!(
         "simulation \"{}\": {} cameras of {} {}, traced in {:.1} s",
         sim.name,
         views.len(),
         sizes.join(", "),
         capture.pixel_format.genicam_name(),
         started.elapsed().as_secs_f64()
-    ));
+    );
     super::ffi::enable_interface("Fake");
     let cameras = views
         .into_iter()

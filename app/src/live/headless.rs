@@ -10,6 +10,7 @@ use rigview_core::pipeline::{Output, PipelineOptions, PipelineStatus, Processing
 use rigview_core::source::StreamState;
 
 use super::open::LiveSpec;
+use crate::logging::{LogBuffer, StatusLog};
 use crate::session::{self, SourceSpec};
 
 fn state_word(s: StreamState) -> &'static str {
@@ -97,26 +98,16 @@ pub fn format_status(
     s
 }
 
-/// The entries of `recent` (the newest of `total` so far) not seen yet;
-/// `seen` moves on to `total`.
-fn fresh<'a>(
-    recent: &'a std::collections::VecDeque<String>,
-    total: u64,
-    seen: &mut u64,
-) -> impl Iterator<Item = &'a String> {
-    let new = usize::try_from(total.saturating_sub(*seen)).unwrap_or(usize::MAX);
-    *seen = total;
-    recent.iter().skip(recent.len().saturating_sub(new))
-}
-
 /// Runs the live cameras of `spec` headless, with the processing
 /// `settings` (the same processor as the window), for `limit` or until the
-/// source ends; prints a status block per second, the cameras' messages as
-/// they come, and a last block and a summary at the end.
+/// source ends; prints a status block per second, the events that reach
+/// `log` as they come (what the window's Messages panel shows), and a last
+/// block and a summary at the end.
 pub fn run(
     spec: &LiveSpec,
     limit: Option<Duration>,
     settings: &ProcessingSettings,
+    log: &LogBuffer,
     out: &mut dyn Write,
 ) -> Result<()> {
     writeln!(
@@ -126,6 +117,7 @@ pub fn run(
         spec.capture.trigger.describe()
     )?;
     let t0 = Instant::now();
+    let mut seen = log.next_seq();
     let mut session = session::start(
         &SourceSpec::Live(spec.clone()),
         settings,
@@ -137,26 +129,24 @@ pub fn run(
         "{}; calibration: {}",
         session.source_name, session.calibration
     )?;
-    for m in &session.notes {
-        writeln!(out, "  {m}")?;
+    for e in log.read(&mut seen) {
+        writeln!(out, "  {}", e.line())?;
     }
     let names = session.camera_names();
     let pipeline = &mut session.pipeline;
     let mut next_print = Instant::now() + Duration::from_secs(1);
-    let (mut last, mut notes_seen, mut errors_seen) = (None, 0u64, 0u64);
+    let mut last = None;
+    let mut status_log = StatusLog::default();
     loop {
         if let Some(o) = pipeline.latest() {
             last = Some(o);
         }
         let status = pipeline.status();
         // New messages from the cameras and new problems, as they come.
+        status_log.forward(&status);
         let at = t0.elapsed().as_secs_f64();
-        for line in fresh(&status.notes, status.notes_total, &mut notes_seen).chain(fresh(
-            &status.errors,
-            status.errors_total,
-            &mut errors_seen,
-        )) {
-            writeln!(out, "  [{at:7.1} s] {line}")?;
+        for e in log.read(&mut seen) {
+            writeln!(out, "  [{at:7.1} s] {}", e.line())?;
         }
         if status.stopped || limit.is_some_and(|l| t0.elapsed() >= l) {
             break;
@@ -173,6 +163,11 @@ pub fn run(
         last = Some(o);
     }
     let status = pipeline.status();
+    status_log.forward(&status);
+    let at = t0.elapsed().as_secs_f64();
+    for e in log.read(&mut seen) {
+        writeln!(out, "  [{at:7.1} s] {}", e.line())?;
+    }
     write!(
         out,
         "{}",

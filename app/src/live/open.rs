@@ -74,9 +74,9 @@ pub struct Opened {
 }
 
 /// Opens the cameras `spec` names, one after another, and starts
-/// streaming. What it reports on the way is added to `notes`.
+/// streaming.
 #[cfg(feature = "aravis")]
-pub fn open(spec: &LiveSpec, notes: &mut Vec<String>) -> anyhow::Result<Opened> {
+pub fn open(spec: &LiveSpec) -> anyhow::Result<Opened> {
     use anyhow::Context;
 
     let (cameras, capture, rig) = match &spec.cameras {
@@ -91,7 +91,7 @@ pub fn open(spec: &LiveSpec, notes: &mut Vec<String>) -> anyhow::Result<Opened> 
             )
         }
         LiveCameras::Fake(fake) => {
-            let cameras = super::fake::cameras(fake, &spec.capture, notes)?;
+            let cameras = super::fake::cameras(fake, &spec.capture)?;
             (cameras.cameras, cameras.capture, cameras.rig)
         }
     };

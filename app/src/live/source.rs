@@ -1,6 +1,5 @@
 //! [`LiveSource`]: the rig's cameras through Aravis, as a [`FrameSource`].
 
-use std::collections::VecDeque;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{self, Receiver, RecvTimeoutError, Sender};
@@ -78,7 +77,8 @@ struct Handle {
 /// Each camera runs in its own thread (opened one after another behind one
 /// global lock); frames are matched into sets by arrival time; a camera that
 /// stops answering is marked lost while the others go on, and rejoins when
-/// it comes back.
+/// it comes back. What happens (cameras opened, lost, rejoined, their own
+/// auto-exposure switched) is reported as [`tracing`] events.
 pub struct LiveSource {
     names: Vec<String>,
     infos: Vec<CameraInfo>,
@@ -88,7 +88,6 @@ pub struct LiveSource {
     assembler: Assembler,
     states: Vec<StreamState>,
     stop: Arc<AtomicBool>,
-    log: VecDeque<String>,
     config: CaptureConfig,
     started_ns: u64,
 }
@@ -101,8 +100,6 @@ impl std::fmt::Debug for LiveSource {
             .finish_non_exhaustive()
     }
 }
-
-const LOG_LINES: usize = 1000;
 
 impl LiveSource {
     /// Opens and configures every camera, runs their start-up
@@ -172,7 +169,6 @@ impl LiveSource {
             assembler: Assembler::new(n, nanos(config.sync_tolerance), nanos(config.set_timeout)),
             states: vec![StreamState::Reconnecting; n],
             stop,
-            log: VecDeque::new(),
             config: config.clone(),
             started_ns: u64::MAX,
         };
@@ -191,7 +187,7 @@ impl LiveSource {
                     info,
                     setting,
                 }) => {
-                    source.note(format!(
+                    tracing::info!(
                         "{}: open, {}×{} {}, exposure {:.0}–{:.0} µs, gain {:.1}–{:.1} dB; starting at {:.0} µs, {:.2} dB",
                         info.name,
                         info.width,
@@ -203,7 +199,7 @@ impl LiveSource {
                         info.range.gain_max_db,
                         setting.shutter_us,
                         setting.gain_db
-                    ));
+                    );
                     if let Some(slot) = infos.get_mut(camera) {
                         *slot = Some((info, setting));
                     }
@@ -255,19 +251,6 @@ impl LiveSource {
         }
     }
 
-    /// What happened since the last call (opens, losses, rejoins), oldest
-    /// first.
-    pub fn take_messages(&mut self) -> Vec<String> {
-        self.log.drain(..).collect()
-    }
-
-    fn note(&mut self, line: String) {
-        if self.log.len() >= LOG_LINES {
-            self.log.pop_front();
-        }
-        self.log.push_back(line);
-    }
-
     fn handle(&mut self, event: Event) {
         match event {
             Event::Frame(a) => {
@@ -283,7 +266,7 @@ impl LiveSource {
                     *s = StreamState::Lost;
                 }
                 self.assembler.drop_camera(camera);
-                self.note(format!("{error} (stream lost)"));
+                tracing::warn!("{error} (stream lost)");
             }
             Event::Rejoined { camera, device } => {
                 if let Some(s) = self.states.get_mut(camera) {
@@ -291,11 +274,11 @@ impl LiveSource {
                 }
                 self.assembler.restart_ids(camera);
                 let name = self.name(camera);
-                self.note(format!("{name}: streaming: rejoined ({device})"));
+                tracing::info!("{name}: streaming: rejoined ({device})");
             }
             Event::Note { camera, message } => {
                 let name = self.name(camera);
-                self.note(format!("{name}: {message}"));
+                tracing::info!("{name}: {message}");
             }
             Event::Ready { .. } | Event::OpenFailed(_) => {}
         }
@@ -374,10 +357,6 @@ impl FrameSource for LiveSource {
             let _ = h.commands.send(CameraCommand::Auto(on));
         }
         Ok(())
-    }
-
-    fn take_messages(&mut self) -> Vec<String> {
-        LiveSource::take_messages(self)
     }
 
     fn health(&self) -> Vec<StreamHealth> {

@@ -13,11 +13,18 @@
 //! names from the file names), or, if it holds `front`, `left`, `back` and
 //! `right` with the surround keys, as the surround layout with poses
 //! recovered from the ground.
+//!
+//! The OpenCV formats and the surround layout need the crate's `opencv`
+//! feature (on by default); without it, their files are still told apart
+//! ([`detect`]) but reading or writing one is a
+//! [`CalibError::NeedsFeature`] that names the file.
 
 pub mod kalibr;
+#[cfg(feature = "opencv")]
 pub mod opencv;
 pub mod rig_yaml;
 pub mod ros;
+#[cfg(feature = "opencv")]
 pub mod surround;
 pub(crate) mod yaml;
 
@@ -109,7 +116,26 @@ pub struct Loaded {
     /// The format of the file (or of the folder's files).
     pub format: Format,
     /// For the surround layout: how well each recovered pose fits.
+    #[cfg(feature = "opencv")]
     pub surround: Option<surround::SurroundImport>,
+}
+
+/// What an OpenCV file holds besides its camera (the surround keys).
+#[cfg(feature = "opencv")]
+type OpenCvExtra = opencv::OpenCvCamera;
+/// (Without OpenCV no file of it is read.)
+#[cfg(not(feature = "opencv"))]
+type OpenCvExtra = std::convert::Infallible;
+
+/// The error for a file of an OpenCV format when the `opencv` feature is
+/// off.
+#[cfg(not(feature = "opencv"))]
+fn needs_opencv(file: String, format: Format) -> CalibError {
+    CalibError::NeedsFeature {
+        file,
+        format: format!("OpenCV FileStorage ({format})"),
+        feature: "opencv",
+    }
 }
 
 /// Reads a file as UTF-8 text; errors name the file.
@@ -197,9 +223,10 @@ fn load_camera(
     text: &str,
     format: Format,
     model: Option<ModelKind>,
-) -> Result<(Camera, Option<opencv::OpenCvCamera>)> {
+) -> Result<(Camera, Option<OpenCvExtra>)> {
     let file = path.display().to_string();
     match format {
+        #[cfg(feature = "opencv")]
         Format::OpenCvYaml | Format::OpenCvXml => {
             let c = opencv::parse(text, format == Format::OpenCvXml, &file, model)?;
             let cam = Camera {
@@ -209,6 +236,11 @@ fn load_camera(
                 pose: c.pose,
             };
             Ok((cam, Some(c)))
+        }
+        #[cfg(not(feature = "opencv"))]
+        Format::OpenCvYaml | Format::OpenCvXml => {
+            let _ = (text, model);
+            Err(needs_opencv(file, format))
         }
         Format::Ros => Ok((ros::parse(text, &file, &stem(path))?, None)),
         Format::Rig | Format::Kalibr => Err(CalibError::Format {
@@ -242,6 +274,7 @@ pub fn load(path: &Path, format: Option<Format>, model: Option<ModelKind>) -> Re
     Ok(Loaded {
         rig,
         format,
+        #[cfg(feature = "opencv")]
         surround: None,
     })
 }
@@ -280,23 +313,29 @@ fn load_dir(dir: &Path, format: Option<Format>, model: Option<ModelKind>) -> Res
         cameras.push(cam);
     }
     let format = seen.unwrap_or(Format::OpenCvYaml);
-    let is_surround = surround::CAMERAS.iter().all(|n| {
-        opencv_files
-            .iter()
-            .any(|(c, _, f)| c == n && f.surround.is_some())
-    });
-    if is_surround {
-        let imp = surround::import(&opencv_files)?;
-        return Ok(Loaded {
-            rig: imp.rig.clone(),
-            format,
-            surround: Some(imp),
+    #[cfg(feature = "opencv")]
+    {
+        let is_surround = surround::CAMERAS.iter().all(|n| {
+            opencv_files
+                .iter()
+                .any(|(c, _, f)| c == n && f.surround.is_some())
         });
+        if is_surround {
+            let imp = surround::import(&opencv_files)?;
+            return Ok(Loaded {
+                rig: imp.rig.clone(),
+                format,
+                surround: Some(imp),
+            });
+        }
     }
+    #[cfg(not(feature = "opencv"))]
+    let _ = opencv_files;
     let rig = Rig::new(Frame::Vehicle, cameras, vec![]).map_err(|e| e.in_file(&name))?;
     Ok(Loaded {
         rig,
         format,
+        #[cfg(feature = "opencv")]
         surround: None,
     })
 }
@@ -319,7 +358,8 @@ fn write_file(path: &Path, text: &str) -> Result<()> {
 }
 
 /// The rig as the text of a whole-rig format, or of one camera of a
-/// per-camera format.
+/// per-camera format (without the `opencv` feature, OpenCV's formats are a
+/// [`CalibError::NeedsFeature`] naming the camera).
 pub fn to_text(rig: &Rig, format: Format, camera: usize) -> Result<String> {
     let cam = rig
         .cameras
@@ -328,8 +368,14 @@ pub fn to_text(rig: &Rig, format: Format, camera: usize) -> Result<String> {
     match format {
         Format::Rig => rig_yaml::to_string(rig),
         Format::Kalibr => kalibr::write(rig),
+        #[cfg(feature = "opencv")]
         Format::OpenCvYaml => opencv::write(cam, false),
+        #[cfg(feature = "opencv")]
         Format::OpenCvXml => opencv::write(cam, true),
+        #[cfg(not(feature = "opencv"))]
+        Format::OpenCvYaml | Format::OpenCvXml => {
+            Err(needs_opencv(format!("camera \"{}\"", cam.name), format))
+        }
         Format::Ros => ros::write(cam),
     }
 }
@@ -341,6 +387,10 @@ pub fn to_text(rig: &Rig, format: Format, camera: usize) -> Result<String> {
 /// files written.
 pub fn save(rig: &Rig, path: &Path, format: Option<Format>) -> Result<Vec<PathBuf>> {
     let format = format.unwrap_or_else(|| output_format(path));
+    #[cfg(not(feature = "opencv"))]
+    if matches!(format, Format::OpenCvYaml | Format::OpenCvXml) {
+        return Err(needs_opencv(path.display().to_string(), format));
+    }
     if !format.per_camera() {
         write_file(path, &to_text(rig, format, 0)?)?;
         return Ok(vec![path.to_owned()]);
@@ -374,4 +424,76 @@ pub fn save(rig: &Rig, path: &Path, format: Option<Format>) -> Result<Vec<PathBu
         write_file(t, &to_text(rig, format, i)?)?;
     }
     Ok(targets)
+}
+
+/// Without the `opencv` feature (run by `tests/tests/opencv_optional.rs`,
+/// which builds this crate alone without it).
+#[cfg(all(test, not(feature = "opencv")))]
+mod without_opencv {
+    use super::*;
+    use crate::model::{Distortion, Intrinsics};
+
+    fn needs_opencv_naming(e: &CalibError, file: &Path) {
+        assert!(
+            matches!(
+                e,
+                CalibError::NeedsFeature {
+                    feature: "opencv",
+                    ..
+                }
+            ),
+            "{e:?}"
+        );
+        let msg = e.to_string();
+        assert!(msg.starts_with(&file.display().to_string()), "{msg}");
+        assert!(msg.contains("OpenCV FileStorage"), "{msg}");
+        assert!(msg.contains("`opencv` feature"), "{msg}");
+    }
+
+    #[test]
+    fn opencv_files_need_the_opencv_feature_and_other_formats_work() {
+        let d =
+            std::env::temp_dir().join(format!("rigview-calib-no-opencv-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        std::fs::create_dir_all(&d).unwrap();
+        let yaml = d.join("front.yaml");
+        std::fs::write(
+            &yaml,
+            "%YAML:1.0\n---\ncamera_matrix: !!opencv-matrix\n   rows: 3\n   cols: 3\n   dt: d\n   data: [ 300., 0., 320., 0., 300., 240., 0., 0., 1. ]\n",
+        )
+        .unwrap();
+        let xml = d.join("left.xml");
+        std::fs::write(
+            &xml,
+            "<?xml version=\"1.0\"?>\n<opencv_storage>\n<resolution>640 480</resolution>\n</opencv_storage>\n",
+        )
+        .unwrap();
+        for file in [&yaml, &xml] {
+            needs_opencv_naming(&load(file, None, None).unwrap_err(), file);
+        }
+        // A folder of them: the first file read is named.
+        needs_opencv_naming(&load(&d, None, None).unwrap_err(), &yaml);
+
+        let k = Intrinsics {
+            width: 640,
+            height: 480,
+            fx: 300.0,
+            fy: 300.0,
+            cx: 320.0,
+            cy: 240.0,
+            distortion: Distortion::RadTan([0.0; 5]),
+        };
+        let rig = Rig::new(Frame::Vehicle, vec![Camera::new("front", k)], vec![]).unwrap();
+        let out = d.join("written.xml");
+        needs_opencv_naming(&save(&rig, &out, None).unwrap_err(), &out);
+        assert!(!out.exists());
+        // rigview's own format and ROS's need no OpenCV.
+        let rig_file = d.join("rig.yaml");
+        save(&rig, &rig_file, None).unwrap();
+        assert_eq!(load(&rig_file, None, None).unwrap().rig, rig);
+        let ros = d.join("ros.yaml");
+        save(&rig, &ros, Some(Format::Ros)).unwrap();
+        assert_eq!(load(&ros, None, None).unwrap().format, Format::Ros);
+        std::fs::remove_dir_all(&d).unwrap();
+    }
 }
