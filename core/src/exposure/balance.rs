@@ -21,8 +21,8 @@
 //! `R < 1`, about 4 for a camera whose neighbours want it 2 EV brighter.
 //! Fed back through a unary law that answers a change of exposure with a
 //! change of `R` of the same order, the loop gain exceeds 1 and the camera
-//! circles the balanced fixed point every two steps (on the simulated rig's
-//! front camera, 0.6 EV) instead of settling on it.
+//! circles the balanced fixed point every two steps instead of settling on
+//! it.
 //!
 //! [`Damping`] takes only a fraction `κ` of each balanced step, in log
 //! exposure: `E_{t+1} = E_t·(E*_{t+1}/E_t)^κ`. `κ` halves each time the
@@ -37,11 +37,9 @@
 //! The distance before `κ` grows again catches a saw-tooth as well as a
 //! two-step cycle: where the balanced target jumps (γ̂ of the γ-mapping
 //! jumping to the end of the anchors as the exposure crosses a point),
-//! the camera climbs a little in a few steps and drops once. Doubling `κ`
-//! on every step that keeps the direction gave it back its whole step
-//! before each drop: on the simulated rig's front camera at full
-//! resolution, 0.30 EV every five sets. Counting steps instead of distance
-//! does not help: the smaller `κ`, the more steps the same climb takes.
+//! the camera climbs a little in a few steps and drops once; regaining `κ`
+//! on steps alone would give it back its whole step before each drop
+//! (`docs/exposure-results.md` has the measurements).
 
 use serde::{Deserialize, Serialize};
 

@@ -49,15 +49,10 @@
 //! sum to `I − f`. Only the rest follows an exposure change, so
 //! scale-and-clip maps such a block to `f + min(1 − f, s·(I − f))`, for
 //! brightening and darkening alike (its saturated samples held, as
-//! above). Scaling the whole block instead predicted brightening 2–5 %
-//! too low wherever a surface saturates (its saturated samples cannot get
-//! brighter, but the scaled block clips early). The assumed texture
-//! recovery leaves the partly saturated blocks out: they are the edges of
-//! saturated areas, neither saturated surface nor texture. (Leaving the
-//! recovery out altogether for block-metered images predicted the
-//! simulated rig better, but gave the synthetic scenes of the closed-loop
-//! tests, whose saturated patches are textured, a stable fixed point 1.6 EV
-//! too bright.)
+//! above): its saturated samples cannot get brighter, and a scaled block
+//! would clip early. The assumed texture recovery leaves the partly
+//! saturated blocks out: they are the edges of saturated areas, neither
+//! saturated surface nor texture.
 //!
 //! **A darker frame of the same scene** ([`Darker`], [`EstimateOptions`])
 //! takes the guesswork out: every saturated sample the darker frame shows
@@ -81,12 +76,9 @@
 //! is the same) within [`DARKER_LEVEL_TOLERANCE`] and
 //! [`DARKER_MISMATCH_TOLERANCE`]; otherwise the estimate is the plain one
 //! and says so ([`Estimate::declipped`]). The controller keeps the frame of
-//! a probe that measured no better for this ([`super::probe`]). Where a
-//! surface lies a little above saturation, holding its pixels predicted
-//! the smallest anchor 9 % too high on the simulated rig's back camera
-//! (full resolution) and 6 % too low on its right camera (a quarter of
-//! it), and 5–22 % off on a textured test scene; with the darker frame the
-//! error is a few tenths of a per cent.
+//! a probe that measured no better for this ([`super::probe`]), and the
+//! frame after which the camera's own law sent it brighter. How much the
+//! darker frame corrects is measured in `docs/exposure-results.md`.
 //!
 //! The
 //! scale-and-clip polynomial is fitted in `ln s` ([`FitVariable::Log`]): the
