@@ -2,7 +2,8 @@
 //! BMI2's `pdep`/`pext` for the RGB lanes (see the module documentation of
 //! [`super`]).
 
-use super::{prefetch_run, Image, Plan, AHEAD, ONE, SHIFT};
+use super::plan::{Job, Taps};
+use super::{bayer, prefetch_run, Image, AHEAD, ONE, SHIFT};
 
 /// Per-lane rounding of an RGB sum (three 21-bit lanes).
 const ROUND_RGB: u64 = (ONE as u64 / 2) * (1 | 1 << 21 | 1 << 42);
@@ -11,6 +12,10 @@ const ROUND_RGB: u64 = (ONE as u64 / 2) * (1 | 1 << 21 | 1 << 42);
 const SPREAD_MASK: u64 = 0xff | 0xff << 21 | 0xff << 42;
 /// Rounding of a mono sum.
 const HALF: u32 = ONE / 2;
+/// A lane of [`ROUND_RGB`] (21 bits).
+const LANE: u64 = (1 << 21) - 1;
+/// Rounding of a Bayer sum (scale 4·4096).
+const HALF_BAYER: u32 = 2 * ONE;
 
 /// The three bytes of a pixel spread to the 21-bit lanes.
 #[inline(always)]
@@ -93,52 +98,74 @@ macro_rules! scalar_kernels {
                 + $spread(bottom >> 24) * (w >> 48)
         }
 
-        /// Pixels `p0..p1` of a run of `len` pixels (taps camera by
-        /// camera) into `dst`, the run's part of the canvas.
+        /// Pixels `p0..p1` of a run (`taps`) of `job` into `dst`, the run's
+        /// part of the canvas.
         $(#[$attr])*
-        #[allow(clippy::too_many_arguments)]
         pub(super) fn $pixels(
-            images: &[Image<'_>],
-            cams: &[u32],
-            index: &[u32],
-            weights: &[u64],
-            len: usize,
-            ch: usize,
+            job: &Job<'_>,
+            taps: &Taps<'_>,
             (p0, p1): (usize, usize),
             dst: &mut [u8],
         ) {
-            let tap = |j: usize, p: usize| (index[j * len + p], weights[j * len + p]);
+            let (images, ch, cams) = (job.images, job.ch, taps.cams);
             if ch == 1 {
                 for p in p0..p1 {
                     let mut sum = HALF;
                     for (j, &k) in cams.iter().enumerate() {
                         if let Some(img) = images.get(k as usize) {
-                            let (i, w) = tap(j, p);
+                            let (i, w, _) = taps.tap(j, p);
                             sum += mono(img, i, w);
                         }
                     }
                     dst[p] = (sum >> SHIFT) as u8;
                 }
-            } else {
+            } else if taps.mosaics == 0 {
                 for p in p0..p1 {
                     let mut sum = 0;
                     for (j, &k) in cams.iter().enumerate() {
                         if let Some(img) = images.get(k as usize) {
-                            let (i, w) = tap(j, p);
+                            let (i, w, _) = taps.tap(j, p);
                             sum += $rgb(img, i, w);
                         }
                     }
                     store3(&mut dst[3 * p..3 * p + 3], $pick(sum));
                 }
+            } else {
+                // Channel by channel, at the Bayer scale (4·4096).
+                for p in p0..p1 {
+                    let mut acc = [0u32; 3];
+                    for (j, &k) in cams.iter().enumerate() {
+                        let Some(img) = images.get(k as usize) else {
+                            continue;
+                        };
+                        let (i, w, site) = taps.tap(j, p);
+                        let s = match img.cfa {
+                            Some(cfa) => bayer::sample(
+                                img.bytes, img.width, img.height, cfa, i, w, site,
+                            ),
+                            None => {
+                                let l = $rgb(img, i, w);
+                                [l & LANE, l >> 21 & LANE, l >> 42].map(|v| 4 * v as u32)
+                            }
+                        };
+                        for (a, s) in acc.iter_mut().zip(s) {
+                            *a += s;
+                        }
+                    }
+                    let px = acc.map(|a| ((a + HALF_BAYER) >> (SHIFT + 2)) as u8);
+                    dst[3 * p..3 * p + 3].copy_from_slice(&px);
+                }
             }
         }
 
+        /// Runs the whole plan of `job` (see [`super::run`]).
         $(#[$attr])*
-        pub(super) fn $name(plan: &Plan, images: &[Image<'_>], ch: usize, out: &mut [u8]) {
+        pub(super) fn $name(job: Job<'_>, out: &mut [u8]) {
+            let (plan, images, ch) = (job.plan, job.images, job.ch);
             let ahead = AHEAD;
             for (r, run) in plan.runs.iter().enumerate() {
-                prefetch_run(plan, plan.runs.get(r + ahead), images, ch);
-                let Some((dst, index, weights, cams)) = plan.parts(run, ch, out) else {
+                prefetch_run(&job, plan.runs.get(r + ahead));
+                let Some((dst, taps)) = plan.parts(run, &job, out) else {
                     continue;
                 };
                 if run.n == 0 {
@@ -146,7 +173,8 @@ macro_rules! scalar_kernels {
                     continue;
                 }
                 let len = run.len as usize;
-                match (ch, cams) {
+                let (index, weights) = (taps.index, taps.weights);
+                match (ch, taps.cams) {
                     // One camera: the common case, without the loop
                     // over cameras.
                     (1, &[k]) => {
@@ -155,13 +183,13 @@ macro_rules! scalar_kernels {
                             *d = ((mono(img, i, w) + HALF) >> SHIFT) as u8;
                         }
                     }
-                    (3, &[k]) => {
+                    (3, &[k]) if taps.mosaics == 0 => {
                         let Some(img) = images.get(k as usize) else { continue };
                         for ((d, &i), &w) in dst.chunks_exact_mut(3).zip(index).zip(weights) {
                             store3(d, $pick($rgb(img, i, w)));
                         }
                     }
-                    _ => $pixels(images, cams, index, weights, len, ch, (0, len), dst),
+                    _ => $pixels(&job, &taps, (0, len), dst),
                 }
             }
         }
