@@ -8,7 +8,9 @@
 //!   contributing camera, the blend weights folded into the bilinear ones
 //!   (AVX-512/AVX2 where the CPU has them). From RGB8 frames, from Mono8
 //!   frames (the green bytes of the RGB ones), from BayerRG8 mosaics of the
-//!   RGB frames (demosaiced inside the remap).
+//!   RGB frames (demosaiced inside the remap), and each of these with a
+//!   display gain per camera (`Composer::compose_with_gains`, gains 1.5,
+//!   0.75, 2 and 1.25).
 //! - `opencv_demosaic_then_rigview_rgb`: the mosaics demosaiced whole by
 //!   OpenCV's `cvtColor` (`COLOR_BayerRGGB2RGB`), then composed from RGB8:
 //!   the separate pass that demosaicing inside the remap saves.
@@ -393,8 +395,8 @@ impl Reference {
     }
 }
 
-/// A benchmarked composition: its name, frames and canvas channels.
-type Composition<'a, 'f> = (&'a str, &'a [FrameView<'f>], usize);
+/// A benchmarked composition: its name, frames, canvas channels and gains.
+type Composition<'a, 'f> = (&'a str, &'a [FrameView<'f>], usize, Option<&'a [f32]>);
 
 fn compose(c: &mut Criterion) {
     let threads = core::get_num_threads().unwrap();
@@ -464,20 +466,35 @@ fn compose(c: &mut Criterion) {
         .iter()
         .map(|d| FrameView::new(PixelFormat::BayerRg8, W, H, d).unwrap())
         .collect();
+    let gains = [1.5f32, 0.75, 2.0, 1.25];
     let mut group = group(c, "surround_4x1288x964_to_1000x1000", 4);
-    // Each composition: its frames and the canvas's channels.
-    let compositions: [Composition<'_, '_>; 4] = [
-        ("rigview_linear_rgb", &views, 3),
-        ("rigview_linear_mono_from_rgb", &views, 1),
-        ("rigview_linear_mono8", &gray_views, 1),
-        ("rigview_linear_bayer_rg8", &bayer_views, 3),
+    // Each composition: its frames, the canvas's channels and the gains.
+    let compositions: [Composition<'_, '_>; 7] = [
+        ("rigview_linear_rgb", &views, 3, None),
+        ("rigview_linear_mono_from_rgb", &views, 1, None),
+        ("rigview_linear_mono8", &gray_views, 1, None),
+        ("rigview_linear_bayer_rg8", &bayer_views, 3, None),
+        ("rigview_linear_rgb_gains", &views, 3, Some(&gains)),
+        ("rigview_linear_mono8_gains", &gray_views, 1, Some(&gains)),
+        (
+            "rigview_linear_bayer_rg8_gains",
+            &bayer_views,
+            3,
+            Some(&gains),
+        ),
     ];
-    for (name, frames, channels) in compositions {
+    for (name, frames, channels, gains) in compositions {
         let mut out = Canvas::new(0, 0, channels);
         group.bench_function(name, |b| {
             b.iter(|| {
                 composer
-                    .compose(&view, black_box(frames), BlendMode::Linear, &mut out)
+                    .compose_with_gains(
+                        &view,
+                        black_box(frames),
+                        BlendMode::Linear,
+                        gains,
+                        &mut out,
+                    )
                     .unwrap();
             });
         });

@@ -3,7 +3,7 @@
 //! converted to the canvas's channels, a Bayer mosaic as it is: the remap
 //! demosaics it), then one pass of the plan.
 
-use super::remap::{Cfa, Image, Plan};
+use super::remap::{Cfa, Image, Plan, MAX_GAIN, MIN_GAIN, UNIT_GAIN};
 use super::{BlendMode, SurroundView};
 use crate::error::{Error, Result};
 use crate::image::{mono8_to_rgb8, rgb8_to_mono8, FrameView, PixelFormat};
@@ -46,6 +46,8 @@ impl Canvas {
 #[derive(Debug, Default)]
 pub struct Composer {
     buffers: Buffers,
+    /// Per camera, the display gain in 1/256.
+    gains: Vec<u16>,
 }
 
 /// The per-camera buffers of a composition.
@@ -86,16 +88,54 @@ impl Composer {
         mode: BlendMode,
         out: &mut Canvas,
     ) -> Result<()> {
+        self.compose_with_gains(view, frames, mode, None, out)
+    }
+
+    /// [`Composer::compose`] with a display gain per camera (`gains`, rig
+    /// order): each camera's pixels are scaled by its gain before the
+    /// cameras are blended, and saturate at white.
+    ///
+    /// A gain is 1/16 to 16, taken in steps of 1/256 (rounded to the
+    /// nearest). For 8-bit frames (Mono8, RGB8, Bayer) the remap scales
+    /// each camera's bilinear sample before it is rounded: a pixel shown
+    /// by one camera with gain `g` is `min(255, round(g·v))` of its
+    /// unrounded ungained value `v` (so within `1 + g/2` of `g` times the
+    /// ungained byte, whose rounding the gain multiplies). Mono12 and
+    /// Mono16 frames, which are scaled to 8 bits in a pass of their own,
+    /// take their gain in that pass, at their full precision:
+    /// `min(255, ⌊g·v / 16⌋)` (Mono12) or `min(255, ⌊g·v / 256⌋)` (Mono16)
+    /// of each source pixel `v`. A mono canvas from Bayer frames is the
+    /// grey of the gained colour canvas.
+    ///
+    /// `None`, or a gain of 1 for every camera, composes as
+    /// [`Composer::compose`]: the same bytes, with the same kernels.
+    pub fn compose_with_gains(
+        &mut self,
+        view: &SurroundView,
+        frames: &[FrameView<'_>],
+        mode: BlendMode,
+        gains: Option<&[f32]>,
+        out: &mut Canvas,
+    ) -> Result<()> {
         let (w, h) = view.size();
         let ch = out.channels;
         check_channels(ch)?;
         view.check_frames(frames)?;
+        let gained = self.set_gains(view, gains)?;
         out.width = w;
         out.height = h;
         out.data.resize(w * h * ch, 0);
         let cameras: Vec<usize> = (0..frames.len()).collect();
-        self.buffers
-            .execute(view, view.plan(mode), &cameras, frames, ch, &mut out.data)
+        let gains = gained.then_some(self.gains.as_mut_slice());
+        self.buffers.execute(
+            view,
+            view.plan(mode),
+            &cameras,
+            frames,
+            gains,
+            ch,
+            &mut out.data,
+        )
     }
 
     /// Camera `k`'s warped image alone on a canvas (mono, 1 channel),
@@ -121,22 +161,54 @@ impl Composer {
             &plan,
             &[k],
             std::slice::from_ref(frame),
+            None,
             1,
             &mut out.data,
         )?;
         Ok(out)
     }
+
+    /// Checks `gains` (one per camera of `view`) and keeps them in 1/256;
+    /// whether any is other than 1.
+    fn set_gains(&mut self, view: &SurroundView, gains: Option<&[f32]>) -> Result<bool> {
+        let Some(gains) = gains else {
+            return Ok(false);
+        };
+        let n = view.layers().len();
+        if gains.len() != n {
+            return Err(Error::InvalidConfig(format!(
+                "surround view: {} display gains for a rig of {n} cameras",
+                gains.len()
+            )));
+        }
+        self.gains.clear();
+        for (k, &g) in gains.iter().enumerate() {
+            let fixed = (f64::from(g) * f64::from(UNIT_GAIN)).round();
+            if !(f64::from(MIN_GAIN)..=f64::from(MAX_GAIN)).contains(&fixed) {
+                return Err(view.camera_error(
+                    k,
+                    format_args!("display gain {g}: expected a finite gain from 1/16 to 16"),
+                ));
+            }
+            self.gains.push(fixed as u16);
+        }
+        Ok(self.gains.iter().any(|&g| g != UNIT_GAIN))
+    }
 }
 
 impl Buffers {
     /// Composes `frames` (the sources of `plan`, rig cameras `cameras`)
-    /// into `out` (`ch` channels).
+    /// into `out` (`ch` channels) with `gains` (per source, 1/256) when
+    /// given. A Mono12 or Mono16 frame takes its gain in its conversion
+    /// to 8 bits (its entry of `gains` is then set to 1).
+    #[allow(clippy::too_many_arguments)]
     fn execute(
         &mut self,
         view: &SurroundView,
         plan: &Plan,
         cameras: &[usize],
         frames: &[FrameView<'_>],
+        mut gains: Option<&mut [u16]>,
         ch: usize,
         out: &mut [u8],
     ) -> Result<()> {
@@ -150,9 +222,11 @@ impl Buffers {
         let mut prepared = Vec::with_capacity(n);
         for (k, frame) in frames.iter().enumerate() {
             let camera = cameras.get(k).copied().unwrap_or(k);
+            let gain = gains.as_deref_mut().and_then(|g| g.get_mut(k));
             let (how, src) = prepare(
                 frame,
                 kernel_ch,
+                gain,
                 &mut self.scratch[k],
                 &mut self.converted[k],
             )
@@ -173,21 +247,27 @@ impl Buffers {
                 cfa,
             });
         }
+        let gains = gains
+            .map(|g| &*g)
+            .filter(|g| g.iter().any(|&v| v != UNIT_GAIN));
         if kernel_ch == ch {
-            return plan.execute(&images, ch, out);
+            return plan.execute(&images, ch, gains, out);
         }
         self.colour.resize(3 * out.len(), 0);
-        plan.execute(&images, 3, &mut self.colour)?;
+        plan.execute(&images, 3, gains, &mut self.colour)?;
         rgb8_to_mono8(&self.colour, out)
     }
 }
 
 /// Makes `frame` what the plan reads on a canvas of `ch` channels: where
 /// its 8-bit pixels are (its own packed buffer, or converted into
-/// `scratch` or `converted`) and, for a mosaic, its colour order.
+/// `scratch` or `converted`) and, for a mosaic, its colour order. A Mono12
+/// or Mono16 frame takes its `gain` in its conversion to 8 bits, which
+/// sets `gain` to 1.
 fn prepare(
     frame: &FrameView<'_>,
     ch: usize,
+    gain: Option<&mut u16>,
     scratch: &mut Vec<u8>,
     converted: &mut Vec<u8>,
 ) -> Result<(Prepared, Option<Cfa>)> {
@@ -211,16 +291,17 @@ fn prepare(
             (how, format.bytes_per_pixel())
         }
         PixelFormat::Mono12 | PixelFormat::Mono16 => {
-            // The top 8 bits.
+            // The top 8 bits (rounded down), the gain applied at the
+            // frame's precision and saturated at white.
             let shift = if format == PixelFormat::Mono12 { 4 } else { 8 };
+            let g = gain.map_or(UNIT_GAIN, |g| std::mem::replace(g, UNIT_GAIN));
+            let g = u32::from(g);
             scratch.clear();
             for y in 0..frame.height() {
-                scratch.extend(
-                    frame
-                        .row(y)
-                        .chunks_exact(2)
-                        .map(|b| (u16::from_le_bytes([b[0], b[1]]) >> shift).min(255) as u8),
-                );
+                scratch.extend(frame.row(y).chunks_exact(2).map(|b| {
+                    ((u32::from(u16::from_le_bytes([b[0], b[1]])) * g) >> (shift + 8)).min(255)
+                        as u8
+                }));
             }
             (Prepared::Scratch, 1)
         }
@@ -261,7 +342,7 @@ mod tests {
 
     use super::*;
     use crate::surround::tests::small_view;
-    use PixelFormat::{BayerBg8, BayerGb8, BayerGr8, BayerRg8, Mono12, Mono8, Rgb8};
+    use PixelFormat::{BayerBg8, BayerGb8, BayerGr8, BayerRg8, Mono12, Mono16, Mono8, Rgb8};
 
     const BAYER: [PixelFormat; 4] = [BayerRg8, BayerGr8, BayerGb8, BayerBg8];
     /// The small view's source size.
@@ -298,10 +379,13 @@ mod tests {
         view: &SurroundView,
         frames: &[FrameView<'_>],
         mode: BlendMode,
+        gains: Option<&[f32]>,
         ch: usize,
     ) -> Vec<u8> {
         let mut canvas = Canvas::new(0, 0, ch);
-        composer.compose(view, frames, mode, &mut canvas).unwrap();
+        composer
+            .compose_with_gains(view, frames, mode, gains, &mut canvas)
+            .unwrap();
         canvas.data
     }
 
@@ -336,7 +420,7 @@ mod tests {
                 .map(|c| mosaic(&c.repeat(SIZE.0 * SIZE.1), SIZE.0, format))
                 .collect();
             let frames = views(&data, format);
-            let colour = compose(&mut composer, &view, &frames, BlendMode::Seams, 3);
+            let colour = compose(&mut composer, &view, &frames, BlendMode::Seams, None, 3);
             let mut shown = 0;
             for (i, px) in colour.chunks_exact(3).enumerate() {
                 let want = owner(i).map_or([0; 3], |k| colours[k]);
@@ -378,9 +462,9 @@ mod tests {
                 .map(|d| FrameView::with_stride(format, SIZE.0, SIZE.1, stride, d).unwrap())
                 .collect();
             for mode in BlendMode::ALL {
-                let colour = compose(&mut composer, &view, &frames, mode, 3);
-                assert!(colour == compose(&mut composer, &view, &strided, mode, 3));
-                let grey = compose(&mut composer, &view, &frames, mode, 1);
+                let colour = compose(&mut composer, &view, &frames, mode, None, 3);
+                assert!(colour == compose(&mut composer, &view, &strided, mode, None, 3));
+                let grey = compose(&mut composer, &view, &frames, mode, None, 1);
                 let mut want = vec![0; grey.len()];
                 rgb8_to_mono8(&colour, &mut want).unwrap();
                 assert!(grey == want, "{format:?}, {}", mode.name());
@@ -413,7 +497,7 @@ mod tests {
             [(2000 >> 4) as u8; 3],
         ];
         let mut composer = Composer::new();
-        let colour = compose(&mut composer, &view, &frames, BlendMode::Seams, 3);
+        let colour = compose(&mut composer, &view, &frames, BlendMode::Seams, None, 3);
         let mut found = [false; 4];
         for px in colour.chunks_exact(3) {
             if px == [0; 3] {
@@ -424,11 +508,149 @@ mod tests {
             found[k.unwrap_or(0)] = true;
         }
         assert_eq!(found, [true; 4]);
-        let grey = compose(&mut composer, &view, &frames, BlendMode::Linear, 1);
+        let grey = compose(&mut composer, &view, &frames, BlendMode::Linear, None, 1);
         let mut want = vec![0; grey.len()];
-        let linear = compose(&mut composer, &view, &frames, BlendMode::Linear, 3);
+        let linear = compose(&mut composer, &view, &frames, BlendMode::Linear, None, 3);
         rgb8_to_mono8(&linear, &mut want).unwrap();
         assert!(grey == want);
+    }
+
+    /// Frames of every format the composer takes, random, one set each.
+    fn every_format() -> Vec<(PixelFormat, Vec<Vec<u8>>)> {
+        let n = SIZE.0 * SIZE.1;
+        let rgb = random(3 * n, 4);
+        vec![
+            (Mono8, random(n, 1)),
+            (
+                Mono12,
+                random(2 * n, 2)
+                    .into_iter()
+                    .map(|d| {
+                        d.chunks_exact(2)
+                            .flat_map(|b| (u16::from_le_bytes([b[0], b[1]]) & 0x0fff).to_le_bytes())
+                            .collect()
+                    })
+                    .collect(),
+            ),
+            (Mono16, random(2 * n, 3)),
+            (Rgb8, rgb.clone()),
+            (
+                BayerRg8,
+                rgb.iter().map(|f| mosaic(f, SIZE.0, BayerRg8)).collect(),
+            ),
+            (
+                BayerBg8,
+                rgb.iter().map(|f| mosaic(f, SIZE.0, BayerBg8)).collect(),
+            ),
+        ]
+    }
+
+    #[test]
+    fn gains_of_one_compose_the_same_bytes_in_every_format() {
+        let view = small_view(SIZE.0 as u32, SIZE.1 as u32);
+        let mut composer = Composer::new();
+        for (format, data) in every_format() {
+            let frames = views(&data, format);
+            for ch in [1, 3] {
+                for mode in [BlendMode::Linear, BlendMode::Seams] {
+                    let plain = compose(&mut composer, &view, &frames, mode, None, ch);
+                    for gains in [[1.0f32; 4], [1.0, 1.001, 0.999, 1.0]] {
+                        let gained = compose(&mut composer, &view, &frames, mode, Some(&gains), ch);
+                        assert!(plain == gained, "{format:?}, {ch} channels, {gains:?}");
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_gain_scales_each_format_before_the_blend_and_saturates() {
+        let view = small_view(SIZE.0 as u32, SIZE.1 as u32);
+        let mut composer = Composer::new();
+        for (format, data) in every_format() {
+            let frames = views(&data, format);
+            for ch in [1, 3] {
+                let plain = compose(&mut composer, &view, &frames, BlendMode::Linear, None, ch);
+                for g in [0.5f32, 1.5, 16.0] {
+                    let gained = compose(
+                        &mut composer,
+                        &view,
+                        &frames,
+                        BlendMode::Linear,
+                        Some(&[g; 4]),
+                        ch,
+                    );
+                    if matches!(format, Mono12 | Mono16) {
+                        // At the frame's precision: the composition of
+                        // min(255, ⌊g·v / 2^s⌋).
+                        let s = if format == Mono12 { 4 } else { 8 };
+                        let scaled: Vec<Vec<u8>> = data
+                            .iter()
+                            .map(|d| {
+                                d.chunks_exact(2)
+                                    .map(|b| {
+                                        let v = f64::from(u16::from_le_bytes([b[0], b[1]]));
+                                        (f64::from(g) * v / f64::from(1 << s)).floor().min(255.0)
+                                            as u8
+                                    })
+                                    .collect()
+                            })
+                            .collect();
+                        let want = compose(
+                            &mut composer,
+                            &view,
+                            &views(&scaled, Mono8),
+                            BlendMode::Linear,
+                            None,
+                            ch,
+                        );
+                        assert!(gained == want, "{format:?}, gain {g}");
+                        continue;
+                    }
+                    if format.is_bayer() && ch == 1 {
+                        // The grey of the gained colour canvas (whose
+                        // channels saturate each on its own).
+                        let colour = compose(
+                            &mut composer,
+                            &view,
+                            &frames,
+                            BlendMode::Linear,
+                            Some(&[g; 4]),
+                            3,
+                        );
+                        let mut want = vec![0; gained.len()];
+                        rgb8_to_mono8(&colour, &mut want).unwrap();
+                        assert!(gained == want, "{format:?}, gain {g}");
+                        continue;
+                    }
+                    // One gain everywhere scales the unrounded blend: within
+                    // one level of g times the ungained bytes while the
+                    // gain does not magnify their rounding beyond ½.
+                    let worst = gained
+                        .iter()
+                        .zip(&plain)
+                        .map(|(&a, &v)| {
+                            let want = (f64::from(g) * f64::from(v)).round().min(255.0);
+                            (f64::from(a) - want).abs()
+                        })
+                        .fold(0.0, f64::max);
+                    let bound = if g <= 1.5 {
+                        1.0
+                    } else {
+                        0.5 + f64::from(g) / 2.0
+                    };
+                    assert!(
+                        worst <= bound,
+                        "{format:?}, {ch} channels, gain {g}: {worst}"
+                    );
+                    if g >= 16.0 {
+                        // Saturated at white wherever the ungained value
+                        // is at least 16.5.
+                        assert!(gained.iter().zip(&plain).all(|(&a, &v)| v < 17 || a == 255));
+                    }
+                }
+            }
+        }
     }
 
     #[test]
@@ -439,6 +661,30 @@ mod tests {
         let mut composer = Composer::new();
         let mut canvas = Canvas::new(0, 0, 3);
         let e = |r: Result<()>| r.unwrap_err().to_string();
+        for (gains, cause) in [
+            (
+                vec![1.0, f32::NAN, 1.0, 1.0],
+                "camera 1 (\"left\"): display gain NaN",
+            ),
+            (
+                vec![1.0, 1.0, 17.0, 1.0],
+                "camera 2 (\"back\"): display gain 17",
+            ),
+            (
+                vec![1.0, 1.0, 1.0, 0.01],
+                "camera 3 (\"right\"): display gain 0.01",
+            ),
+            (vec![1.0; 3], "3 display gains for a rig of 4 cameras"),
+        ] {
+            let msg = e(composer.compose_with_gains(
+                &view,
+                &frames,
+                BlendMode::Linear,
+                Some(&gains),
+                &mut canvas,
+            ));
+            assert!(msg.contains(cause), "{msg}");
+        }
         // A frame of another size than its camera's calibration.
         let small = vec![0u8; 158 * 120 * 3];
         frames[2] = FrameView::new(Rgb8, 158, 120, &small).unwrap();

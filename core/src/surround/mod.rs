@@ -39,7 +39,9 @@
 //! per frame, [`Composer::compose`] then writes each canvas pixel once,
 //! from one gathered bilinear sample where one camera shows it and from the
 //! sum of the cameras' samples in the overlaps. Bayer frames are
-//! demosaiced inside that pass (bilinearly, at each sample).
+//! demosaiced inside that pass (bilinearly, at each sample), and
+//! [`Composer::compose_with_gains`] scales each camera's samples by a
+//! display gain before they are summed.
 //!
 //! It also derives the **ground masks** (the source pixels that reach the
 //! canvas: only these are metered) and the **overlap patches** (a grid of

@@ -5,22 +5,24 @@
 use super::bayer::BORDER;
 use super::plan::Job;
 use super::scalar::pixels_bmi2;
-use super::{prefetch_run, AHEAD};
+use super::{prefetch_run, AHEAD, UNIT_GAIN};
 
 /// The steps of one run of `$n`-pixel vectors through the AVX2 chunk
-/// functions `$sample` (a step's sums for one camera), `$add` and
+/// functions `$sample` (a step's sums for one camera), `$scale` (sums
+/// scaled by a broadcast gain, camera `j`'s being `$gain(j)`), `$add` and
 /// `$store` (`$bytes` canvas bytes a step): one camera, two, or the
-/// general loop over any number. Stops before the run's last
-/// `len % $n` pixels.
+/// general loop over any number. Stops before the run's last `len % $n`
+/// pixels.
 ///
 /// Expanded inside [`run_avx2`], whose contract makes each `$sample`
 /// call sound: the taps of camera `j` are `cams[j]`'s and `image(j)`
 /// is its image.
 macro_rules! steps {
-    ($k:ident, $dst:ident, $index:ident, $weights:ident, $len:ident, $cams:ident, $image:ident;
-     $n:expr, $bytes:expr, $sample:path, $add:path, $store:path) => {
+    ($k:ident, $dst:ident, $index:ident, $weights:ident, $len:ident, $cams:ident, $image:ident, $gain:ident;
+     $n:expr, $bytes:expr, $sample:path, $scale:path, $add:path, $store:path) => {
         match ($cams.len(), $image(0), $image(1)) {
             (1, Some(a), _) => {
+                let ga = ops::broadcast($gain(0));
                 let chunks = $dst
                     .chunks_exact_mut($bytes)
                     .zip($index.chunks_exact($n))
@@ -31,11 +33,12 @@ macro_rules! steps {
                     };
                     // SAFETY: see the macro's docs.
                     let s = unsafe { $sample(a.bytes, a.width, i, w, &$k) };
-                    $store(d, s, &$k);
+                    $store(d, $scale(s, ga), &$k);
                 }
             }
             // Two cameras: an overlap.
             (2, Some(a), Some(b)) => {
+                let (ga, gb) = (ops::broadcast($gain(0)), ops::broadcast($gain(1)));
                 let (ia, ib) = $index.split_at($len);
                 let (wa, wb) = $weights.split_at($len);
                 let chunks = $dst
@@ -52,13 +55,13 @@ macro_rules! steps {
                         break;
                     };
                     // SAFETY: see the macro's docs.
-                    let s = unsafe {
-                        $add(
+                    let (sa, sb) = unsafe {
+                        (
                             $sample(a.bytes, a.width, ia, wa, &$k),
                             $sample(b.bytes, b.width, ib, wb, &$k),
                         )
                     };
-                    $store(d, s, &$k);
+                    $store(d, $add($scale(sa, ga), $scale(sb, gb)), &$k);
                 }
             }
             // Three or more cameras.
@@ -76,6 +79,7 @@ macro_rules! steps {
                         };
                         // SAFETY: see the macro's docs.
                         let s = unsafe { $sample(img.bytes, img.width, i, w, &$k) };
+                        let s = $scale(s, ops::broadcast($gain(j)));
                         acc = Some(acc.map_or(s, |a| $add(a, s)));
                     }
                     if let Some(acc) = acc {
@@ -92,7 +96,7 @@ macro_rules! steps {
 /// of 4 bytes) or 8 Bayer pixels (four gathers of 4 bytes, one per row
 /// of the neighbourhood) at a time; each neighbour pair (left, right)
 /// meets its weight pair in one `vpmaddwd`; the cameras' sums are
-/// added, rounded and packed. The ends
+/// scaled by their gains (`GAIN`), added, rounded and packed. The ends
 /// of runs, Bayer steps with a tap at the image's edge and runs mixing
 /// mosaics with other images go through the BMI2 kernel.
 ///
@@ -103,9 +107,9 @@ macro_rules! steps {
 /// (one for a mosaic); `job.sites` is empty or `job.plan.sites()`.
 #[target_feature(enable = "avx2,bmi2")]
 #[allow(unsafe_code)]
-pub(super) unsafe fn run_avx2(job: Job<'_>, out: &mut [u8]) {
+pub(super) unsafe fn run_avx2<const GAIN: bool>(job: Job<'_>, out: &mut [u8]) {
     use ops::{Consts, MONO, RGB};
-    let (plan, images, ch) = (job.plan, job.images, job.ch);
+    let (plan, images, gains, ch) = (job.plan, job.images, job.gains, job.ch);
     let k = Consts::new();
     for (r, run) in plan.runs.iter().enumerate() {
         prefetch_run(&job, plan.runs.get(r + AHEAD));
@@ -118,17 +122,24 @@ pub(super) unsafe fn run_avx2(job: Job<'_>, out: &mut [u8]) {
             continue;
         }
         let image = |j: usize| cams.get(j).and_then(|&c| images.get(c as usize));
+        // Camera `j`'s gain.
+        let gain = |j: usize| {
+            cams.get(j)
+                .and_then(|&c| gains.get(c as usize))
+                .copied()
+                .unwrap_or(UNIT_GAIN)
+        };
         let main = if ch == 1 {
             let main = len - len % MONO;
             let dst = &mut dst[..main];
-            steps!(k, dst, index, weights, len, cams, image;
-                MONO, MONO, ops::mono, ops::mono_add, ops::store_mono);
+            steps!(k, dst, index, weights, len, cams, image, gain;
+                MONO, MONO, ops::mono, ops::mono_gain::<GAIN>, ops::mono_add, ops::store_mono::<GAIN>);
             main
         } else if taps.mosaics == 0 {
             let main = len - len % RGB;
             let dst = &mut dst[..3 * main];
-            steps!(k, dst, index, weights, len, cams, image;
-                RGB, 3 * RGB, ops::rgb, ops::rgb_add, ops::store_rgb);
+            steps!(k, dst, index, weights, len, cams, image, gain;
+                RGB, 3 * RGB, ops::rgb, ops::rgb_gain::<GAIN>, ops::rgb_add, ops::store_rgb::<GAIN>);
             main
         } else if taps.mosaics == cams.len() {
             let main = len - len % MONO;
@@ -144,7 +155,7 @@ pub(super) unsafe fn run_avx2(job: Job<'_>, out: &mut [u8]) {
                         })
                 });
                 if edge {
-                    pixels_bmi2(&job, &taps, (p, p + MONO), dst);
+                    pixels_bmi2::<GAIN>(&job, &taps, (p, p + MONO), dst);
                     continue;
                 }
                 let mut acc = None;
@@ -165,13 +176,14 @@ pub(super) unsafe fn run_avx2(job: Job<'_>, out: &mut [u8]) {
                     // table, none at the edge (checked above): the
                     // contract of `ops::bayer`.
                     let s = unsafe { ops::bayer(img.bytes, img.width, i, w, s, cfa.code(), &k) };
+                    let s = ops::bayer_gain::<GAIN>(s, ops::broadcast(gain(j)));
                     acc = Some(match acc {
                         Some(a) => ops::bayer_add(a, s),
                         None => s,
                     });
                 }
                 if let (Some(acc), Some(d)) = (acc, dst.get_mut(3 * p..3 * (p + MONO))) {
-                    ops::store_bayer(d, acc, &k);
+                    ops::store_bayer::<GAIN>(d, acc, &k);
                 }
             }
             main
@@ -179,7 +191,7 @@ pub(super) unsafe fn run_avx2(job: Job<'_>, out: &mut [u8]) {
             // Mosaics and other images in one run.
             0
         };
-        pixels_bmi2(&job, &taps, (main, len), dst);
+        pixels_bmi2::<GAIN>(&job, &taps, (main, len), dst);
     }
 }
 
@@ -264,7 +276,7 @@ mod lanes {
 mod ops {
     use std::arch::x86_64::*;
 
-    use super::super::SHIFT;
+    use super::super::{GAIN_SHIFT, SHIFT};
     use super::lanes;
 
     /// Mono pixels per step.
@@ -306,6 +318,8 @@ mod ops {
         /// The first 32-bit lanes of each 128-bit lane, in order.
         lanes: __m256i,
         rgb12: __m128i,
+        /// Rounding of a gained sum.
+        round_gain: __m256i,
         /// Rounding of a Bayer sum.
         round_bayer: __m256i,
         one: __m256i,
@@ -339,6 +353,7 @@ mod ops {
                 mono_bottom: both(lanes::MONO_BOTTOM),
                 lanes: _mm256_setr_epi32(0, 4, 1, 5, 2, 6, 3, 7),
                 rgb12: lane(lanes::RGB12),
+                round_gain: _mm256_set1_epi32(1 << (GAIN_SHIFT - 1)),
                 round_bayer: _mm256_set1_epi32(1 << (SHIFT + 1)),
                 one: _mm256_set1_epi32(1),
                 two: _mm256_set1_epi32(2),
@@ -357,6 +372,51 @@ mod ops {
                 green_top: both(lanes::GREEN_TOP),
                 green_bottom: both(lanes::GREEN_BOTTOM),
             }
+        }
+    }
+
+    /// A gain (1/256) in every 32-bit lane.
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    pub(super) fn broadcast(gain: u16) -> __m256i {
+        _mm256_set1_epi32(i32::from(gain))
+    }
+
+    /// With `GAIN`, a mono step's sums scaled by a gain (1/256): at
+    /// most 255·4096·4096 < 2³², as `u32`; without, the sums.
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    pub(super) fn mono_gain<const GAIN: bool>(a: __m256i, gain: __m256i) -> __m256i {
+        if GAIN {
+            _mm256_mullo_epi32(a, gain)
+        } else {
+            a
+        }
+    }
+
+    /// With `GAIN`, an RGB step's sums scaled by a gain.
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    pub(super) fn rgb_gain<const GAIN: bool>(
+        a: (__m256i, __m256i),
+        gain: __m256i,
+    ) -> (__m256i, __m256i) {
+        if GAIN {
+            (_mm256_mullo_epi32(a.0, gain), _mm256_mullo_epi32(a.1, gain))
+        } else {
+            a
+        }
+    }
+
+    /// Rounds `a` (sums of weights in 1/4096, or with `GAIN` of gains in
+    /// 1/256 times those) to its integer part, as `u32`.
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    fn rounded<const GAIN: bool>(a: __m256i, k: &Consts) -> __m256i {
+        if GAIN {
+            _mm256_srli_epi32::<{ GAIN_SHIFT as i32 }>(_mm256_add_epi32(a, k.round_gain))
+        } else {
+            _mm256_srli_epi32::<{ SHIFT as i32 }>(_mm256_add_epi32(a, k.round))
         }
     }
 
@@ -428,12 +488,16 @@ mod ops {
         )
     }
 
-    /// Rounds and stores 4 RGB pixels' sums (from [`rgb`]) in 12 bytes.
+    /// Rounds and stores 4 RGB pixels' sums (from [`rgb`], gained with
+    /// `GAIN`; saturated at 255) in 12 bytes.
     #[target_feature(enable = "avx2")]
     #[inline]
-    pub(super) fn store_rgb(dst: &mut [u8], (a, b): (__m256i, __m256i), k: &Consts) {
-        let a = _mm256_srli_epi32::<{ SHIFT as i32 }>(_mm256_add_epi32(a, k.round));
-        let b = _mm256_srli_epi32::<{ SHIFT as i32 }>(_mm256_add_epi32(b, k.round));
+    pub(super) fn store_rgb<const GAIN: bool>(
+        dst: &mut [u8],
+        (a, b): (__m256i, __m256i),
+        k: &Consts,
+    ) {
+        let (a, b) = (rounded::<GAIN>(a, k), rounded::<GAIN>(b, k));
         // Lane 0: pixels 0, 1; lane 1: pixels 2, 3 (RGB0 each), in
         // their low 8 bytes.
         let bytes = _mm256_packus_epi16(_mm256_packus_epi32(a, b), k.zero);
@@ -521,11 +585,12 @@ mod ops {
         )
     }
 
-    /// Rounds and stores 8 mono pixels' sums (from [`mono`]).
+    /// Rounds and stores 8 mono pixels' sums (from [`mono`], gained with
+    /// `GAIN`; saturated at 255).
     #[target_feature(enable = "avx2")]
     #[inline]
-    pub(super) fn store_mono(dst: &mut [u8], a: __m256i, k: &Consts) {
-        let a = _mm256_srli_epi32::<{ SHIFT as i32 }>(_mm256_add_epi32(a, k.round));
+    pub(super) fn store_mono<const GAIN: bool>(dst: &mut [u8], a: __m256i, k: &Consts) {
+        let a = rounded::<GAIN>(a, k);
         let bytes = _mm256_packus_epi16(_mm256_packus_epi32(a, a), k.zero);
         // Lane 0 holds pixels 0–3 in its first 4 bytes, lane 1 pixels
         // 4–7.
@@ -679,14 +744,40 @@ mod ops {
         ]
     }
 
-    /// Rounds and stores 8 Bayer pixels' sums (from [`bayer`]) in 24 bytes
-    /// of RGB.
+    /// With `GAIN`, a Bayer step's sums scaled by a gain: brought to the
+    /// scale of the other images' sums (4096, rounded down) first, so
+    /// that the product fits in `u32`; without, the sums.
     #[target_feature(enable = "avx2")]
     #[inline]
-    pub(super) fn store_bayer(dst: &mut [u8], a: [__m256i; 3], k: &Consts) {
-        let r = _mm256_srli_epi32::<{ SHIFT as i32 + 2 }>(_mm256_add_epi32(a[0], k.round_bayer));
-        let g = _mm256_srli_epi32::<{ SHIFT as i32 + 2 }>(_mm256_add_epi32(a[1], k.round_bayer));
-        let b = _mm256_srli_epi32::<{ SHIFT as i32 + 2 }>(_mm256_add_epi32(a[2], k.round_bayer));
+    pub(super) fn bayer_gain<const GAIN: bool>(a: [__m256i; 3], gain: __m256i) -> [__m256i; 3] {
+        if !GAIN {
+            return a;
+        }
+        [
+            _mm256_mullo_epi32(_mm256_srli_epi32::<2>(a[0]), gain),
+            _mm256_mullo_epi32(_mm256_srli_epi32::<2>(a[1]), gain),
+            _mm256_mullo_epi32(_mm256_srli_epi32::<2>(a[2]), gain),
+        ]
+    }
+
+    /// Rounds and stores 8 Bayer pixels' sums (from [`bayer`], gained
+    /// with `GAIN`; saturated at 255) in 24 bytes of RGB.
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    pub(super) fn store_bayer<const GAIN: bool>(dst: &mut [u8], a: [__m256i; 3], k: &Consts) {
+        let [r, g, b] = if GAIN {
+            [
+                rounded::<true>(a[0], k),
+                rounded::<true>(a[1], k),
+                rounded::<true>(a[2], k),
+            ]
+        } else {
+            [
+                _mm256_srli_epi32::<{ SHIFT as i32 + 2 }>(_mm256_add_epi32(a[0], k.round_bayer)),
+                _mm256_srli_epi32::<{ SHIFT as i32 + 2 }>(_mm256_add_epi32(a[1], k.round_bayer)),
+                _mm256_srli_epi32::<{ SHIFT as i32 + 2 }>(_mm256_add_epi32(a[2], k.round_bayer)),
+            ]
+        };
         // Per 128-bit lane (pixels 0–3, then 4–7): R, G, B, B as bytes.
         let bytes = _mm256_packus_epi16(_mm256_packus_epi32(r, g), _mm256_packus_epi32(b, b));
         let rgb = _mm256_shuffle_epi8(bytes, k.bayer_rgb);

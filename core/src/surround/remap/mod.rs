@@ -96,6 +96,19 @@
 //! A mosaic composes into an RGB canvas; the composer makes a mono one the
 //! grey of that.
 //!
+//! # Gains
+//!
+//! With a gain `G` per camera (in 1/256, 16 to 4096: 1/16 to 16), each
+//! camera's unrounded sum is multiplied by its gain before the cameras'
+//! sums are added (a Bayer sum brought to 1/4096 first, rounded down): the
+//! sum, in 1/2²⁰, is at most 255·4096·4096 < 2³², and the end rounds it
+//! and saturates it at 255. A pixel shown by one camera is then
+//! `min(255, round(g·v))` of its unrounded ungained value `v`, to the
+//! exact rounding; against the ungained byte, whose rounding the gain
+//! multiplies, it is within `1 + g/2`. Without gains the ungained kernels
+//! run, as before; a gain of 1 for every camera gives the same bytes
+//! through the gained ones.
+//!
 //! # Files
 //!
 //! - `plan.rs`: the plan, built once per view and blend mode.
@@ -131,10 +144,28 @@ use crate::cpu::Isa;
 const SHIFT: u32 = 12;
 /// The weights of one canvas pixel sum to this.
 const ONE: u32 = 1 << SHIFT;
+/// Bits of a gained sum: the weights' and the gains' (1/256).
+const GAIN_SHIFT: u32 = SHIFT + 8;
+/// A gain of 1, in 1/256.
+pub(crate) const UNIT_GAIN: u16 = 256;
+/// The smallest gain, 1/16, in 1/256.
+pub(crate) const MIN_GAIN: u16 = 16;
+/// The largest gain, 16, in 1/256.
+pub(crate) const MAX_GAIN: u16 = 4096;
 
 /// Runs every run of `job.plan` with the kernels of `isa` (AVX-512 runs
-/// the AVX2 kernels), or of the widest set below it the CPU has.
-fn run(isa: Isa, job: Job<'_>, out: &mut [u8]) {
+/// the AVX2 kernels), or of the widest set below it the CPU has; with
+/// `gained`, the gained kernels.
+fn run(isa: Isa, job: Job<'_>, gained: bool, out: &mut [u8]) {
+    if gained {
+        run_with::<true>(isa, job, out);
+    } else {
+        run_with::<false>(isa, job, out);
+    }
+}
+
+/// [`run`] with or without gains.
+fn run_with<const GAIN: bool>(isa: Isa, job: Job<'_>, out: &mut [u8]) {
     match isa.supported() {
         #[cfg(target_arch = "x86_64")]
         Isa::Avx2 | Isa::Avx512 if job.plan.gather_ok => {
@@ -147,7 +178,7 @@ fn run(isa: Isa, job: Job<'_>, out: &mut [u8]) {
             // contract of `run_avx2`.
             #[allow(unsafe_code)]
             unsafe {
-                run_avx2(job, out);
+                run_avx2::<GAIN>(job, out);
             }
         }
         #[cfg(target_arch = "x86_64")]
@@ -156,10 +187,10 @@ fn run(isa: Isa, job: Job<'_>, out: &mut [u8]) {
             // the feature `run_bmi2` is compiled for.
             #[allow(unsafe_code)]
             unsafe {
-                run_bmi2(job, out);
+                run_bmi2::<GAIN>(job, out);
             }
         }
-        _ => run_portable(job, out),
+        _ => run_portable::<GAIN>(job, out),
     }
 }
 

@@ -6,7 +6,7 @@ use std::fmt;
 use std::sync::OnceLock;
 
 use super::bayer::{self, Cfa};
-use super::{Isa, ONE};
+use super::{Isa, MAX_GAIN, MIN_GAIN, ONE};
 use crate::error::{Error, Result};
 
 /// Height of the tiles the canvas is walked in: the pixels of a tile come
@@ -373,9 +373,17 @@ impl Plan {
 
     /// Composes `images` (one per source: `ch` channels, 1 or 3, or a
     /// Bayer mosaic when `ch` is 3) into `out` (the canvas, `pixels · ch`
-    /// bytes): every byte is written.
-    pub(crate) fn execute(&self, images: &[Image<'_>], ch: usize, out: &mut [u8]) -> Result<()> {
-        self.execute_with(Isa::detect(), images, ch, out)
+    /// bytes), each camera's contribution scaled by its gain in `gains`
+    /// (per source, in 1/256, [`MIN_GAIN`] to [`MAX_GAIN`]) when given:
+    /// every byte is written.
+    pub(crate) fn execute(
+        &self,
+        images: &[Image<'_>],
+        ch: usize,
+        gains: Option<&[u16]>,
+        out: &mut [u8],
+    ) -> Result<()> {
+        self.execute_with(Isa::detect(), images, ch, gains, out)
     }
 
     /// [`Plan::execute`] with the kernels of `isa`, or of the widest set
@@ -385,6 +393,7 @@ impl Plan {
         isa: Isa,
         images: &[Image<'_>],
         ch: usize,
+        gains: Option<&[u16]>,
         out: &mut [u8],
     ) -> Result<()> {
         if ch != 1 && ch != 3 {
@@ -419,6 +428,22 @@ impl Plan {
                 ));
             }
         }
+        if let Some(g) = gains {
+            if g.len() != self.sources.len() {
+                return Err(Error::InvalidConfig(format!(
+                    "surround view: {} gains for a plan of {} cameras",
+                    g.len(),
+                    self.sources.len()
+                )));
+            }
+            if let Some(&bad) = g.iter().find(|&&g| !(MIN_GAIN..=MAX_GAIN).contains(&g)) {
+                return Err(Error::InvalidParameter {
+                    name: "surround gain (1/256)",
+                    value: f64::from(bad),
+                    expected: "16 to 4096 (a gain of 1/16 to 16)",
+                });
+            }
+        }
         if out.len() != self.pixels * ch {
             return Err(Error::BufferSize {
                 what: "surround canvas",
@@ -436,9 +461,10 @@ impl Plan {
             plan: self,
             images,
             ch,
+            gains: gains.unwrap_or_default(),
             sites,
         };
-        super::run(isa, job, out);
+        super::run(isa, job, gains.is_some(), out);
         Ok(())
     }
 
@@ -489,6 +515,8 @@ pub(super) struct Job<'a> {
     pub(super) images: &'a [Image<'a>],
     /// The canvas's channels.
     pub(super) ch: usize,
+    /// Per camera, the gain in 1/256; empty without gains.
+    pub(super) gains: &'a [u16],
     /// The plan's Bayer site table, or empty when no image is a mosaic.
     pub(super) sites: &'a [u8],
 }

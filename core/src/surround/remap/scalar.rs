@@ -3,7 +3,7 @@
 //! [`super`]).
 
 use super::plan::{Job, Taps};
-use super::{bayer, prefetch_run, Image, AHEAD, ONE, SHIFT};
+use super::{bayer, prefetch_run, Image, AHEAD, GAIN_SHIFT, ONE, SHIFT, UNIT_GAIN};
 
 /// Per-lane rounding of an RGB sum (three 21-bit lanes).
 const ROUND_RGB: u64 = (ONE as u64 / 2) * (1 | 1 << 21 | 1 << 42);
@@ -15,7 +15,20 @@ const HALF: u32 = ONE / 2;
 /// A lane of [`ROUND_RGB`] (21 bits).
 const LANE: u64 = (1 << 21) - 1;
 /// Rounding of a Bayer sum (scale 4·4096).
-const HALF_BAYER: u32 = 2 * ONE;
+const HALF_BAYER: u64 = 2 * ONE as u64;
+
+/// The byte of a gained sum `Σ G·s` (scale 256·4096): rounded, and
+/// saturated at white.
+#[inline(always)]
+fn gained(acc: u64) -> u8 {
+    ((acc + (1 << (GAIN_SHIFT - 1))) >> GAIN_SHIFT).min(255) as u8
+}
+
+/// Camera `k`'s gain in 1/256 (1 when there are none).
+#[inline(always)]
+fn gain(gains: &[u16], k: u32) -> u64 {
+    u64::from(gains.get(k as usize).copied().unwrap_or(UNIT_GAIN))
+}
 
 /// The three bytes of a pixel spread to the 21-bit lanes.
 #[inline(always)]
@@ -99,27 +112,32 @@ macro_rules! scalar_kernels {
         }
 
         /// Pixels `p0..p1` of a run (`taps`) of `job` into `dst`, the run's
-        /// part of the canvas.
+        /// part of the canvas, the cameras' contributions scaled by their
+        /// gains when `GAIN`.
         $(#[$attr])*
-        pub(super) fn $pixels(
+        pub(super) fn $pixels<const GAIN: bool>(
             job: &Job<'_>,
             taps: &Taps<'_>,
             (p0, p1): (usize, usize),
             dst: &mut [u8],
         ) {
-            let (images, ch, cams) = (job.images, job.ch, taps.cams);
+            let (images, gains, ch, cams) = (job.images, job.gains, job.ch, taps.cams);
             if ch == 1 {
                 for p in p0..p1 {
-                    let mut sum = HALF;
+                    let (mut sum, mut acc) = (HALF, 0u64);
                     for (j, &k) in cams.iter().enumerate() {
                         if let Some(img) = images.get(k as usize) {
                             let (i, w, _) = taps.tap(j, p);
-                            sum += mono(img, i, w);
+                            if GAIN {
+                                acc += u64::from(mono(img, i, w)) * gain(gains, k);
+                            } else {
+                                sum += mono(img, i, w);
+                            }
                         }
                     }
-                    dst[p] = (sum >> SHIFT) as u8;
+                    dst[p] = if GAIN { gained(acc) } else { (sum >> SHIFT) as u8 };
                 }
-            } else if taps.mosaics == 0 {
+            } else if !GAIN && taps.mosaics == 0 {
                 for p in p0..p1 {
                     let mut sum = 0;
                     for (j, &k) in cams.iter().enumerate() {
@@ -131,9 +149,10 @@ macro_rules! scalar_kernels {
                     store3(&mut dst[3 * p..3 * p + 3], $pick(sum));
                 }
             } else {
-                // Channel by channel, at the Bayer scale (4·4096).
+                // Channel by channel, at the Bayer scale (4·4096) or the
+                // gained one (256·4096).
                 for p in p0..p1 {
-                    let mut acc = [0u32; 3];
+                    let mut acc = [0u64; 3];
                     for (j, &k) in cams.iter().enumerate() {
                         let Some(img) = images.get(k as usize) else {
                             continue;
@@ -149,10 +168,20 @@ macro_rules! scalar_kernels {
                             }
                         };
                         for (a, s) in acc.iter_mut().zip(s) {
-                            *a += s;
+                            *a += if GAIN {
+                                u64::from(s >> 2) * gain(gains, k)
+                            } else {
+                                u64::from(s)
+                            };
                         }
                     }
-                    let px = acc.map(|a| ((a + HALF_BAYER) >> (SHIFT + 2)) as u8);
+                    let px = acc.map(|a| {
+                        if GAIN {
+                            gained(a)
+                        } else {
+                            ((a + HALF_BAYER) >> (SHIFT + 2)) as u8
+                        }
+                    });
                     dst[3 * p..3 * p + 3].copy_from_slice(&px);
                 }
             }
@@ -160,8 +189,8 @@ macro_rules! scalar_kernels {
 
         /// Runs the whole plan of `job` (see [`super::run`]).
         $(#[$attr])*
-        pub(super) fn $name(job: Job<'_>, out: &mut [u8]) {
-            let (plan, images, ch) = (job.plan, job.images, job.ch);
+        pub(super) fn $name<const GAIN: bool>(job: Job<'_>, out: &mut [u8]) {
+            let (plan, images, gains, ch) = (job.plan, job.images, job.gains, job.ch);
             let ahead = AHEAD;
             for (r, run) in plan.runs.iter().enumerate() {
                 prefetch_run(&job, plan.runs.get(r + ahead));
@@ -179,17 +208,24 @@ macro_rules! scalar_kernels {
                     // over cameras.
                     (1, &[k]) => {
                         let Some(img) = images.get(k as usize) else { continue };
-                        for ((d, &i), &w) in dst.iter_mut().zip(index).zip(weights) {
-                            *d = ((mono(img, i, w) + HALF) >> SHIFT) as u8;
+                        if GAIN {
+                            let g = gain(gains, k);
+                            for ((d, &i), &w) in dst.iter_mut().zip(index).zip(weights) {
+                                *d = gained(u64::from(mono(img, i, w)) * g);
+                            }
+                        } else {
+                            for ((d, &i), &w) in dst.iter_mut().zip(index).zip(weights) {
+                                *d = ((mono(img, i, w) + HALF) >> SHIFT) as u8;
+                            }
                         }
                     }
-                    (3, &[k]) if taps.mosaics == 0 => {
+                    (3, &[k]) if !GAIN && taps.mosaics == 0 => {
                         let Some(img) = images.get(k as usize) else { continue };
                         for ((d, &i), &w) in dst.chunks_exact_mut(3).zip(index).zip(weights) {
                             store3(d, $pick($rgb(img, i, w)));
                         }
                     }
-                    _ => $pixels(&job, &taps, (0, len), dst),
+                    _ => $pixels::<GAIN>(&job, &taps, (0, len), dst),
                 }
             }
         }

@@ -204,7 +204,7 @@ fn the_remap_is_within_a_level_of_the_exact_bilinear_blend_with_every_kernel() {
         for isa in Isa::available() {
             // A canvas full of garbage: every byte must be written.
             let mut out = vec![0xa5; plan.pixels * ch];
-            plan.execute_with(isa, &images, ch, &mut out).unwrap();
+            plan.execute_with(isa, &images, ch, None, &mut out).unwrap();
             let mut worst = 0.0f64;
             for i in 0..case.pixels.len() {
                 for c in 0..ch {
@@ -263,7 +263,7 @@ fn a_source_too_small_for_a_neighbourhood_contributes_nothing() {
         },
     ];
     let mut out = vec![0xff; 2];
-    plan.execute(&images, 1, &mut out).unwrap();
+    plan.execute(&images, 1, None, &mut out).unwrap();
     // Pixel 0: only the 1-pixel-wide camera, so black; pixel 1: the
     // other camera alone, at (0, 1).
     assert_eq!(out, [0, 30]);
@@ -275,25 +275,36 @@ fn images_that_do_not_fit_the_plan_are_refused() {
     let plan = case.plan();
     let mut images = case.images();
     let mut out = vec![0; plan.pixels * 3];
-    assert!(plan.execute(&images[..2], 3, &mut out).is_err());
-    assert!(plan.execute(&images, 2, &mut out).is_err());
-    assert!(plan.execute(&images, 3, &mut out[1..]).is_err());
+    assert!(plan.execute(&images[..2], 3, None, &mut out).is_err());
+    assert!(plan.execute(&images, 2, None, &mut out).is_err());
+    assert!(plan.execute(&images, 3, None, &mut out[1..]).is_err());
     images[0].bytes = &images[0].bytes[1..];
-    let e = plan.execute(&images, 3, &mut out).unwrap_err();
+    let e = plan.execute(&images, 3, None, &mut out).unwrap_err();
     assert!(e.to_string().contains("37×23"), "{e}");
     images[0].width = 36;
-    assert!(plan.execute(&images, 3, &mut out).is_err());
+    assert!(plan.execute(&images, 3, None, &mut out).is_err());
     // A mosaic: one byte a pixel, and only into an RGB canvas.
     let (_, case) = mosaic_cases().remove(0);
     let plan = case.plan();
     let mut images = case.images();
     let mut out = vec![0; plan.pixels * 3];
-    assert!(plan.execute(&images, 3, &mut out).is_ok());
+    assert!(plan.execute(&images, 3, None, &mut out).is_ok());
     let mut mono = vec![0; plan.pixels];
-    let e = plan.execute(&images, 1, &mut mono).unwrap_err();
+    let e = plan.execute(&images, 1, None, &mut mono).unwrap_err();
     assert!(e.to_string().contains("RGB canvas"), "{e}");
+    // Gains: one per camera, from 1/16 to 16.
+    for gains in [
+        &[UNIT_GAIN; 2][..],
+        &[UNIT_GAIN, MIN_GAIN - 1, UNIT_GAIN],
+        &[MAX_GAIN + 1; 3],
+    ] {
+        assert!(
+            plan.execute(&images, 3, Some(gains), &mut out).is_err(),
+            "{gains:?}"
+        );
+    }
     images[2].bytes = &images[2].bytes[1..];
-    let e = plan.execute(&images, 3, &mut out).unwrap_err();
+    let e = plan.execute(&images, 3, None, &mut out).unwrap_err();
     assert!(e.to_string().contains("64×33"), "{e}");
 }
 
@@ -380,12 +391,22 @@ impl Case {
 }
 
 /// The canvas the kernels must give from `sums`: per channel
-/// `(Σ s + 2¹³) >> 14`.
-fn expected(sums: &[Vec<(u32, [u64; 3])>], ch: usize) -> Vec<u8> {
+/// `(Σ s + 2¹³) >> 14`, or with gains (1/256)
+/// `min(255, (Σ G·⌊s/4⌋ + 2¹⁹) >> 20)`.
+fn expected(sums: &[Vec<(u32, [u64; 3])>], ch: usize, gains: Option<&[u16]>) -> Vec<u8> {
     let mut out = Vec::with_capacity(sums.len() * ch);
     for pixel in sums {
         for c in 0..ch {
-            out.push(((pixel.iter().map(|(_, s)| s[c]).sum::<u64>() + (1 << 13)) >> 14) as u8);
+            out.push(match gains {
+                None => ((pixel.iter().map(|(_, s)| s[c]).sum::<u64>() + (1 << 13)) >> 14) as u8,
+                Some(g) => {
+                    let acc: u64 = pixel
+                        .iter()
+                        .map(|&(k, s)| (s[c] >> 2) * u64::from(g[k as usize]))
+                        .sum();
+                    ((acc + (1 << 19)) >> 20).min(255) as u8
+                }
+            });
         }
     }
     out
@@ -419,10 +440,10 @@ fn mosaics_are_demosaiced_in_the_remap_alike_by_every_kernel() {
         let plan = case.plan();
         assert!(plan.gather_ok);
         let images = case.images();
-        let want = expected(&case.sums(&plan, 3), 3);
+        let want = expected(&case.sums(&plan, 3), 3, None);
         for isa in Isa::available() {
             let mut out = vec![0xa5; plan.pixels * 3];
-            plan.execute_with(isa, &images, 3, &mut out).unwrap();
+            plan.execute_with(isa, &images, 3, None, &mut out).unwrap();
             let differ = out.iter().zip(&want).filter(|(a, b)| a != b).count();
             let first = out.iter().zip(&want).position(|(a, b)| a != b);
             assert_eq!(
@@ -449,7 +470,7 @@ fn mosaics_are_demosaiced_in_the_remap_alike_by_every_kernel() {
         // Against the exact demosaic and blend: the weights' rounding
         // and the last one.
         let mut out = vec![0; plan.pixels * 3];
-        plan.execute(&images, 3, &mut out).unwrap();
+        plan.execute(&images, 3, None, &mut out).unwrap();
         let mut worst = 0.0f64;
         for (i, list) in case.pixels.iter().enumerate() {
             let total: f64 = list.iter().map(|p| p.weight).sum();
@@ -490,5 +511,83 @@ fn mosaics_are_demosaiced_in_the_remap_alike_by_every_kernel() {
             }
         }
         eprintln!("{name}: worst error against the exact demosaic and blend {worst:.3}");
+    }
+}
+
+#[test]
+fn gains_scale_each_camera_before_the_blend_alike_by_every_kernel() {
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9);
+    let mut cases = vec![
+        ("mono".to_string(), 1, Case::new(7, 1)),
+        ("RGB".into(), 3, Case::new(8, 3)),
+    ];
+    cases.extend(mosaic_cases().into_iter().map(|(n, c)| (n, 3, c)));
+    for (name, ch, case) in cases {
+        let plan = case.plan();
+        let images = case.images();
+        let sums = case.sums(&plan, ch);
+        let mut plain = vec![0; plan.pixels * ch];
+        plan.execute(&images, ch, None, &mut plain).unwrap();
+        assert_eq!(plain, expected(&sums, ch, None), "{name}");
+        // Gains of 1: the same bytes through the gained kernels.
+        for isa in Isa::available() {
+            let mut out = vec![0xa5; plan.pixels * ch];
+            plan.execute_with(isa, &images, ch, Some(&[UNIT_GAIN; 3]), &mut out)
+                .unwrap();
+            assert!(
+                out == plain,
+                "{name}, {isa:?}: gains of 1 changed the canvas"
+            );
+        }
+        for round in 0..4 {
+            let gains: Vec<u16> = match round {
+                0 => vec![MIN_GAIN, MAX_GAIN, UNIT_GAIN],
+                1 => vec![MAX_GAIN; 3],
+                2 => (0..3).map(|_| rng.gen_range(128..=512)).collect(),
+                _ => (0..3).map(|_| rng.gen_range(MIN_GAIN..=MAX_GAIN)).collect(),
+            };
+            let want = expected(&sums, ch, Some(&gains));
+            for isa in Isa::available() {
+                let mut out = vec![0xa5; plan.pixels * ch];
+                plan.execute_with(isa, &images, ch, Some(&gains), &mut out)
+                    .unwrap();
+                let differ = out.iter().zip(&want).filter(|(a, b)| a != b).count();
+                assert_eq!(
+                    differ, 0,
+                    "{name}, gains {gains:?}, {isa:?}: {differ} bytes differ"
+                );
+            }
+            // A pixel of one camera with gain g: min(255, round(g·v)) of
+            // its unrounded ungained value v (the fixed-point sum); against
+            // g times the ungained byte, whose rounding the gain
+            // multiplies, within 1 + g/2.
+            let mut worst = vec![0u8; 3];
+            for (i, pixel) in sums.iter().enumerate() {
+                let &[(k, s)] = pixel.as_slice() else {
+                    continue;
+                };
+                let g = f64::from(gains[k as usize]) / 256.0;
+                for c in 0..ch {
+                    let v = s[c] as f64 / 16384.0;
+                    let got = want[i * ch + c];
+                    let exact = (g * v).min(255.0);
+                    assert!(
+                        (f64::from(got) - exact).abs() <= 0.5 + 1e-9,
+                        "{name}: {got} for {g}·{v}"
+                    );
+                    let byte = f64::from(plain[i * ch + c]);
+                    let d = got.abs_diff((g * byte).round().min(255.0) as u8);
+                    assert!(
+                        f64::from(d) <= 1.0 + g / 2.0,
+                        "{name}: {got} for {g}·{byte}"
+                    );
+                    worst[k as usize] = worst[k as usize].max(d);
+                }
+            }
+            eprintln!(
+                "{name}, gains {:?}: largest difference from min(255, round(g·v)) of the ungained byte v, per camera: {worst:?}",
+                gains.iter().map(|&g| f64::from(g) / 256.0).collect::<Vec<_>>()
+            );
+        }
     }
 }
