@@ -6,7 +6,14 @@
 //! - `rigview`: `Composer::compose` — one pass over the canvas with a plan
 //!   built once: per pixel one gathered fixed-point bilinear sample per
 //!   contributing camera, the blend weights folded into the bilinear ones
-//!   (AVX-512/AVX2 where the CPU has them).
+//!   (AVX-512/AVX2 where the CPU has them). From RGB8 frames, from Mono8
+//!   frames (the green bytes of the RGB ones), from BayerRG8 mosaics of the
+//!   RGB frames (demosaiced inside the remap), and each of these with a
+//!   display gain per camera (`Composer::compose_with_gains`, gains 1.5,
+//!   0.75, 2 and 1.25).
+//! - `opencv_demosaic_then_rigview_rgb`: the mosaics demosaiced whole by
+//!   OpenCV's `cvtColor` (`COLOR_BayerRGGB2RGB`), then composed from RGB8:
+//!   the separate pass that demosaicing inside the remap saves.
 //! - `opencv_remap`: the composition rigview had before its own remap —
 //!   per camera one OpenCV fixed-point `remap` (maps from `convertMaps`,
 //!   built once) straight from the fisheye image over its part of the
@@ -388,6 +395,9 @@ impl Reference {
     }
 }
 
+/// A benchmarked composition: its name, frames, canvas channels and gains.
+type Composition<'a, 'f> = (&'a str, &'a [FrameView<'f>], usize, Option<&'a [f32]>);
+
 fn compose(c: &mut Criterion) {
     let threads = core::get_num_threads().unwrap();
     core::set_num_threads(1).unwrap();
@@ -434,22 +444,6 @@ fn compose(c: &mut Criterion) {
         covered as f64 / (view.size().0 * view.size().1) as f64
     );
 
-    let mut group = group(c, "surround_4x1288x964_to_1000x1000", 4);
-    group.bench_function("rigview_linear_rgb", |b| {
-        b.iter(|| {
-            composer
-                .compose(&view, black_box(&views), BlendMode::Linear, &mut canvas)
-                .unwrap();
-        });
-    });
-    let mut mono = Canvas::new(0, 0, 1);
-    group.bench_function("rigview_linear_mono_from_rgb", |b| {
-        b.iter(|| {
-            composer
-                .compose(&view, black_box(&views), BlendMode::Linear, &mut mono)
-                .unwrap();
-        });
-    });
     let gray: Vec<Vec<u8>> = data
         .iter()
         .map(|d| d.chunks_exact(3).map(|p| p[1]).collect())
@@ -458,10 +452,66 @@ fn compose(c: &mut Criterion) {
         .iter()
         .map(|d| FrameView::new(PixelFormat::Mono8, W, H, d).unwrap())
         .collect();
-    group.bench_function("rigview_linear_mono8", |b| {
+    // BayerRG8 mosaics of the RGB frames.
+    let bayer: Vec<Vec<u8>> = data
+        .iter()
+        .map(|d| {
+            d.chunks_exact(3)
+                .enumerate()
+                .map(|(i, p)| p[[[0, 1], [1, 2]][i / W % 2][i % W % 2]])
+                .collect()
+        })
+        .collect();
+    let bayer_views: Vec<FrameView<'_>> = bayer
+        .iter()
+        .map(|d| FrameView::new(PixelFormat::BayerRg8, W, H, d).unwrap())
+        .collect();
+    let gains = [1.5f32, 0.75, 2.0, 1.25];
+    let mut group = group(c, "surround_4x1288x964_to_1000x1000", 4);
+    // Each composition: its frames, the canvas's channels and the gains.
+    let compositions: [Composition<'_, '_>; 7] = [
+        ("rigview_linear_rgb", &views, 3, None),
+        ("rigview_linear_mono_from_rgb", &views, 1, None),
+        ("rigview_linear_mono8", &gray_views, 1, None),
+        ("rigview_linear_bayer_rg8", &bayer_views, 3, None),
+        ("rigview_linear_rgb_gains", &views, 3, Some(&gains)),
+        ("rigview_linear_mono8_gains", &gray_views, 1, Some(&gains)),
+        (
+            "rigview_linear_bayer_rg8_gains",
+            &bayer_views,
+            3,
+            Some(&gains),
+        ),
+    ];
+    for (name, frames, channels, gains) in compositions {
+        let mut out = Canvas::new(0, 0, channels);
+        group.bench_function(name, |b| {
+            b.iter(|| {
+                composer
+                    .compose_with_gains(
+                        &view,
+                        black_box(frames),
+                        BlendMode::Linear,
+                        gains,
+                        &mut out,
+                    )
+                    .unwrap();
+            });
+        });
+    }
+    let mut demosaiced: Vec<Mat> = vec![Mat::default(); 4];
+    group.bench_function("opencv_demosaic_then_rigview_rgb", |b| {
         b.iter(|| {
+            for (f, o) in black_box(&bayer).iter().zip(demosaiced.iter_mut()) {
+                let src = Mat::new_rows_cols_with_data(H as i32, W as i32, f).unwrap();
+                imgproc::cvt_color(&src, o, imgproc::COLOR_BayerRGGB2RGB, 0).unwrap();
+            }
+            let frames: Vec<FrameView<'_>> = demosaiced
+                .iter()
+                .map(|m| FrameView::new(PixelFormat::Rgb8, W, H, m.data_bytes().unwrap()).unwrap())
+                .collect();
             composer
-                .compose(&view, black_box(&gray_views), BlendMode::Linear, &mut mono)
+                .compose(&view, &frames, BlendMode::Linear, &mut canvas)
                 .unwrap();
         });
     });

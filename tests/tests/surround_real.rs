@@ -4,7 +4,7 @@
 //! geometric agreement in the four overlaps, against a deliberately
 //! misaligned copy of the rig that must fail the same check.
 
-use std::path::{Path, PathBuf};
+mod surround_common;
 
 use opencv::core::{self, Mat, MatTraitConst, MatTraitConstManual};
 use opencv::imgproc;
@@ -12,38 +12,8 @@ use rigview_calib::formats;
 use rigview_calib::pose::Pose;
 use rigview_calib::rig::Rig;
 use rigview_core::exposure::{FrameView, PixelFormat};
-use rigview_core::surround::{
-    BlendMode, Canvas, CanvasSpec, Composer, SurroundOptions, SurroundView,
-};
-
-fn data() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("data/surround-nz")
-}
-
-/// The source project's canvas (16 m × 12 m around the car, whose rectangle
-/// is 5 m × 2 m), at 50 px/m.
-fn spec() -> CanvasSpec {
-    CanvasSpec {
-        x_min_m: -8.0,
-        x_max_m: 8.0,
-        y_min_m: -6.0,
-        y_max_m: 6.0,
-        px_per_m: 50.0,
-        vehicle_m: [-2.5, 2.5, -1.0, 1.0],
-    }
-}
-
-fn images(rig: &Rig) -> Vec<(usize, usize, Vec<u8>)> {
-    rig.cameras
-        .iter()
-        .map(|c| {
-            let img = image::open(data().join(format!("{}.png", c.name)))
-                .unwrap()
-                .to_rgb8();
-            (img.width() as usize, img.height() as usize, img.into_raw())
-        })
-        .collect()
-}
+use rigview_core::surround::{BlendMode, Canvas, Composer, SurroundOptions, SurroundView};
+use surround_common::{data, images, spec};
 
 fn views(images: &[(usize, usize, Vec<u8>)]) -> Vec<FrameView<'_>> {
     images

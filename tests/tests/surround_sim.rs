@@ -5,13 +5,15 @@
 //! balancing leaves the overlaps closer in brightness than each camera
 //! controlled alone. Run with `--nocapture` for the figures.
 
+mod surround_common;
+
 use std::sync::Arc;
 
 use opencv::core::{self, Mat, Point2f, TermCriteria, Vector};
 use opencv::imgproc;
-use rigview_core::exposure::{ExposureSetting, FrameView, PixelFormat};
+use rigview_core::exposure::{FrameView, PixelFormat};
 use rigview_core::pipeline::{ProcessingSettings, Strategy};
-use rigview_core::sim::{FillRequest, SimConfig, SimRender};
+use rigview_core::sim::{SimConfig, SimRender};
 use rigview_core::surround::{
     BlendMode, Canvas, CanvasSpec, Composer, SurroundOptions, SurroundView,
 };
@@ -71,38 +73,12 @@ fn corner_offsets(canvas: &Canvas, truth: &[(f32, f32)]) -> Vec<f64> {
 #[test]
 fn the_mat_corners_land_within_a_canvas_pixel_of_their_true_positions() {
     let r = render("overcast", SCALE);
-    let spec = CanvasSpec {
-        x_min_m: -6.0,
-        x_max_m: 6.0,
-        y_min_m: -4.0,
-        y_max_m: 4.0,
-        px_per_m: 50.0,
-        vehicle_m: [-2.5, 2.5, -1.0, 1.0],
-    };
+    let spec = surround_common::sim_spec();
     let view = SurroundView::build(r.rig(), &spec, &SurroundOptions::default()).unwrap();
     // Noise-free frames at a mid exposure, so that the mat is neither black
     // nor saturated.
-    let buffers: Vec<Vec<u8>> = r
-        .cameras()
-        .iter()
-        .enumerate()
-        .map(|(k, c)| {
-            let mut req = FillRequest::new(
-                k,
-                0,
-                ExposureSetting {
-                    shutter_us: 4000.0,
-                    gain_db: 0.0,
-                },
-                PixelFormat::Mono8,
-                c.width,
-                c.height,
-            );
-            req.noise = false;
-            let mut buf = vec![0u8; req.buffer_len()];
-            r.fill(&req, &mut buf).unwrap();
-            buf
-        })
+    let buffers: Vec<Vec<u8>> = (0..r.cameras().len())
+        .map(|k| surround_common::still(&r, k, 4000.0))
         .collect();
     let frames: Vec<FrameView<'_>> = buffers
         .iter()

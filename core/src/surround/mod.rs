@@ -38,7 +38,10 @@
 //! fixed-point bilinear taps with the blend weights folded in (`remap/`):
 //! per frame, [`Composer::compose`] then writes each canvas pixel once,
 //! from one gathered bilinear sample where one camera shows it and from the
-//! sum of the cameras' samples in the overlaps.
+//! sum of the cameras' samples in the overlaps. Bayer frames are
+//! demosaiced inside that pass (bilinearly, at each sample), and
+//! [`Composer::compose_with_gains`] scales each camera's samples by a
+//! display gain before they are summed.
 //!
 //! It also derives the **ground masks** (the source pixels that reach the
 //! canvas: only these are metered) and the **overlap patches** (a grid of
@@ -257,6 +260,8 @@ impl Default for SurroundOptions {
 pub struct CameraLayer {
     /// The camera's index in the rig.
     pub camera: usize,
+    /// The camera's name in the rig.
+    pub name: String,
     /// The part of the canvas it contributes to: column, row, width, height.
     pub roi: [usize; 4],
     /// Source image size (width, height).
@@ -465,6 +470,7 @@ impl SurroundView {
             }
             layers.push(CameraLayer {
                 camera: k,
+                name: cam.name.clone(),
                 roi,
                 source: (
                     cam.intrinsics.width as usize,
@@ -575,7 +581,8 @@ impl SurroundView {
         &self.overlaps
     }
 
-    /// Checks that there is one frame per camera, of its calibrated size.
+    /// Checks that there is one frame per camera, of its calibrated size;
+    /// an error names the camera.
     pub fn check_frames(&self, frames: &[FrameView<'_>]) -> Result<()> {
         if frames.len() != self.layers.len() {
             return Err(Error::InvalidConfig(format!(
@@ -587,7 +594,16 @@ impl SurroundView {
         self.layers
             .iter()
             .zip(frames)
-            .try_for_each(|(layer, f)| layer.check_frame(f))
+            .enumerate()
+            .try_for_each(|(k, (layer, f))| {
+                layer.check_frame(f).map_err(|e| self.camera_error(k, e))
+            })
+    }
+
+    /// `cause`, about camera `k`, as an error that names the camera.
+    pub(crate) fn camera_error(&self, k: usize, cause: impl std::fmt::Display) -> Error {
+        let name = self.layers.get(k).map_or("?", |l| l.name.as_str());
+        Error::InvalidConfig(format!("surround view: camera {k} (\"{name}\"): {cause}"))
     }
 
     /// The patch means of every overlap in the current frames (rig order),
@@ -923,7 +939,7 @@ mod tests {
     /// A small four-fisheye rig like the benchmark's (185° equidistant
     /// lenses, 1 m high, past the four sides of a 4.6 m × 1.9 m car), with
     /// `w×h` images, and a 10 m × 10 m canvas at 10 px/m.
-    fn small_view(w: u32, h: u32) -> SurroundView {
+    pub(super) fn small_view(w: u32, h: u32) -> SurroundView {
         use rigview_calib::model::{Distortion, Intrinsics};
         use rigview_calib::pose::Pose;
         use rigview_calib::rig::{Camera, Frame};

@@ -3,8 +3,10 @@
 //! documentation of [`super`]).
 
 use std::fmt;
+use std::sync::OnceLock;
 
-use super::{Isa, ONE};
+use super::bayer::{self, Cfa};
+use super::{Isa, MAX_GAIN, MIN_GAIN, ONE};
 use crate::error::{Error, Result};
 
 /// Height of the tiles the canvas is walked in: the pixels of a tile come
@@ -46,12 +48,28 @@ pub(crate) struct Contribution {
     pub(crate) weight: f64,
 }
 
-/// An 8-bit image a plan reads: `width · height · channels` bytes, packed.
+/// An 8-bit image a plan reads, packed: `width · height` pixels of the
+/// canvas's channels, or of one byte each in a Bayer mosaic (`cfa`).
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Image<'a> {
     pub(crate) bytes: &'a [u8],
     pub(crate) width: usize,
     pub(crate) height: usize,
+    /// The mosaic's colour order, or `None` for pixels of the canvas's
+    /// channels.
+    pub(crate) cfa: Option<Cfa>,
+}
+
+impl Image<'_> {
+    /// Bytes a pixel on a canvas of `ch` channels.
+    #[inline(always)]
+    pub(crate) fn bytes_per_pixel(&self, ch: usize) -> usize {
+        if self.cfa.is_some() {
+            1
+        } else {
+            ch
+        }
+    }
 }
 
 /// The per-frame work of one view and blend mode: see the module docs.
@@ -80,6 +98,9 @@ pub(crate) struct Plan {
     /// Whether the invariant holds (always, unless a bug broke it): the
     /// gathering kernels run only then.
     pub(super) gather_ok: bool,
+    /// Per tap, its Bayer site ([`bayer::sites`]), built when a mosaic is
+    /// first composed.
+    sites: OnceLock<Vec<u8>>,
 }
 
 impl fmt::Debug for Plan {
@@ -302,10 +323,7 @@ impl Plan {
         self.runs.iter().all(|run| {
             let (len, n) = (run.len as usize, run.n as usize);
             let first = run.taps as usize;
-            let Some(cams) = self
-                .cameras
-                .get(run.cameras as usize..run.cameras as usize + n)
-            else {
+            let Some(cams) = self.run_cameras(run) else {
                 return false;
             };
             (run.start as usize + len) <= self.pixels
@@ -322,6 +340,24 @@ impl Plan {
         })
     }
 
+    /// The cameras of `run`.
+    #[inline]
+    pub(super) fn run_cameras(&self, run: &Run) -> Option<&[u32]> {
+        self.cameras
+            .get(run.cameras as usize..run.cameras as usize + run.n as usize)
+    }
+
+    /// Per camera, the source size (width, height).
+    pub(super) fn sources(&self) -> &[(usize, usize)] {
+        &self.sources
+    }
+
+    /// Per tap, its Bayer site code ([`bayer::sites`]; built on first
+    /// use).
+    pub(super) fn sites(&self) -> &[u8] {
+        self.sites.get_or_init(|| bayer::sites(self))
+    }
+
     /// Canvas pixels seen by one camera, by several, and taps in all.
     #[cfg(test)]
     pub(crate) fn counts(&self) -> (usize, usize, usize) {
@@ -335,10 +371,19 @@ impl Plan {
         (count(|n| n == 1), count(|n| n > 1), self.index.len())
     }
 
-    /// Composes `images` (one per source, `ch` channels: 1 or 3) into `out`
-    /// (the canvas, `pixels · ch` bytes): every byte is written.
-    pub(crate) fn execute(&self, images: &[Image<'_>], ch: usize, out: &mut [u8]) -> Result<()> {
-        self.execute_with(Isa::detect(), images, ch, out)
+    /// Composes `images` (one per source: `ch` channels, 1 or 3, or a
+    /// Bayer mosaic when `ch` is 3) into `out` (the canvas, `pixels · ch`
+    /// bytes), each camera's contribution scaled by its gain in `gains`
+    /// (per source, in 1/256, [`MIN_GAIN`] to [`MAX_GAIN`]) when given:
+    /// every byte is written.
+    pub(crate) fn execute(
+        &self,
+        images: &[Image<'_>],
+        ch: usize,
+        gains: Option<&[u16]>,
+        out: &mut [u8],
+    ) -> Result<()> {
+        self.execute_with(Isa::detect(), images, ch, gains, out)
     }
 
     /// [`Plan::execute`] with the kernels of `isa`, or of the widest set
@@ -348,6 +393,7 @@ impl Plan {
         isa: Isa,
         images: &[Image<'_>],
         ch: usize,
+        gains: Option<&[u16]>,
         out: &mut [u8],
     ) -> Result<()> {
         if ch != 1 && ch != 3 {
@@ -365,13 +411,36 @@ impl Plan {
             )));
         }
         for (img, &(w, h)) in images.iter().zip(&self.sources) {
-            if (img.width, img.height) != (w, h) || img.bytes.len() < w * h * ch {
+            if (img.width, img.height) != (w, h)
+                || img.bytes.len() < w * h * img.bytes_per_pixel(ch)
+            {
                 return Err(Error::SizeMismatch {
                     what: "image against the surround view's camera",
                     expected_width: w,
                     expected_height: h,
                     width: img.width,
                     height: img.height,
+                });
+            }
+            if img.cfa.is_some() && ch != 3 {
+                return Err(Error::InvalidConfig(
+                    "surround view: a Bayer mosaic composes into an RGB canvas (3 channels)".into(),
+                ));
+            }
+        }
+        if let Some(g) = gains {
+            if g.len() != self.sources.len() {
+                return Err(Error::InvalidConfig(format!(
+                    "surround view: {} gains for a plan of {} cameras",
+                    g.len(),
+                    self.sources.len()
+                )));
+            }
+            if let Some(&bad) = g.iter().find(|&&g| !(MIN_GAIN..=MAX_GAIN).contains(&g)) {
+                return Err(Error::InvalidParameter {
+                    name: "surround gain (1/256)",
+                    value: f64::from(bad),
+                    expected: "16 to 4096 (a gain of 1/16 to 16)",
                 });
             }
         }
@@ -383,28 +452,104 @@ impl Plan {
                 detail: format!("{} pixels of {ch} channels", self.pixels),
             });
         }
-        super::run(isa, self, images, ch, out);
+        let sites = if images.iter().any(|i| i.cfa.is_some()) {
+            self.sites()
+        } else {
+            &[]
+        };
+        let job = Job {
+            plan: self,
+            images,
+            ch,
+            gains: gains.unwrap_or_default(),
+            sites,
+        };
+        super::run(isa, job, gains.is_some(), out);
         Ok(())
     }
 
-    /// Run `run`'s part of the canvas `out` (`ch` channels), its tap indices
-    /// and weights (camera by camera) and its cameras.
-    #[allow(clippy::type_complexity)]
+    /// Run `run`'s part of the canvas `out` (`job.ch` channels) and its
+    /// taps.
     #[inline]
-    pub(super) fn parts<'o>(
-        &self,
+    pub(super) fn parts<'o, 'p>(
+        &'p self,
         run: &Run,
-        ch: usize,
+        job: &Job<'p>,
         out: &'o mut [u8],
-    ) -> Option<(&'o mut [u8], &[u32], &[u64], &[u32])> {
+    ) -> Option<(&'o mut [u8], Taps<'p>)> {
+        let (ch, images, sites) = (job.ch, job.images, job.sites);
         let (start, len, n) = (run.start as usize, run.len as usize, run.n as usize);
         let first = run.taps as usize;
+        let cams = self.run_cameras(run)?;
+        let mosaics = if sites.is_empty() {
+            0
+        } else {
+            cams.iter()
+                .filter(|&&c| images.get(c as usize).is_some_and(|i| i.cfa.is_some()))
+                .count()
+        };
         Some((
             out.get_mut(start * ch..(start + len) * ch)?,
-            self.index.get(first..first + len * n)?,
-            self.weights.get(first..first + len * n)?,
-            self.cameras
-                .get(run.cameras as usize..run.cameras as usize + n)?,
+            Taps {
+                cams,
+                index: self.index.get(first..first + len * n)?,
+                weights: self.weights.get(first..first + len * n)?,
+                sites: if mosaics == 0 {
+                    &[]
+                } else {
+                    sites.get(first..first + len * n)?
+                },
+                len,
+                mosaics,
+            },
         ))
+    }
+}
+
+/// What one execution of a plan reads (checked by
+/// [`Plan::execute_with`]).
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Job<'a> {
+    pub(super) plan: &'a Plan,
+    /// One image per camera of the plan.
+    pub(super) images: &'a [Image<'a>],
+    /// The canvas's channels.
+    pub(super) ch: usize,
+    /// Per camera, the gain in 1/256; empty without gains.
+    pub(super) gains: &'a [u16],
+    /// The plan's Bayer site table, or empty when no image is a mosaic.
+    pub(super) sites: &'a [u8],
+}
+
+/// The taps of one run, camera by camera: pixel `p` of the run takes from
+/// its `j`-th camera the tap `j·len + p`.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Taps<'p> {
+    /// The run's cameras.
+    pub(super) cams: &'p [u32],
+    /// Per tap, the top-left source pixel.
+    pub(super) index: &'p [u32],
+    /// Per tap, the four weights.
+    pub(super) weights: &'p [u64],
+    /// Per tap, its Bayer site; empty when no camera of the run is a
+    /// mosaic.
+    pub(super) sites: &'p [u8],
+    /// Pixels in the run.
+    pub(super) len: usize,
+    /// How many of the run's cameras are Bayer mosaics.
+    pub(super) mosaics: usize,
+}
+
+impl Taps<'_> {
+    /// Camera `j`'s tap for pixel `p`: index, weights and Bayer site
+    /// ([`bayer::BORDER`] where there is none, which reads safely).
+    #[inline(always)]
+    pub(super) fn tap(&self, j: usize, p: usize) -> (u32, u64, u8) {
+        let t = j * self.len + p;
+        (
+            self.index[t],
+            self.weights[t],
+            self.sites.get(t).copied().unwrap_or(bayer::BORDER),
+        )
     }
 }

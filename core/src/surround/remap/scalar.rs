@@ -2,7 +2,8 @@
 //! BMI2's `pdep`/`pext` for the RGB lanes (see the module documentation of
 //! [`super`]).
 
-use super::{prefetch_run, Image, Plan, AHEAD, ONE, SHIFT};
+use super::plan::{Job, Taps};
+use super::{bayer, prefetch_run, Image, AHEAD, GAIN_SHIFT, ONE, SHIFT, UNIT_GAIN};
 
 /// Per-lane rounding of an RGB sum (three 21-bit lanes).
 const ROUND_RGB: u64 = (ONE as u64 / 2) * (1 | 1 << 21 | 1 << 42);
@@ -11,6 +12,23 @@ const ROUND_RGB: u64 = (ONE as u64 / 2) * (1 | 1 << 21 | 1 << 42);
 const SPREAD_MASK: u64 = 0xff | 0xff << 21 | 0xff << 42;
 /// Rounding of a mono sum.
 const HALF: u32 = ONE / 2;
+/// A lane of [`ROUND_RGB`] (21 bits).
+const LANE: u64 = (1 << 21) - 1;
+/// Rounding of a Bayer sum (scale 4·4096).
+const HALF_BAYER: u64 = 2 * ONE as u64;
+
+/// The byte of a gained sum `Σ G·s` (scale 256·4096): rounded, and
+/// saturated at white.
+#[inline(always)]
+fn gained(acc: u64) -> u8 {
+    ((acc + (1 << (GAIN_SHIFT - 1))) >> GAIN_SHIFT).min(255) as u8
+}
+
+/// Camera `k`'s gain in 1/256 (1 when there are none).
+#[inline(always)]
+fn gain(gains: &[u16], k: u32) -> u64 {
+    u64::from(gains.get(k as usize).copied().unwrap_or(UNIT_GAIN))
+}
 
 /// The three bytes of a pixel spread to the 21-bit lanes.
 #[inline(always)]
@@ -93,52 +111,90 @@ macro_rules! scalar_kernels {
                 + $spread(bottom >> 24) * (w >> 48)
         }
 
-        /// Pixels `p0..p1` of a run of `len` pixels (taps camera by
-        /// camera) into `dst`, the run's part of the canvas.
+        /// Pixels `p0..p1` of a run (`taps`) of `job` into `dst`, the run's
+        /// part of the canvas, the cameras' contributions scaled by their
+        /// gains when `GAIN`.
         $(#[$attr])*
-        #[allow(clippy::too_many_arguments)]
-        pub(super) fn $pixels(
-            images: &[Image<'_>],
-            cams: &[u32],
-            index: &[u32],
-            weights: &[u64],
-            len: usize,
-            ch: usize,
+        pub(super) fn $pixels<const GAIN: bool>(
+            job: &Job<'_>,
+            taps: &Taps<'_>,
             (p0, p1): (usize, usize),
             dst: &mut [u8],
         ) {
-            let tap = |j: usize, p: usize| (index[j * len + p], weights[j * len + p]);
+            let (images, gains, ch, cams) = (job.images, job.gains, job.ch, taps.cams);
             if ch == 1 {
                 for p in p0..p1 {
-                    let mut sum = HALF;
+                    let (mut sum, mut acc) = (HALF, 0u64);
                     for (j, &k) in cams.iter().enumerate() {
                         if let Some(img) = images.get(k as usize) {
-                            let (i, w) = tap(j, p);
-                            sum += mono(img, i, w);
+                            let (i, w, _) = taps.tap(j, p);
+                            if GAIN {
+                                acc += u64::from(mono(img, i, w)) * gain(gains, k);
+                            } else {
+                                sum += mono(img, i, w);
+                            }
                         }
                     }
-                    dst[p] = (sum >> SHIFT) as u8;
+                    dst[p] = if GAIN { gained(acc) } else { (sum >> SHIFT) as u8 };
                 }
-            } else {
+            } else if !GAIN && taps.mosaics == 0 {
                 for p in p0..p1 {
                     let mut sum = 0;
                     for (j, &k) in cams.iter().enumerate() {
                         if let Some(img) = images.get(k as usize) {
-                            let (i, w) = tap(j, p);
+                            let (i, w, _) = taps.tap(j, p);
                             sum += $rgb(img, i, w);
                         }
                     }
                     store3(&mut dst[3 * p..3 * p + 3], $pick(sum));
                 }
+            } else {
+                // Channel by channel, at the Bayer scale (4·4096) or the
+                // gained one (256·4096).
+                for p in p0..p1 {
+                    let mut acc = [0u64; 3];
+                    for (j, &k) in cams.iter().enumerate() {
+                        let Some(img) = images.get(k as usize) else {
+                            continue;
+                        };
+                        let (i, w, site) = taps.tap(j, p);
+                        let s = match img.cfa {
+                            Some(cfa) => bayer::sample(
+                                img.bytes, img.width, img.height, cfa, i, w, site,
+                            ),
+                            None => {
+                                let l = $rgb(img, i, w);
+                                [l & LANE, l >> 21 & LANE, l >> 42].map(|v| 4 * v as u32)
+                            }
+                        };
+                        for (a, s) in acc.iter_mut().zip(s) {
+                            *a += if GAIN {
+                                u64::from(s >> 2) * gain(gains, k)
+                            } else {
+                                u64::from(s)
+                            };
+                        }
+                    }
+                    let px = acc.map(|a| {
+                        if GAIN {
+                            gained(a)
+                        } else {
+                            ((a + HALF_BAYER) >> (SHIFT + 2)) as u8
+                        }
+                    });
+                    dst[3 * p..3 * p + 3].copy_from_slice(&px);
+                }
             }
         }
 
+        /// Runs the whole plan of `job` (see [`super::run`]).
         $(#[$attr])*
-        pub(super) fn $name(plan: &Plan, images: &[Image<'_>], ch: usize, out: &mut [u8]) {
+        pub(super) fn $name<const GAIN: bool>(job: Job<'_>, out: &mut [u8]) {
+            let (plan, images, gains, ch) = (job.plan, job.images, job.gains, job.ch);
             let ahead = AHEAD;
             for (r, run) in plan.runs.iter().enumerate() {
-                prefetch_run(plan, plan.runs.get(r + ahead), images, ch);
-                let Some((dst, index, weights, cams)) = plan.parts(run, ch, out) else {
+                prefetch_run(&job, plan.runs.get(r + ahead));
+                let Some((dst, taps)) = plan.parts(run, &job, out) else {
                     continue;
                 };
                 if run.n == 0 {
@@ -146,22 +202,30 @@ macro_rules! scalar_kernels {
                     continue;
                 }
                 let len = run.len as usize;
-                match (ch, cams) {
+                let (index, weights) = (taps.index, taps.weights);
+                match (ch, taps.cams) {
                     // One camera: the common case, without the loop
                     // over cameras.
                     (1, &[k]) => {
                         let Some(img) = images.get(k as usize) else { continue };
-                        for ((d, &i), &w) in dst.iter_mut().zip(index).zip(weights) {
-                            *d = ((mono(img, i, w) + HALF) >> SHIFT) as u8;
+                        if GAIN {
+                            let g = gain(gains, k);
+                            for ((d, &i), &w) in dst.iter_mut().zip(index).zip(weights) {
+                                *d = gained(u64::from(mono(img, i, w)) * g);
+                            }
+                        } else {
+                            for ((d, &i), &w) in dst.iter_mut().zip(index).zip(weights) {
+                                *d = ((mono(img, i, w) + HALF) >> SHIFT) as u8;
+                            }
                         }
                     }
-                    (3, &[k]) => {
+                    (3, &[k]) if !GAIN && taps.mosaics == 0 => {
                         let Some(img) = images.get(k as usize) else { continue };
                         for ((d, &i), &w) in dst.chunks_exact_mut(3).zip(index).zip(weights) {
                             store3(d, $pick($rgb(img, i, w)));
                         }
                     }
-                    _ => $pixels(images, cams, index, weights, len, ch, (0, len), dst),
+                    _ => $pixels::<GAIN>(&job, &taps, (0, len), dst),
                 }
             }
         }
