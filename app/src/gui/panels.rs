@@ -527,10 +527,12 @@ pub(super) fn central(app: &mut RigviewApp, ui: &mut Ui) {
     egui::CentralPanel::default_margins().show(ui, |ui| match app.settings.window.view {
         ViewMode::Surround => {
             let Some(t) = &app.canvas_tex else {
-                let msg = if app.latest.is_some() {
-                    "no surround view: open a calibration whose poses are in the vehicle frame (File, Open calibration)"
-                } else {
-                    "waiting for the first frame set…"
+                let msg = match &app.latest {
+                    Some(out) => match &out.compose_error {
+                        Some(e) => format!("no surround view: {e}"),
+                        None => "no surround view: open a calibration whose poses are in the vehicle frame (File, Open calibration)".to_owned(),
+                    },
+                    None => "waiting for the first frame set…".to_owned(),
                 };
                 ui.centered_and_justified(|ui| ui.label(msg));
                 return;

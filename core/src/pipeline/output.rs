@@ -132,8 +132,11 @@ pub struct Output {
     pub cameras: Vec<CameraOutput>,
     /// Per overlap.
     pub pairs: Vec<PairOutput>,
-    /// The composed view (`None`: no calibration, or composition is off).
+    /// The composed view (`None`: no calibration, composition is off, or
+    /// it failed: see `compose_error`).
     pub canvas: Option<Arc<Canvas>>,
+    /// Why the view could not be composed from this set, if it could not.
+    pub compose_error: Option<String>,
     /// The overlap patches to draw over the cameras.
     pub overlay: Arc<Overlay>,
     /// Stage times.

@@ -363,6 +363,7 @@ impl Processor {
             cameras,
             pairs,
             canvas,
+            compose_error: self.compose_error.clone(),
             overlay: self.overlay.clone(),
             times,
             settings: self.shared_settings.clone(),
