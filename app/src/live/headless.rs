@@ -137,17 +137,25 @@ pub fn run(
     let mut next_print = Instant::now() + Duration::from_secs(1);
     let mut last = None;
     let mut status_log = StatusLog::default();
-    loop {
+    // The newest output, the status, and the new messages from the cameras
+    // and new problems, printed as they come.
+    let mut poll = |pipeline: &mut rigview_core::pipeline::Pipeline,
+                    last: &mut Option<Arc<Output>>,
+                    out: &mut dyn Write|
+     -> Result<PipelineStatus> {
         if let Some(o) = pipeline.latest() {
-            last = Some(o);
+            *last = Some(o);
         }
         let status = pipeline.status();
-        // New messages from the cameras and new problems, as they come.
         status_log.forward(&status);
         let at = t0.elapsed().as_secs_f64();
         for e in log.read(&mut seen) {
             writeln!(out, "  [{at:7.1} s] {}", e.line())?;
         }
+        Ok(status)
+    };
+    loop {
+        let status = poll(pipeline, &mut last, out)?;
         if status.stopped || limit.is_some_and(|l| t0.elapsed() >= l) {
             break;
         }
@@ -159,15 +167,7 @@ pub fn run(
         std::thread::sleep(Duration::from_millis(20));
     }
     pipeline.stop();
-    if let Some(o) = pipeline.latest() {
-        last = Some(o);
-    }
-    let status = pipeline.status();
-    status_log.forward(&status);
-    let at = t0.elapsed().as_secs_f64();
-    for e in log.read(&mut seen) {
-        writeln!(out, "  [{at:7.1} s] {}", e.line())?;
-    }
+    let status = poll(pipeline, &mut last, out)?;
     write!(
         out,
         "{}",

@@ -876,6 +876,9 @@ impl Estimator {
         let Some(bound) = estimate.at_bound.filter(|_| !estimate.flat) else {
             return Ok(());
         };
+        if self.config.simulation == Simulation::ScaleClip && bound == Bound::Lower {
+            return Ok(());
+        }
         let (Some(&lo), Some(&hi)) = (self.anchors.first(), self.anchors.last()) else {
             return Ok(());
         };
@@ -883,9 +886,6 @@ impl Estimator {
             Bound::Lower => lo,
             Bound::Upper => hi,
         };
-        if self.config.simulation == Simulation::ScaleClip && bound == Bound::Lower {
-            return Ok(());
-        }
         let e = end as f32;
         let mapped = match self.config.simulation {
             Simulation::Gamma => map_luma(image, |v| v.powf(e))?,

@@ -53,7 +53,6 @@ pub struct Processor {
     composer: Composer,
     last_taken: Vec<Option<ExposureSetting>>,
     compose: bool,
-    compose_error: Option<String>,
 }
 
 impl Processor {
@@ -86,7 +85,6 @@ impl Processor {
             composer: Composer::new(),
             last_taken: vec![None; n],
             compose: true,
-            compose_error: None,
             cameras,
             shared_settings: Arc::new(settings.clone()),
             settings,
@@ -230,7 +228,6 @@ impl Processor {
         self.controller = controller;
         self.overlay = Arc::new(Overlay::of(view.as_ref(), self.cameras.len()));
         self.view = view;
-        self.compose_error = None;
         self.update_masks();
         Ok(())
     }
@@ -301,10 +298,8 @@ impl Processor {
                 },
                 manual,
                 last_probe,
+                cs.is_some_and(|c| c.probe_frame),
             ));
-            if let (Some(out), Some(c)) = (cameras.last_mut(), cs) {
-                out.probe_frame = c.probe_frame;
-            }
         }
         let pairs: Vec<PairOutput> = self
             .overlay
@@ -323,6 +318,7 @@ impl Processor {
             })
             .collect();
         let t2 = Instant::now();
+        let mut compose_error = None;
         let canvas = match (&self.view, self.compose) {
             (Some(view), true) => {
                 let channels = if views
@@ -339,12 +335,9 @@ impl Processor {
                     .composer
                     .compose(view, &views, self.settings.blend, &mut canvas)
                 {
-                    Ok(()) => {
-                        self.compose_error = None;
-                        Some(Arc::new(canvas))
-                    }
+                    Ok(()) => Some(Arc::new(canvas)),
                     Err(e) => {
-                        self.compose_error = Some(e.to_string());
+                        compose_error = Some(e.to_string());
                         None
                     }
                 }
@@ -363,18 +356,13 @@ impl Processor {
             cameras,
             pairs,
             canvas,
-            compose_error: self.compose_error.clone(),
+            compose_error,
             overlay: self.overlay.clone(),
             times,
             settings: self.shared_settings.clone(),
             step,
         };
         Ok((output, commands))
-    }
-
-    /// Why the last composition failed, if it did.
-    pub fn compose_error(&self) -> Option<&str> {
-        self.compose_error.as_deref()
     }
 }
 
@@ -385,6 +373,7 @@ fn camera_output(
     command: Option<ExposureSetting>,
     manual: Option<f64>,
     last_probe: Option<ProbeEvent>,
+    probe_frame: bool,
 ) -> CameraOutput {
     let thumb = m
         .luma()
@@ -406,7 +395,7 @@ fn camera_output(
         command,
         manual,
         last_probe,
-        probe_frame: false,
+        probe_frame,
     }
 }
 

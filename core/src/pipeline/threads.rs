@@ -506,7 +506,7 @@ impl ProcessingLoop<'_> {
                 if !commands.is_empty() {
                     let _ = self.capture.send(CaptureMsg::Commands(commands));
                 }
-                if let Some(e) = self.processor.compose_error() {
+                if let Some(e) = &output.compose_error {
                     self.error(format!("the view cannot be composed: {e}"));
                 }
                 let dropped = self.captured.stats().dropped;
