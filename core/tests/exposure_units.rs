@@ -10,7 +10,7 @@
 
 use rigview_core::exposure::balance::{self, NeighbourGraph, PatchPair};
 use rigview_core::exposure::baselines::{MeanIntensityParams, PidParams, PidState};
-use rigview_core::exposure::estimator::{fit, fit_in, AnchorScore, FitVariable};
+use rigview_core::exposure::estimator::{fit, fit_in, AnchorScore, FitVariable, Polynomial};
 use rigview_core::exposure::laws::{linear_ratio, nonlinear_r, nonlinear_ratio};
 use rigview_core::exposure::metering::SATURATED_LEVEL;
 use rigview_core::exposure::split::{Clamped, ExposureRange, SplitParams, Splitter};
@@ -95,6 +95,57 @@ fn polynomial_fit_recovers_a_known_maximum_and_checks_the_ends() {
     let c = p.sample(64);
     assert_eq!(c.len(), 64);
     assert!((c[0][0] - 1.0 / 1.9).abs() < 1e-12 && (c[63][0] - 1.9).abs() < 1e-12);
+}
+
+/// Two humps of nearly equal height: the plain maximiser jumps from one to
+/// the other as their heights cross; `argmax_within` moves between them
+/// continuously when they lie within its reach, and is the plain maximiser
+/// with one clear maximum or humps beyond its reach.
+#[test]
+fn maxima_on_a_plateau_are_blended_continuously() {
+    // Humps at ln x = ±0.4 (x = 0.67 and 1.49), the right one `h` higher.
+    let curve = |h: f64| -> Polynomial {
+        let anchors: Vec<AnchorScore> = (0..15)
+            .map(|k| {
+                let u = -0.64 + 0.08 * f64::from(k);
+                let m = 10.0 - (u * u - 0.16).powi(2) * 100.0 + h * u / 0.8;
+                AnchorScore { x: u.exp(), m }
+            })
+            .collect();
+        fit_in(&anchors, 4, FitVariable::Log).unwrap()
+    };
+    let spread = 10.0;
+    let tol = 0.02 * spread;
+    let mut last: Option<f64> = None;
+    let mut largest_jump: f64 = 0.0;
+    for k in -40..=40 {
+        let h = 0.01 * f64::from(k);
+        let x = curve(h).argmax_within(tol, 1.0).ln();
+        if let Some(l) = last {
+            largest_jump = largest_jump.max((x - l).abs());
+        }
+        last = Some(x);
+    }
+    assert!(
+        largest_jump < 0.1,
+        "blended maximiser jumped {largest_jump}"
+    );
+    // The plain one jumps from one hump to the other.
+    let (a, b) = (curve(-0.05).argmax().ln(), curve(0.05).argmax().ln());
+    assert!(a < -0.3 && b > 0.3, "{a} {b}");
+    // Equal humps: midway.
+    let mid = curve(0.0).argmax_within(tol, 1.0).ln();
+    assert!(mid.abs() < 0.05, "{mid}");
+    // One hump clearly higher: the plain maximiser.
+    let p = curve(0.4);
+    assert!((p.argmax_within(tol, 1.0) - p.argmax()).abs() < 1e-12);
+    assert_eq!(p.argmax_within(0.0, 2.0), p.argmax());
+    // Humps farther apart than the reach (0.8 in ln x here) are distinct
+    // optima: the higher alone, as the plain maximiser.
+    for h in [-0.05, 0.05] {
+        let p = curve(h);
+        assert_eq!(p.argmax_within(tol, 0.5), p.argmax(), "h = {h}");
+    }
 }
 
 #[test]

@@ -463,13 +463,13 @@ fn balancing_adds_no_cycle_in_the_default_mode() {
 }
 
 /// [`check_balancing_adds_no_cycle`] at full resolution. There the front
-/// camera's γ̂ jumps to the end of the anchors (1.53 → 1.90) as its
-/// exposure crosses 2^10.04, and the balanced target with it: the camera
-/// climbed in steps of 0.03–0.13 EV for four sets and dropped 0.30 EV on
-/// the fifth, over and over, while the damping doubled `κ` back on every
-/// step that kept its direction. It now waits for 0.5 EV of travel since
-/// the last reversal (`DampingParams::recover_ev`), and the camera settles
-/// at the jump.
+/// camera's M curve has two humps of nearly equal height (γ ≈ 1.53 and the
+/// anchors' end, 1.90); γ̂ used to jump between them as its exposure
+/// crossed 2^10.04, and the balanced target with it, so that the camera
+/// crept up and dropped 0.1 EV about once a second. The estimator now
+/// takes such a plateau's weighted middle (`EstimatorConfig::plateau`),
+/// which moves continuously (`tests/realtime_loop.rs` checks the same in
+/// the app's threaded pipeline).
 #[test]
 fn balancing_adds_no_cycle_in_the_default_mode_at_full_resolution() {
     check_balancing_adds_no_cycle(Res::Full);

@@ -69,6 +69,7 @@ impl DemoArgs {
             simulation: self.simulation,
             meter: self.meter,
             blend: None,
+            probe: None,
         }
         .apply(&mut s);
         s

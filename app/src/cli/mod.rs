@@ -13,7 +13,7 @@ use std::time::Duration;
 
 use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
-use rigview_core::exposure::{LawKind, Simulation};
+use rigview_core::exposure::{LawKind, ProbeParams, Simulation};
 use rigview_core::pipeline::{MeterRoi, PipelineOptions, ProcessingSettings, Strategy};
 use rigview_core::surround::BlendMode;
 
@@ -149,6 +149,19 @@ pub struct ProcessingArgs {
     /// choice).
     #[arg(long, value_enum)]
     pub blend: Option<BlendMode>,
+    /// Darker probes of a camera under its own law (overrides the saved
+    /// choice; `off` for measuring the law alone).
+    #[arg(long, value_enum, value_name = "ON|OFF")]
+    pub probe: Option<Switch>,
+}
+
+/// A setting switched on or off on the command line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Switch {
+    /// On.
+    On,
+    /// Off.
+    Off,
 }
 
 impl ProcessingArgs {
@@ -168,6 +181,13 @@ impl ProcessingArgs {
         }
         if let Some(b) = self.blend {
             p.blend = b;
+        }
+        match self.probe {
+            Some(Switch::Off) => p.controller.probe = None,
+            Some(Switch::On) => {
+                p.controller.probe.get_or_insert_with(ProbeParams::default);
+            }
+            None => {}
         }
     }
 }

@@ -193,4 +193,20 @@ mod tests {
         let e = run_args(&["--source", "live"]).source(true).unwrap_err();
         assert!(e.to_string().contains("--rig FILE or --fake"), "{e}");
     }
+
+    #[test]
+    fn probes_are_switched_on_the_command_line() {
+        use rigview_core::exposure::ProbeParams;
+        use rigview_core::pipeline::ProcessingSettings;
+        let mut p = ProcessingSettings::default();
+        assert!(p.controller.probe.is_some());
+        run_args(&["--probe", "off"]).processing.apply(&mut p);
+        assert_eq!(p.controller.probe, None);
+        run_args(&[]).processing.apply(&mut p);
+        assert_eq!(p.controller.probe, None, "no option keeps the saved choice");
+        run_args(&["--probe", "on"]).processing.apply(&mut p);
+        assert_eq!(p.controller.probe, Some(ProbeParams::default()));
+        let bad = ["rigview", "run", "--probe", "maybe"];
+        assert!(Cli::try_parse_from(bad).is_err());
+    }
 }

@@ -29,11 +29,14 @@
 //!   and never falls with it: a frame taken at `k` times an end's
 //!   exposure whose mean lies below `min(1, k)` or above `max(1, k)` times
 //!   that end's, by more than `light_tolerance`, contradicts it;
-//! - a frame at or beyond an end that still asks to go past it removes
-//!   that end;
+//! - a frame beyond an end by more than `narrow_ev` that still asks to go
+//!   past it removes that end (at the end itself, an estimate that jumps
+//!   there asks either way from frame to frame, and the ends close in);
 //! - when the ends are closer than `narrow_ev` and `narrow_frames`
 //!   frames in a row ask for the same direction, the end in that direction
-//!   goes (the light drifted past it);
+//!   opens by `narrow_ev`, twice as far with every second further frame
+//!   (the light drifts past it: the camera follows at once, while a run of
+//!   noise at a jump costs one small step);
 //! - ends older than `max_age_frames` go.
 //!
 //! # The secant slope
@@ -63,8 +66,8 @@ pub struct BracketParams {
     /// Law steps smaller than this (|log2|, EV) say nothing about the
     /// direction.
     pub dead_band_ev: f64,
-    /// Ends closer than this (EV) are dropped after `narrow_frames` frames
-    /// asking the same way.
+    /// Ends closer than this (EV) open after `narrow_frames` frames asking
+    /// the same way; a frame past an end by more than this removes it.
     pub narrow_ev: f64,
     /// See `narrow_ev`.
     pub narrow_frames: u32,
@@ -198,15 +201,20 @@ impl Bracket {
             (dir, 1)
         };
         let end = End { at, mean, frame };
+        // Only a frame clearly past an end (by more than `narrow_ev`)
+        // shows that end stale; at the end itself an estimate that jumps
+        // there may ask either way from frame to frame (noise), and the
+        // ends close in on the jump.
+        let past = params.narrow_ev;
         if dir > 0 {
-            if self.hi.is_some_and(|h| at >= h.at) {
+            if self.hi.is_some_and(|h| at >= h.at + past) {
                 self.hi = None;
             }
             if self.lo.is_none_or(|l| at >= l.at) {
                 self.lo = Some(end);
             }
         } else {
-            if self.lo.is_some_and(|l| at <= l.at) {
+            if self.lo.is_some_and(|l| at <= l.at - past) {
                 self.lo = None;
             }
             if self.hi.is_none_or(|h| at <= h.at) {
@@ -215,10 +223,24 @@ impl Bracket {
         }
         if let (Some(l), Some(h)) = (self.lo, self.hi) {
             if h.at - l.at < params.narrow_ev && self.run.1 >= params.narrow_frames {
+                // The light drifts past a narrow bracket: the end in the
+                // run's direction opens by `narrow_ev`, doubling with every
+                // second further frame of the run (a camera with a frame of
+                // latency shows each exposure twice), so that the camera
+                // follows a drift at once and a noisy jump costs one small
+                // step.
+                let extra = self.run.1 - params.narrow_frames;
+                let open = params.narrow_ev * f64::from(1u32 << (extra / 2).min(6));
                 if dir > 0 {
-                    self.hi = None;
+                    self.hi = Some(End {
+                        at: l.at.max(h.at) + open,
+                        ..end
+                    });
                 } else {
-                    self.lo = None;
+                    self.lo = Some(End {
+                        at: h.at.min(l.at) - open,
+                        ..end
+                    });
                 }
             }
         }
@@ -309,25 +331,36 @@ mod tests {
         best - at
     }
 
-    #[test]
-    fn a_law_that_overshoots_both_ways_is_bisected_to_its_jump() {
-        // An estimate that jumps at 10 EV: below, "1.5 EV brighter"; above,
-        // "0.75 EV darker"; taken literally the camera circles.
+    /// A camera from 9 EV under the bracket for `frames` frames, whose law
+    /// asks for `law(at)` EV; the exposures it goes to.
+    fn follow(b: &mut Bracket, frames: usize, mut law: impl FnMut(f64) -> f64) -> Vec<f64> {
         let p = BracketParams::default();
-        let mut b = Bracket::default();
         let mut at = 9.0;
         let mut trace = Vec::new();
-        for _ in 0..30 {
-            let step = if at < 10.0 { 1.5 } else { -0.75 };
+        for _ in 0..frames {
+            let step = law(at);
             // Brighter frames have a brighter mean: the same scene.
             b.observe(&p, at, at / 20.0, step);
             at = b.clamp(at + step);
             trace.push(at);
         }
-        let tail = &trace[20..];
-        let (lo, hi) = tail
-            .iter()
-            .fold((f64::MAX, f64::MIN), |(a, c), &v| (a.min(v), c.max(v)));
+        trace
+    }
+
+    /// The smallest and largest of `v`.
+    fn span(v: &[f64]) -> (f64, f64) {
+        v.iter()
+            .fold((f64::MAX, f64::MIN), |(a, c), &x| (a.min(x), c.max(x)))
+    }
+
+    #[test]
+    fn a_law_that_overshoots_both_ways_is_bisected_to_its_jump() {
+        // An estimate that jumps at 10 EV: below, "1.5 EV brighter"; above,
+        // "0.75 EV darker"; taken literally the camera circles.
+        let mut b = Bracket::default();
+        // Brighter frames have a brighter mean: the same scene.
+        let trace = follow(&mut b, 30, |at| if at < 10.0 { 1.5 } else { -0.75 });
+        let (lo, hi) = span(&trace[20..]);
         assert!(hi - lo < 0.05, "still circling: {trace:?}");
         assert!((lo - 10.0).abs() < 0.05, "{trace:?}");
     }
@@ -348,18 +381,49 @@ mod tests {
     }
 
     #[test]
-    fn a_drift_past_a_narrow_end_releases_it() {
+    fn a_drift_past_a_narrow_end_opens_it_ever_wider() {
         let p = BracketParams::default();
         let mut b = Bracket::default();
         b.observe(&p, 9.00, 0.40, 0.1);
         b.observe(&p, 9.02, 0.41, -0.1);
-        let mut released = false;
-        for k in 0..p.narrow_frames + 1 {
-            // The light fades slowly: every frame asks for more.
-            b.observe(&p, 9.01, 0.40 - 0.001 * f64::from(k), 0.1);
-            released |= b.ends().1.is_none();
+        let mut at = 9.01;
+        let mut trace = Vec::new();
+        for k in 0..10 {
+            // The light fades slowly: every frame asks for 0.3 EV more.
+            b.observe(&p, at, 0.40 - 0.001 * f64::from(k), 0.3);
+            at = b.clamp(at + 0.3);
+            trace.push(at);
         }
-        assert!(released, "{:?}", b.ends());
+        // Held for the first frames of the run, then following ever faster.
+        assert!(trace[0] < 9.03, "{trace:?}");
+        let steps: Vec<f64> = trace.windows(2).map(|w| w[1] - w[0]).collect();
+        assert!(steps.iter().all(|&s| s >= 0.0), "{trace:?}");
+        assert!(trace[9] > 9.3, "{trace:?}");
+    }
+
+    #[test]
+    fn noise_at_a_jump_holds_the_camera_at_the_jump() {
+        // At 10 EV the estimate says "brighter" or "darker" at random
+        // (noise); away from it, it is clear.
+        let mut b = Bracket::default();
+        let mut state = 12345u32;
+        let trace = follow(&mut b, 200, |at| {
+            state = state.wrapping_mul(1_103_515_245).wrapping_add(12345);
+            let coin = (state >> 16) & 1 == 1;
+            if at < 9.98 || (at <= 10.02 && coin) {
+                0.3
+            } else {
+                -0.3
+            }
+        });
+        let tail = &trace[50..];
+        let (lo, hi) = span(tail);
+        // The law's own steps (±0.3 EV) would circle 0.6 EV wide.
+        assert!(hi - lo <= 0.15, "circling {lo:.3}–{hi:.3}: {tail:.3?}");
+        assert!(
+            (lo - 10.0).abs() < 0.08 && (hi - 10.0).abs() < 0.08,
+            "{tail:.3?}"
+        );
     }
 
     #[test]

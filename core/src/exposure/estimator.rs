@@ -99,7 +99,7 @@ use super::kernel::{self, Source};
 use super::metering::{Metered, SATURATED_LEVEL};
 use super::metric::{GradientMetric, MetricParams, Scratch};
 use crate::cpu::Isa;
-use crate::error::{Error, Result};
+use crate::error::{check_range, Error, Result};
 
 /// The paper's seven anchors.
 pub const DEFAULT_ANCHORS: [f64; 7] = [1.0 / 1.9, 1.0 / 1.5, 1.0 / 1.2, 1.0, 1.2, 1.5, 1.9];
@@ -181,7 +181,22 @@ pub struct EstimatorConfig {
     pub degree: usize,
     /// Parameters of the metric.
     pub metric: MetricParams,
+    /// Maxima of the fit within this fraction of the anchors' spread of
+    /// `M`, and within one and a half anchor spacings of each other, count
+    /// as one plateau, and γ̂ is their weighted mean
+    /// ([`Polynomial::argmax_within`]); 0: the highest alone.
+    #[serde(default = "default_plateau")]
+    pub plateau: f64,
 }
+
+/// [`EstimatorConfig::plateau`] when a settings file leaves it out.
+fn default_plateau() -> f64 {
+    DEFAULT_PLATEAU
+}
+
+/// The default [`EstimatorConfig::plateau`]: 2 % of the anchors' spread,
+/// above the wiggle a 5th-order fit leaves between anchors of equal `M`.
+pub const DEFAULT_PLATEAU: f64 = 0.02;
 
 impl Default for EstimatorConfig {
     fn default() -> Self {
@@ -190,6 +205,7 @@ impl Default for EstimatorConfig {
             anchors: DEFAULT_ANCHORS.to_vec(),
             degree: 5,
             metric: MetricParams::default(),
+            plateau: DEFAULT_PLATEAU,
         }
     }
 }
@@ -225,6 +241,13 @@ impl EstimatorConfig {
             )));
         }
         GradientMetric::new(self.metric)?;
+        check_range(
+            "plateau",
+            self.plateau,
+            0.0,
+            0.5,
+            "a fraction of the anchors' spread of M in [0, 0.5]",
+        )?;
         Ok(())
     }
 }
@@ -286,17 +309,18 @@ impl Polynomial {
     /// Where the polynomial is largest on its range (as an anchor value):
     /// the ends and every interior critical point are compared.
     pub fn argmax(&self) -> f64 {
+        self.argmax_within(0.0, 0.0)
+    }
+
+    /// The polynomial's local maxima on its range, `[t, p(t)]` in the
+    /// normalised variable: every interior maximum, and each end the
+    /// polynomial rises towards.
+    fn maxima(&self) -> Vec<[f64; 2]> {
         const SAMPLES: usize = 256;
-        let mut best_t = -1.0;
-        let mut best = self.eval_t(-1.0);
-        let mut consider = |t: f64| {
-            let v = self.eval_t(t);
-            if v > best {
-                best = v;
-                best_t = t;
-            }
-        };
-        consider(1.0);
+        let mut out = Vec::new();
+        if self.derivative_t(-1.0) <= 0.0 {
+            out.push([-1.0, self.eval_t(-1.0)]);
+        }
         let mut prev_t = -1.0;
         let mut prev_d = self.derivative_t(prev_t);
         for i in 1..=SAMPLES {
@@ -313,13 +337,59 @@ impl Polynomial {
                         hi = mid;
                     }
                 }
-                consider(0.5 * (lo + hi));
+                let m = 0.5 * (lo + hi);
+                out.push([m, self.eval_t(m)]);
             }
             prev_t = t;
             prev_d = d;
         }
-        self.variable
-            .inverse(self.centre + best_t * self.half_width)
+        if self.derivative_t(1.0) >= 0.0 {
+            out.push([1.0, self.eval_t(1.0)]);
+        }
+        if out.is_empty() {
+            // A constant: every point is a maximum; the middle stands for
+            // them.
+            out.push([0.0, self.eval_t(0.0)]);
+        }
+        out
+    }
+
+    /// The maximiser where the fit cannot tell its highest maxima apart (as
+    /// an anchor value, which must be positive when `tolerance > 0`). Each
+    /// local maximum within `reach` of the highest (in `ln x`) and within
+    /// `tolerance` of it in value is weighted by how close it comes in
+    /// value (1 at the top, 0 at `tolerance` below), and the maximiser is
+    /// their weighted mean in `ln x`.
+    ///
+    /// Two humps closer than the anchors' spacing are one plateau the fit
+    /// wiggles over: as their heights cross, the plain maximiser jumps from
+    /// one to the other, and a loop that balances the camera against its
+    /// neighbours circles around the jump; here the maximiser moves
+    /// continuously. Humps farther apart than `reach` are distinct optima
+    /// with a valley between them, and the highest is taken alone, as
+    /// [`Polynomial::argmax`] does (a camera settles on one of them, not
+    /// in the valley). `tolerance = 0` gives the plain maximiser.
+    pub fn argmax_within(&self, tolerance: f64, reach: f64) -> f64 {
+        let at = |t: f64| self.variable.inverse(self.centre + t * self.half_width);
+        let maxima = self.maxima();
+        let top =
+            maxima.iter().copied().fold(
+                [0.0, f64::MIN],
+                |best, m| if m[1] > best[1] { m } else { best },
+            );
+        let top_x = at(top[0]);
+        if !(tolerance > 0.0 && top_x > 0.0) {
+            return top_x;
+        }
+        let (sum, weight) = maxima
+            .iter()
+            .map(|m| (at(m[0]).ln(), m[1]))
+            .filter(|(l, _)| (l - top_x.ln()).abs() <= reach)
+            .fold((0.0, 0.0), |(s, w), (l, v)| {
+                let k = (1.0 - (top[1] - v) / tolerance).max(0.0);
+                (s + k * l, w + k)
+            });
+        (sum / weight).exp()
     }
 
     /// `n ≥ 2` samples `[x, p(x)]` over the range, evenly spaced in `x`, for
@@ -840,8 +910,11 @@ impl Estimator {
         let (x_hat, at_bound) = if flat {
             (1.0, None)
         } else {
-            let x = poly.argmax();
+            // Maxima within one and a half mean anchor spacings of each
+            // other (in ln x: the anchors are geometric) are one plateau.
             let (lo, hi) = poly.range();
+            let reach = 1.5 * (hi / lo).ln() / (anchors.len().max(2) - 1) as f64;
+            let x = poly.argmax_within(self.config.plateau * (m_max - m_min), reach);
             let tol = 1e-9 * (hi - lo);
             let bound = if x <= lo + tol {
                 Some(Bound::Lower)
