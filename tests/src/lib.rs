@@ -35,6 +35,16 @@ pub fn sim_loop(
     LockStep::new(source, processor)
 }
 
+/// The surround view of `render`'s rig at 25 px/m, as the closed-loop tests
+/// meter and compose it.
+pub fn test_view(render: &SimRender) -> std::result::Result<SurroundView, rigview_core::Error> {
+    let spec = rigview_core::surround::CanvasSpec {
+        px_per_m: 25.0,
+        ..Default::default()
+    };
+    SurroundView::build(render.rig(), &spec, &Default::default())
+}
+
 /// Renders and meters `scene` at exposure level `e` (noise-free).
 pub fn meter_at(scene: &HdrScene, camera: &LinearCamera, e: f64) -> Result<Metered> {
     let frame = camera.render_mono8(scene.radiance(), e, 0);

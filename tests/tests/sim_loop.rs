@@ -22,7 +22,7 @@ use rigview_core::exposure::{ControllerConfig, EstimatorConfig, ProbeEvent, Simu
 use rigview_core::pipeline::{LockStep, ProcessingSettings, Strategy};
 use rigview_core::sim::truth::{self, FixedPoint, FixedPointSearch, Sweep, SweepOptions};
 use rigview_core::sim::{Event, Script, SimConfig, SimRender, SimRig};
-use rigview_core::surround::{CanvasSpec, SurroundOptions, SurroundView};
+use rigview_core::surround::SurroundView;
 
 const FRAMES: usize = 100;
 /// The frames over which a loop is judged settled.
@@ -63,11 +63,7 @@ fn render(preset: &str, res: Res) -> Arc<SimRender> {
 }
 
 fn view(render: &SimRender) -> SurroundView {
-    let spec = CanvasSpec {
-        px_per_m: 25.0,
-        ..CanvasSpec::default()
-    };
-    SurroundView::build(render.rig(), &spec, &SurroundOptions::default()).unwrap()
+    rigview_tests::test_view(render).unwrap()
 }
 
 /// Each camera under its own gradient law with `simulation`.

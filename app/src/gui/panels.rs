@@ -98,6 +98,21 @@ pub(super) fn menu_bar(app: &mut RigviewApp, ui: &mut Ui) {
                 if changed {
                     app.window_changed();
                 }
+                ui.separator();
+                let display = &mut app.settings.processing.display;
+                if ui
+                    .checkbox(
+                        &mut display.compensate,
+                        "Even out the seams (display gains)",
+                    )
+                    .on_hover_text(
+                        "per-camera display gains from the measured overlap ratios; \
+                         the cameras' exposures and the telemetry are not touched",
+                    )
+                    .changed()
+                {
+                    app.settings_changed();
+                }
             });
             if app.is_loading() {
                 ui.spinner();

@@ -37,6 +37,7 @@
 //! | `queue.rs` | [`DropOldest`]: the queues between the threads |
 //! | `telemetry.rs` | [`Telemetry`]: the history the plots and CSV read |
 
+mod display;
 mod lockstep;
 mod output;
 mod processor;
@@ -45,6 +46,7 @@ mod settings;
 mod telemetry;
 mod threads;
 
+pub use display::{DisplayGains, DisplayInput, DisplaySettings};
 pub use lockstep::{LockStep, LoopStep};
 pub use output::{CameraOutput, Output, Overlay, PairOutput, PatchBox};
 pub use processor::{check_view, Processor};

@@ -135,6 +135,10 @@ pub struct Output {
     /// The composed view (`None`: no calibration, composition is off, or
     /// it failed: see `compose_error`).
     pub canvas: Option<Arc<Canvas>>,
+    /// The display gain each camera's pixels were shown with (rig order;
+    /// empty when no view was composed): probe frames and eased exposure
+    /// jumps, and the seam compensation ([`super::DisplaySettings`]).
+    pub display_gains: Vec<f32>,
     /// Why the view could not be composed from this set, if it could not.
     pub compose_error: Option<String>,
     /// The overlap patches to draw over the cameras.

@@ -6,7 +6,8 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use super::{
-    CameraOutput, MeterRoi, Output, Overlay, PairOutput, ProcessingSettings, StageTimes, Strategy,
+    CameraOutput, DisplayGains, DisplayInput, MeterRoi, Output, Overlay, PairOutput,
+    ProcessingSettings, StageTimes, Strategy,
 };
 use crate::error::{Error, Result};
 use crate::exposure::{
@@ -53,6 +54,7 @@ pub struct Processor {
     composer: Composer,
     last_taken: Vec<Option<ExposureSetting>>,
     compose: bool,
+    display: DisplayGains,
 }
 
 impl Processor {
@@ -85,6 +87,7 @@ impl Processor {
             composer: Composer::new(),
             last_taken: vec![None; n],
             compose: true,
+            display: DisplayGains::default(),
             cameras,
             shared_settings: Arc::new(settings.clone()),
             settings,
@@ -226,6 +229,7 @@ impl Processor {
             }
         }
         self.controller = controller;
+        self.display.reset();
         self.overlay = Arc::new(Overlay::of(view.as_ref(), self.cameras.len()));
         self.view = view;
         self.update_masks();
@@ -319,6 +323,7 @@ impl Processor {
             .collect();
         let t2 = Instant::now();
         let mut compose_error = None;
+        let mut display_gains = Vec::new();
         let canvas = match (&self.view, self.compose) {
             (Some(view), true) => {
                 let channels = if views
@@ -331,10 +336,26 @@ impl Processor {
                 };
                 let (w, h) = view.size();
                 let mut canvas = Canvas::new(w, h, channels);
-                match self
-                    .composer
-                    .compose(view, &views, self.settings.blend, &mut canvas)
-                {
+                let inputs: Vec<DisplayInput> = cameras
+                    .iter()
+                    .map(|c| DisplayInput {
+                        taken: c.taken.exposure(),
+                        mean: f64::from(c.mean),
+                        probe_frame: c.probe_frame,
+                    })
+                    .collect();
+                let ratios: Vec<_> = pairs.iter().map(|p| (p.i, p.j, p.log2_r)).collect();
+                display_gains = self
+                    .display
+                    .update(&self.settings.display, &inputs, &ratios)
+                    .to_vec();
+                match self.composer.compose_with_gains(
+                    view,
+                    &views,
+                    self.settings.blend,
+                    Some(&display_gains),
+                    &mut canvas,
+                ) {
                     Ok(()) => Some(Arc::new(canvas)),
                     Err(e) => {
                         compose_error = Some(e.to_string());
@@ -356,6 +377,7 @@ impl Processor {
             cameras,
             pairs,
             canvas,
+            display_gains,
             compose_error,
             overlay: self.overlay.clone(),
             times,

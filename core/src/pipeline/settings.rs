@@ -2,6 +2,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use super::DisplaySettings;
 use crate::error::Result;
 use crate::exposure::{
     BalanceParams, ControlMode, ControllerConfig, MeteringConfig, NeighbourGraph,
@@ -94,6 +95,9 @@ pub struct ProcessingSettings {
     pub roi: MeterRoi,
     /// How the overlaps of the view are blended.
     pub blend: BlendMode,
+    /// How the view shows the cameras (display gains; the cameras'
+    /// exposures are not touched).
+    pub display: DisplaySettings,
 }
 
 impl Default for ProcessingSettings {
@@ -105,6 +109,7 @@ impl Default for ProcessingSettings {
             metering: MeteringConfig::default(),
             roi: MeterRoi::Ground,
             blend: BlendMode::Linear,
+            display: DisplaySettings::default(),
         }
     }
 }
@@ -131,6 +136,7 @@ impl ProcessingSettings {
     pub fn validate(&self) -> Result<()> {
         self.controller_config().validate()?;
         self.balance.validate()?;
+        self.display.validate()?;
         self.metering.validate()
     }
 }

@@ -51,6 +51,7 @@
 
 mod compose;
 mod remap;
+mod seams;
 
 use std::sync::OnceLock;
 
@@ -60,6 +61,7 @@ use serde::{Deserialize, Serialize};
 use rigview_calib::rig::Rig;
 
 pub use compose::{Canvas, Composer};
+pub use seams::{SeamBands, SeamStep};
 
 use crate::error::{Error, Result};
 use crate::exposure::controller::PairObservation;

@@ -1,0 +1,333 @@
+//! What the view shows of each camera: display gains that leave the
+//! cameras' exposures alone.
+//!
+//! Two things would make the view flicker or step although the control is
+//! right:
+//!
+//! - **Deliberate exposure jumps.** A probe frame is taken darker on
+//!   purpose; shown as it is, its camera's part of the view darkens for a
+//!   set or two. The view shows such a frame at its camera's *display
+//!   exposure* `D`: its pixels scaled by `D / E_taken` (a linear sensor's
+//!   brightness follows its exposure). `D` is the exposure of the camera's
+//!   latest frame that was not a probe. The same holds for any frame whose
+//!   exposure dropped by more than `ease_ev` while the scene stayed the
+//!   same (its mean intensity moved with the exposure): `D` then moves
+//!   towards the new exposure by `ease_ev` per set, so the view darkens
+//!   gradually. A brighter jump is shown as it is (easing it would take a
+//!   gain below 1, which shows what the camera clipped as grey), and when
+//!   the scene changed (the light), `D` follows at once.
+//! - **Residual seams.** Balancing keeps each camera's information but
+//!   leaves brightness steps where the cameras meet. With `compensate` on,
+//!   each camera also gets a gain `2^c_k` that minimises the brightness
+//!   ratios across the overlaps as the view shows them, in the least-squares
+//!   sense with a prior that keeps gains near 1 (as OpenCV's stitcher's
+//!   gain compensation does): `Σ_(i,j) (log2 r_ij + c_j − c_i)² + λ Σ c_k²`,
+//!   over the pairs whose ratio was measured, shifted so that the smallest
+//!   is 1. The ratios come from unsaturated patches only (Eq. 5's clipping
+//!   rule), so clipped areas do not pull the gains, and the gains only
+//!   brighten, so what a camera clipped stays white. The gains move `smoothing` of the way to the
+//!   solution each set, and hold on a set with a probe frame (it sees
+//!   patches that its camera's normal frames saturate).
+//!
+//! Neither touches the telemetry: `r_ij`, M and the exposures are the
+//! cameras'.
+
+use nalgebra::{DMatrix, DVector};
+use serde::{Deserialize, Serialize};
+
+use crate::error::{check_range, Result};
+
+/// How the view shows the cameras.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct DisplaySettings {
+    /// Display gains that even out the brightness across the seams.
+    pub compensate: bool,
+    /// λ, the prior that keeps the seam gains near 1 (per pair's weight 1).
+    pub prior: f64,
+    /// The fraction of the way to the new seam gains taken per set.
+    pub smoothing: f64,
+    /// Exposure jumps (EV) above which the view eases to a camera's new
+    /// exposure while its scene stays the same.
+    pub ease_ev: f64,
+}
+
+impl Default for DisplaySettings {
+    fn default() -> Self {
+        Self {
+            compensate: true,
+            prior: 0.01,
+            smoothing: 0.3,
+            ease_ev: 0.25,
+        }
+    }
+}
+
+impl DisplaySettings {
+    /// Checks the parameters.
+    pub fn validate(&self) -> Result<()> {
+        check_range(
+            "display.prior",
+            self.prior,
+            1e-6,
+            1e3,
+            "a positive weight up to 1000",
+        )?;
+        check_range(
+            "display.smoothing",
+            self.smoothing,
+            1e-3,
+            1.0,
+            "a fraction in (0, 1]",
+        )?;
+        check_range(
+            "display.ease_ev",
+            self.ease_ev,
+            0.01,
+            4.0,
+            "an exposure step in EV in [0.01, 4]",
+        )?;
+        Ok(())
+    }
+}
+
+/// A change of `log2(mean / exposure)` below this (EV) counts as the same
+/// scene.
+const SAME_SCENE_EV: f64 = 0.15;
+
+/// The largest display gain either way (the composer takes 1/16 to 16).
+const MAX_GAIN_EV: f64 = 4.0;
+
+/// The largest seam gain (EV): compensation evens out the residual steps
+/// that balancing leaves (tenths of an EV to about one), not the stops
+/// between cameras each under its own law, which it would blow out.
+const MAX_SEAM_EV: f64 = 2.0;
+
+/// One camera's frame as the display sees it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DisplayInput {
+    /// The exposure the frame was taken with.
+    pub taken: f64,
+    /// Its mean intensity in [0, 1].
+    pub mean: f64,
+    /// Whether it was taken at a probe's darker exposure.
+    pub probe_frame: bool,
+}
+
+/// The display gains of a rig, set by set.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct DisplayGains {
+    /// Per camera, the display exposure and the scene's
+    /// `log2(mean / exposure)` of its latest frame that was not a probe.
+    held: Vec<Option<(f64, f64)>>,
+    /// Per camera, the seam gain `c_k` (log2).
+    seam: Vec<f64>,
+    /// Per camera, the gain of the latest set.
+    gains: Vec<f32>,
+}
+
+impl DisplayGains {
+    /// Forgets every camera's history (a new rig or calibration).
+    pub fn reset(&mut self) {
+        *self = Self::default();
+    }
+
+    /// The gains of the latest set, per camera.
+    pub fn gains(&self) -> &[f32] {
+        &self.gains
+    }
+
+    /// Takes a set: each camera's frame, and per overlap `(i, j, log2 r_ij)`
+    /// as measured on the frames. Returns each camera's display gain.
+    pub fn update(
+        &mut self,
+        settings: &DisplaySettings,
+        frames: &[DisplayInput],
+        log2_r: &[(usize, usize, Option<f64>)],
+    ) -> &[f32] {
+        let n = frames.len();
+        if self.held.len() != n {
+            self.held = vec![None; n];
+            self.seam = vec![0.0; n];
+        }
+        // Per camera, log2(D / taken).
+        let mut ease = vec![0.0; n];
+        for (k, f) in frames.iter().enumerate() {
+            if !(f.taken.is_finite() && f.taken > 0.0) {
+                self.held[k] = None;
+                continue;
+            }
+            let e = f.taken.log2();
+            let scene = (f.mean.max(1e-4) / f.taken).log2();
+            match (self.held[k], f.probe_frame) {
+                (Some((d, _)), true) => ease[k] = d - e,
+                (None, true) => {}
+                (Some((d, last_scene)), false) => {
+                    let jump = e - d;
+                    let same = (scene - last_scene).abs() < SAME_SCENE_EV;
+                    // Only a darker jump is eased: easing a brighter one
+                    // would show the frame darker than taken, and what it
+                    // clipped as grey.
+                    let shown = if jump < -settings.ease_ev && same {
+                        d - settings.ease_ev
+                    } else {
+                        e
+                    };
+                    ease[k] = shown - e;
+                    self.held[k] = Some((shown, scene));
+                }
+                (None, false) => self.held[k] = Some((e, scene)),
+            }
+        }
+        if !settings.compensate {
+            self.seam.iter_mut().for_each(|c| *c = 0.0);
+        } else if !frames.iter().any(|f| f.probe_frame) {
+            // A probe frame sees patches its normal frames saturate: its
+            // ratios are of other patches, and the seam gains hold.
+            let mut target = seam_gains(n, log2_r, &ease, settings.prior);
+            // Brighten only: a gain below 1 would show the pixels a camera
+            // clipped as grey (a probe frame, which clips fewer, would then
+            // show them brighter than its neighbours in time).
+            let lowest = target.iter().copied().fold(f64::INFINITY, f64::min);
+            if lowest.is_finite() {
+                target
+                    .iter_mut()
+                    .for_each(|c| *c = (*c - lowest).min(MAX_SEAM_EV));
+            }
+            for (c, t) in self.seam.iter_mut().zip(target) {
+                *c += settings.smoothing * (t - *c);
+            }
+        }
+        self.gains = ease
+            .iter()
+            .zip(&self.seam)
+            .map(|(a, c)| (a + c).clamp(-MAX_GAIN_EV, MAX_GAIN_EV).exp2() as f32)
+            .collect();
+        &self.gains
+    }
+}
+
+/// The seam gains (log2) that minimise `Σ (log2 r_ij + a_j − a_i + c_j −
+/// c_i)² + λ Σ c_k²` over the measured pairs, where `a` is each camera's
+/// gain already applied (`ease`).
+fn seam_gains(
+    n: usize,
+    log2_r: &[(usize, usize, Option<f64>)],
+    ease: &[f64],
+    prior: f64,
+) -> Vec<f64> {
+    let mut a = DMatrix::<f64>::identity(n, n) * prior;
+    let mut b = DVector::<f64>::zeros(n);
+    for &(i, j, r) in log2_r {
+        let Some(r) = r.filter(|r| r.is_finite()) else {
+            continue;
+        };
+        if i >= n || j >= n || i == j {
+            continue;
+        }
+        // Residual r' + c_j − c_i with r' the ratio as shown.
+        let shown = r + ease[j] - ease[i];
+        a[(i, i)] += 1.0;
+        a[(j, j)] += 1.0;
+        a[(i, j)] -= 1.0;
+        a[(j, i)] -= 1.0;
+        b[i] += shown;
+        b[j] -= shown;
+    }
+    a.cholesky()
+        .map_or_else(|| vec![0.0; n], |c| c.solve(&b).iter().copied().collect())
+}
+
+#[cfg(test)]
+#[allow(clippy::float_cmp)] // gains of exactly 1
+mod tests {
+    use super::*;
+
+    fn frame(taken: f64, mean: f64, probe_frame: bool) -> DisplayInput {
+        DisplayInput {
+            taken,
+            mean,
+            probe_frame,
+        }
+    }
+
+    #[test]
+    fn a_probe_frame_is_shown_at_the_exposure_before_it() {
+        let s = DisplaySettings {
+            compensate: false,
+            ..Default::default()
+        };
+        let mut d = DisplayGains::default();
+        assert_eq!(d.update(&s, &[frame(1000.0, 0.4, false)], &[]), &[1.0]);
+        // A probe 1 EV darker: shown twice as bright.
+        let g = d.update(&s, &[frame(500.0, 0.2, true)], &[])[0];
+        assert!((g - 2.0).abs() < 1e-6, "{g}");
+        // Back at its exposure: as it is.
+        assert_eq!(d.update(&s, &[frame(1000.0, 0.4, false)], &[]), &[1.0]);
+    }
+
+    #[test]
+    fn a_darker_jump_in_one_scene_is_eased_and_a_change_of_light_is_followed() {
+        let s = DisplaySettings {
+            compensate: false,
+            ..Default::default()
+        };
+        let mut d = DisplayGains::default();
+        d.update(&s, &[frame(2000.0, 0.8, false)], &[]);
+        // The controller jumps 1 EV darker, the scene unchanged: the view
+        // eases there by 0.25 EV a set.
+        let mut shown = Vec::new();
+        for _ in 0..5 {
+            let g = d.update(&s, &[frame(1000.0, 0.4, false)], &[])[0];
+            shown.push(f64::from(g).log2() - 1.0);
+        }
+        let expect = [-0.25, -0.5, -0.75, -1.0, -1.0];
+        for (s, e) in shown.iter().zip(expect) {
+            assert!((s - e).abs() < 1e-6, "{shown:?}");
+        }
+        // A brighter jump is shown as it is.
+        assert_eq!(d.update(&s, &[frame(2000.0, 0.8, false)], &[]), &[1.0]);
+        // Two stops less light and the camera 2 EV brighter: the frame
+        // looks the same, and is shown as it is.
+        d.update(&s, &[frame(1000.0, 0.4, false)], &[]);
+        let g = d.update(&s, &[frame(4000.0, 0.4, false)], &[])[0];
+        assert!((g - 1.0).abs() < 1e-6, "{g}");
+    }
+
+    #[test]
+    fn seam_gains_even_out_the_measured_ratios() {
+        let s = DisplaySettings {
+            smoothing: 1.0,
+            prior: 1e-4,
+            ..Default::default()
+        };
+        let mut d = DisplayGains::default();
+        let frames = [frame(1000.0, 0.4, false); 4];
+        // A ring of four: camera 1 sees the overlaps 0.5 EV brighter than
+        // its neighbours.
+        let r = [
+            (0, 1, Some(0.5)),
+            (1, 2, Some(-0.5)),
+            (2, 3, Some(0.0)),
+            (3, 0, Some(0.0)),
+        ];
+        let g: Vec<f64> = d
+            .update(&s, &frames, &r)
+            .iter()
+            .map(|g| f64::from(*g).log2())
+            .collect();
+        for &(i, j, r) in &r {
+            let shown = r.unwrap_or(0.0) + g[j] - g[i];
+            assert!(shown.abs() < 0.01, "{i}-{j}: {shown} ({g:?})");
+        }
+        // Gains only brighten: the darkest camera is shown as it is.
+        let lowest = g.iter().copied().fold(f64::INFINITY, f64::min);
+        assert!(lowest.abs() < 1e-6, "{g:?}");
+        // A pair with no ratio pulls nothing; off, the gains are 1.
+        let off = DisplaySettings {
+            compensate: false,
+            ..s
+        };
+        assert!(d.update(&off, &frames, &r).iter().all(|&g| g == 1.0));
+    }
+}
