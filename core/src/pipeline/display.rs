@@ -122,19 +122,12 @@ pub struct DisplayGains {
     held: Vec<Option<(f64, f64)>>,
     /// Per camera, the seam gain `c_k` (log2).
     seam: Vec<f64>,
-    /// Per camera, the gain of the latest set.
-    gains: Vec<f32>,
 }
 
 impl DisplayGains {
     /// Forgets every camera's history (a new rig or calibration).
     pub fn reset(&mut self) {
         *self = Self::default();
-    }
-
-    /// The gains of the latest set, per camera.
-    pub fn gains(&self) -> &[f32] {
-        &self.gains
     }
 
     /// Takes a set: each camera's frame, and per overlap `(i, j, log2 r_ij)`
@@ -144,7 +137,7 @@ impl DisplayGains {
         settings: &DisplaySettings,
         frames: &[DisplayInput],
         log2_r: &[(usize, usize, Option<f64>)],
-    ) -> &[f32] {
+    ) -> Vec<f32> {
         let n = frames.len();
         if self.held.len() != n {
             self.held = vec![None; n];
@@ -198,12 +191,10 @@ impl DisplayGains {
                 *c += settings.smoothing * (t - *c);
             }
         }
-        self.gains = ease
-            .iter()
+        ease.iter()
             .zip(&self.seam)
             .map(|(a, c)| (a + c).clamp(-MAX_GAIN_EV, MAX_GAIN_EV).exp2() as f32)
-            .collect();
-        &self.gains
+            .collect()
     }
 }
 

@@ -89,17 +89,22 @@ mod tests {
         (rig, view, graph)
     }
 
-    #[test]
-    fn a_budget_ends_an_endless_source_after_its_sets() {
-        use crate::source::Budget;
-        let (rig, view, graph) = small_rig(None);
-        let processor = Processor::new(
+    /// The processor under the default settings for `rig`.
+    fn default_processor(rig: &SimRig, view: SurroundView, graph: NeighbourGraph) -> Processor {
+        Processor::new(
             rig.cameras().to_vec(),
             Some(view),
             graph,
             ProcessingSettings::default(),
         )
-        .unwrap_or_else(|e| panic!("{e}"));
+        .unwrap_or_else(|e| panic!("{e}"))
+    }
+
+    #[test]
+    fn a_budget_ends_an_endless_source_after_its_sets() {
+        use crate::source::Budget;
+        let (rig, view, graph) = small_rig(None);
+        let processor = default_processor(&rig, view, graph);
         let mut lp =
             LockStep::new(Budget::new(rig, 5), processor).unwrap_or_else(|e| panic!("{e}"));
         let mut triggers = Vec::new();
@@ -128,13 +133,7 @@ mod tests {
     #[test]
     fn in_lock_step_every_set_is_processed_and_composed() {
         let (rig, view, graph) = small_rig(12);
-        let processor = Processor::new(
-            rig.cameras().to_vec(),
-            Some(view),
-            graph,
-            ProcessingSettings::default(),
-        )
-        .unwrap_or_else(|e| panic!("{e}"));
+        let processor = default_processor(&rig, view, graph);
         let mut p = Pipeline::start(
             rig,
             processor,
@@ -165,13 +164,7 @@ mod tests {
     #[test]
     fn a_manual_override_reaches_the_camera() {
         let (rig, view, graph) = small_rig(20);
-        let processor = Processor::new(
-            rig.cameras().to_vec(),
-            Some(view),
-            graph,
-            ProcessingSettings::default(),
-        )
-        .unwrap_or_else(|e| panic!("{e}"));
+        let processor = default_processor(&rig, view, graph);
         let p = Pipeline::start(
             rig,
             processor,

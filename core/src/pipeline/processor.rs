@@ -347,8 +347,7 @@ impl Processor {
                 let ratios: Vec<_> = pairs.iter().map(|p| (p.i, p.j, p.log2_r)).collect();
                 display_gains = self
                     .display
-                    .update(&self.settings.display, &inputs, &ratios)
-                    .to_vec();
+                    .update(&self.settings.display, &inputs, &ratios);
                 match self.composer.compose_with_gains(
                     view,
                     &views,
