@@ -1290,3 +1290,25 @@ fn a_darker_frame_tells_scale_clip_what_saturation_hides() {
         assert_eq!(g, gamma.estimate(&now).unwrap());
     }
 }
+
+#[test]
+fn a_pair_without_usable_patches_keeps_its_scene_ratio() {
+    use rigview_core::exposure::balance::HeldRatios;
+    let mut held = HeldRatios::default();
+    // Measured at E_i = 100, E_j = 200: r = 1.5, so the scene ratio is 0.75.
+    assert_eq!(held.update((0, 1), Some(1.5), 100.0, 200.0, 3), Some(1.5));
+    // Unusable patches: at E_i = 50, E_j = 200 the held scene ratio gives
+    // r = 0.75 · 200 / 50 = 3.
+    let r = held.update((0, 1), None, 50.0, 200.0, 3).unwrap();
+    assert!((r - 3.0).abs() < 1e-12, "{r}");
+    // Another pair has nothing held.
+    assert_eq!(held.update((1, 0), None, 200.0, 50.0, 3), None);
+    // Held for at most `hold_sets` sets.
+    assert!(held.update((0, 1), None, 50.0, 200.0, 3).is_some());
+    assert!(held.update((0, 1), None, 50.0, 200.0, 3).is_some());
+    assert_eq!(held.update((0, 1), None, 50.0, 200.0, 3), None);
+    // A new measurement starts again.
+    assert_eq!(held.update((0, 1), Some(2.0), 50.0, 200.0, 3), Some(2.0));
+    held.clear();
+    assert_eq!(held.update((0, 1), None, 50.0, 200.0, 3), None);
+}

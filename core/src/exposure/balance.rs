@@ -59,7 +59,18 @@ pub struct BalanceParams {
     /// How a circling camera's balanced step is damped ([`Damping`]).
     #[serde(default)]
     pub damping: DampingParams,
+    /// For how many sets a pair's last measured scene ratio stands in
+    /// while its patches are unusable ([`HeldRatios`]; 0: never).
+    #[serde(default = "default_hold_sets")]
+    pub hold_sets: u32,
 }
+
+fn default_hold_sets() -> u32 {
+    DEFAULT_HOLD_SETS
+}
+
+/// Sets a scene ratio is held by default: 5 s at 20 Hz.
+pub const DEFAULT_HOLD_SETS: u32 = 100;
 
 impl Default for BalanceParams {
     fn default() -> Self {
@@ -69,6 +80,7 @@ impl Default for BalanceParams {
             min_mean: 0.01,
             min_patches: 1,
             damping: DampingParams::default(),
+            hold_sets: DEFAULT_HOLD_SETS,
         }
     }
 }
@@ -139,6 +151,62 @@ pub fn pair_ratio(patches: &[PatchPair], params: &BalanceParams) -> Option<f64> 
         return None;
     }
     Some(median(&mut ratios))
+}
+
+/// The last usable ratio of each ordered pair, as a ratio of the scene
+/// (exposure removed), standing in while the pair's patches are unusable.
+///
+/// `r_ij` is measured only where neither camera saturates its overlap
+/// patches. After a step of light one camera often does for a few sets;
+/// dropping the pair then lets that camera follow its own law alone and
+/// pulls it back with the whole pairwise term when the patches return, a
+/// jump of up to the full balancing step (2 EV on the reference preset's
+/// front camera). A linear sensor's patch brightness is `E·L`, so
+/// `ρ_ij = r_ij·E_i/E_j = L_j/L_i` does not change with the exposures, and
+/// a step of light over the whole scene leaves it as it was: the held `ρ`
+/// gives `r_ij = ρ_ij·E_j/E_i` at the exposures the frames were taken with.
+#[derive(Clone, Debug, Default)]
+pub struct HeldRatios {
+    /// `((i, j), log2 ρ_ij, sets since it was measured)`.
+    held: Vec<((usize, usize), f64, u32)>,
+}
+
+impl HeldRatios {
+    /// `r_ij` for frames taken at `e_i` and `e_j`: the measured one (which
+    /// is kept), or the held scene ratio for at most `hold_sets` sets.
+    /// Call once per ordered pair and set.
+    pub fn update(
+        &mut self,
+        (i, j): (usize, usize),
+        measured: Option<f64>,
+        e_i: f64,
+        e_j: f64,
+        hold_sets: u32,
+    ) -> Option<f64> {
+        let exposure = (e_j / e_i).log2();
+        let slot = self.held.iter().position(|h| h.0 == (i, j));
+        match (measured.filter(|r| r.is_finite() && *r > 0.0), slot) {
+            (Some(r), Some(k)) => {
+                self.held[k] = ((i, j), r.log2() - exposure, 0);
+                Some(r)
+            }
+            (Some(r), None) => {
+                self.held.push(((i, j), r.log2() - exposure, 0));
+                Some(r)
+            }
+            (None, Some(k)) => {
+                let h = &mut self.held[k];
+                h.2 = h.2.saturating_add(1);
+                (h.2 <= hold_sets && exposure.is_finite()).then(|| (h.1 + exposure).exp2())
+            }
+            (None, None) => None,
+        }
+    }
+
+    /// Forgets every pair.
+    pub fn clear(&mut self) {
+        self.held.clear();
+    }
 }
 
 /// The median (mean of the two middle values for an even count).

@@ -1,5 +1,5 @@
 //! Safeguards of a camera's own law: the bracket of its best exposure and
-//! the secant slope.
+//! the choice between frames that point apart.
 //!
 //! # The bracket
 //!
@@ -39,21 +39,11 @@
 //!   noise at a jump costs one small step);
 //! - ends older than `max_age_frames` go.
 //!
-//! # The secant slope
+//! # Frames that point apart
 //!
-//! The fast law's Newton step on the γ-mapping needs `dγ̂/d ln E`. The
-//! slope measured on the image itself (scaled by a simulated exposure
-//! change) misjudges saturated regions, which a simulated darkening leaves
-//! flat: on the simulated rig it came out up to twice the true one, and the
-//! law crept towards its fixed point in a dozen frames. Two frames taken
-//! at different exposures of the same scene measure it directly: a
-//! [`Secant`] keeps the latest frames and gives the slope between the
-//! newest one and the latest earlier one taken at least `min_ev` away,
-//! when both estimates lie inside the anchors' span, the scene is the same
-//! (mean intensities in the order of the exposures) and the slope is
-//! plausible (positive, not huge). It replaces the image's own slope.
-
-use std::collections::VecDeque;
+//! [`Repeller`]: where two frames of one scene predict best exposures on
+//! opposite sides of themselves, the fast law follows the frame with more
+//! gradient information instead of each frame in turn.
 
 use serde::{Deserialize, Serialize};
 
@@ -257,75 +247,96 @@ impl Bracket {
     }
 }
 
-/// One frame as [`Secant`] keeps it.
+/// Two frames of one scene whose predictions of the best exposure point
+/// away from each other: the darker asks for less, the brighter for more.
+/// Between them lies a point the estimate is repelled from (a surface
+/// saturating, two humps of `M`), and with a frame of latency the commands
+/// of even and odd frames follow different frames and the camera swings
+/// between the two sides every frame (0.23 EV on the steps preset's back
+/// camera under scale-and-clip). [`Repeller`] keeps the last frame and,
+/// when the new one points away from it, follows the frame with the more
+/// gradient information: the camera settles on that side.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Repeller {
+    last: Option<Seen>,
+}
+
+/// A frame as [`Repeller`] keeps it.
 #[derive(Clone, Copy, Debug, PartialEq)]
-struct Point {
-    ln_e: f64,
-    gamma_hat: f64,
+struct Seen {
+    at: f64,
+    best: f64,
+    m: f64,
     mean: f64,
 }
 
-/// The frames a [`Secant`] keeps.
-const SECANT_FRAMES: usize = 3;
-
-/// The secant slope `dγ̂/d ln E` from the latest frames (module
-/// documentation).
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct Secant {
-    recent: VecDeque<Point>,
-}
-
-impl Secant {
-    /// Forgets the frames.
+impl Repeller {
+    /// Forgets the last frame.
     pub fn reset(&mut self) {
-        self.recent.clear();
+        self.last = None;
     }
 
-    /// The slope between a frame at `ln_e` (natural log of its exposure)
-    /// with estimate `gamma_hat` and mean `mean`, and the latest kept frame
-    /// at least [`SECANT_MIN_EV`] away. Keeps the frame when `usable` (its
-    /// estimate inside the anchors' span); forgets every frame otherwise.
-    pub fn slope(&mut self, ln_e: f64, gamma_hat: f64, mean: f64, usable: bool) -> Option<f64> {
-        let min_ln = SECANT_MIN_EV * std::f64::consts::LN_2;
-        let slope = if usable {
-            self.recent
-                .iter()
-                .rev()
-                .find(|p| (p.ln_e - ln_e).abs() >= min_ln)
-                .filter(|p| (p.mean - mean) * (p.ln_e - ln_e) >= 0.0)
-                .map(|p| (p.gamma_hat - gamma_hat) / (p.ln_e - ln_e))
-                .filter(|k| *k > SECANT_MIN_SLOPE && *k < SECANT_MAX_SLOPE)
-        } else {
-            None
-        };
-        if usable {
-            if self.recent.len() == SECANT_FRAMES {
-                self.recent.pop_front();
+    /// The best exposure (log2) to follow for a frame at `at` whose law
+    /// predicts `best`, with gradient information `m` and mean intensity
+    /// `mean`: `best` itself, or the last frame's prediction when the two
+    /// point away from each other and the last frame had more information.
+    /// Frames whose means disagree with their exposures by more than
+    /// `light_tolerance` are taken for another scene.
+    pub fn follow(&mut self, at: f64, best: f64, m: f64, mean: f64, light_tolerance: f64) -> f64 {
+        let now = Seen { at, best, m, mean };
+        let followed = match self.last {
+            Some(l) if same_scene(&l, &now, light_tolerance) => {
+                let (lo, hi) = if l.at < at { (l, now) } else { (now, l) };
+                let apart = hi.at - lo.at > 1e-6 && lo.best < lo.at && hi.best > hi.at;
+                if apart && l.m > m {
+                    l.best
+                } else {
+                    best
+                }
             }
-            self.recent.push_back(Point {
-                ln_e,
-                gamma_hat,
-                mean,
-            });
-        } else {
-            self.recent.clear();
-        }
-        slope
+            _ => best,
+        };
+        self.last = Some(now);
+        followed
     }
 }
 
-/// The smallest exposure difference (EV) a secant is taken over.
-pub const SECANT_MIN_EV: f64 = 0.05;
-/// Secant slopes outside (`SECANT_MIN_SLOPE`, `SECANT_MAX_SLOPE`) are
-/// taken for noise or another scene.
-pub const SECANT_MIN_SLOPE: f64 = 0.05;
-/// See [`SECANT_MIN_SLOPE`].
-pub const SECANT_MAX_SLOPE: f64 = 20.0;
+/// Whether two frames can be of the same scene: the mean intensity of a
+/// linear sensor grows at most in proportion to the exposure and never
+/// falls with it ([`Bracket`]'s rule).
+fn same_scene(a: &Seen, b: &Seen, tol: f64) -> bool {
+    let k = (b.at - a.at).exp2();
+    let lo = a.mean * k.min(1.0) * (1.0 - tol);
+    let hi = a.mean * k.max(1.0) * (1.0 + tol);
+    (lo..=hi).contains(&b.mean)
+}
 
 #[cfg(test)]
 #[allow(clippy::float_cmp)] // midpoints of exact values
 mod tests {
     use super::*;
+
+    #[test]
+    fn frames_pointing_apart_follow_the_one_with_more_information() {
+        let mut r = Repeller::default();
+        // A frame at 12.27 EV asks for 12.22; the next, at 12.52 with less
+        // M, asks for 12.55: the camera follows the first.
+        assert_eq!(r.follow(12.27, 12.22, 2.0, 0.40, 0.1), 12.22);
+        assert_eq!(r.follow(12.52, 12.55, 1.5, 0.47, 0.1), 12.22);
+        // With more M, the new frame's own prediction stands.
+        r.reset();
+        assert_eq!(r.follow(12.27, 12.22, 1.0, 0.40, 0.1), 12.22);
+        assert_eq!(r.follow(12.52, 12.55, 1.5, 0.47, 0.1), 12.55);
+        // Frames pointing towards each other leave the law alone.
+        r.reset();
+        assert_eq!(r.follow(12.27, 12.40, 2.0, 0.40, 0.1), 12.40);
+        assert_eq!(r.follow(12.52, 12.40, 1.5, 0.47, 0.1), 12.40);
+        // A change of light (the mean halves at a brighter exposure) is
+        // another scene.
+        r.reset();
+        assert_eq!(r.follow(12.27, 12.22, 2.0, 0.40, 0.1), 12.22);
+        assert_eq!(r.follow(12.52, 12.55, 1.5, 0.20, 0.1), 12.55);
+    }
 
     fn step_towards(best: f64, at: f64) -> f64 {
         best - at
@@ -437,22 +448,5 @@ mod tests {
         // Steps in the dead band say nothing.
         b.observe(&p, 9.3, 0.4, 0.001);
         assert_eq!(b.ends(), (Some(8.0), Some(10.0)));
-    }
-
-    #[test]
-    fn the_secant_measures_the_slope_between_frames_of_one_scene() {
-        let mut s = Secant::default();
-        let ln2 = std::f64::consts::LN_2;
-        assert_eq!(s.slope(8.0 * ln2, 1.3, 0.5, true), None);
-        // Same exposure: no secant.
-        assert_eq!(s.slope(8.0 * ln2, 1.3, 0.5, true), None);
-        let k = s.slope(7.5 * ln2, 1.1, 0.4, true).unwrap();
-        assert!((k - 0.2 / (0.5 * ln2)).abs() < 1e-12, "{k}");
-        // A darker frame with a brighter mean is another scene.
-        assert_eq!(s.slope(7.0 * ln2, 0.9, 0.6, true), None);
-        // A slope near zero is noise.
-        let mut s = Secant::default();
-        s.slope(8.0 * ln2, 1.3, 0.5, true);
-        assert_eq!(s.slope(7.5 * ln2, 1.299, 0.4, true), None);
     }
 }

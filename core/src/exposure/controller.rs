@@ -15,7 +15,7 @@ use serde::{Deserialize, Serialize};
 
 use super::balance::{self, BalanceParams, NeighbourGraph, PatchPair};
 use super::baselines::{MeanIntensityParams, PidParams, PidState};
-use super::bracket::{Bracket, BracketParams, Secant};
+use super::bracket::{Bracket, BracketParams, Repeller};
 use super::estimator::{
     Darker, Estimate, EstimateOptions, Estimator, EstimatorConfig, Simulation, DARKER_MIN_EV,
 };
@@ -260,8 +260,8 @@ pub struct CameraController {
     passed: Option<ProbeFrame>,
     /// The bracket of the best exposure under the camera's own law.
     bracket: Bracket,
-    /// The secant slope of the fast law on the γ-mapping.
-    secant: Secant,
+    /// The fast law's choice between frames that point apart.
+    repeller: Repeller,
 }
 
 /// A kept frame as the estimator reads it, when it is at least
@@ -304,7 +304,7 @@ impl CameraController {
             darker: None,
             passed: None,
             bracket: Bracket::default(),
-            secant: Secant::default(),
+            repeller: Repeller::default(),
         })
     }
 
@@ -356,7 +356,7 @@ impl CameraController {
         self.darker = None;
         self.passed = None;
         self.bracket.reset();
-        self.secant.reset();
+        self.repeller.reset();
     }
 
     /// The setting the camera will have once the commands in flight have
@@ -431,7 +431,7 @@ impl CameraController {
         }
         let from_probe = usable_darker(self.darker.as_ref(), taken);
         let darker = from_probe.or_else(|| usable_darker(self.passed.as_ref(), taken));
-        let mut estimate = if needs_estimate {
+        let estimate = if needs_estimate {
             let e = self.estimator.estimate_with(
                 metered,
                 EstimateOptions {
@@ -456,19 +456,6 @@ impl CameraController {
         }
         let stats = metered.stats();
         let mean = f64::from(stats.mean);
-        if let Some(e) = estimate
-            .as_mut()
-            .filter(|_| own_law && wants_slope && config.estimator.simulation == Simulation::Gamma)
-        {
-            if hold.is_none() {
-                let usable = !e.flat && e.at_bound.is_none() && !e.extended;
-                if let Some(k) = self.secant.slope(taken.ln(), e.gamma_hat, mean, usable) {
-                    e.slope = Some(k);
-                }
-            }
-        } else {
-            self.secant.reset();
-        }
         let mut fallback = false;
         let step = match (config.mode, &estimate) {
             (ControlMode::Fixed, _) => LawStep::Relative(config.fixed_exposure / taken),
@@ -486,6 +473,27 @@ impl CameraController {
                     .bound(self.pid.update(&config.pid, 1.0 - e.gamma_hat)),
             ),
             _ => LawStep::Relative(1.0),
+        };
+        // The fast law's prediction, between frames that point apart.
+        let step = match (step, &estimate) {
+            (LawStep::Predicted { ratio }, Some(e)) if own_law && hold.is_none() => {
+                let best = self.repeller.follow(
+                    taken.log2(),
+                    (taken * ratio).log2(),
+                    e.m_current,
+                    mean,
+                    config.bracket.light_tolerance,
+                );
+                LawStep::Predicted {
+                    ratio: (best - taken.log2()).exp2(),
+                }
+            }
+            (s, _) => {
+                if hold.is_none() {
+                    self.repeller.reset();
+                }
+                s
+            }
         };
         let mut desired = match self.manual {
             Some(m) => m,
@@ -688,6 +696,7 @@ pub struct RigController {
     config: ControllerConfig,
     cameras: Vec<CameraController>,
     graph: NeighbourGraph,
+    held: balance::HeldRatios,
 }
 
 impl RigController {
@@ -713,6 +722,7 @@ impl RigController {
             config,
             cameras,
             graph,
+            held: balance::HeldRatios::default(),
         })
     }
 
@@ -835,6 +845,21 @@ impl RigController {
             .zip(inputs)
             .map(|(c, input)| c.base(input.info.taken).exposure())
             .collect();
+        // What balancing acts on: the measured ratios, or a pair's held
+        // scene ratio while its patches are unusable.
+        let acted: Vec<PairRatio> = ratios
+            .iter()
+            .map(|r| PairRatio {
+                r_ij: self.held.update(
+                    (r.i, r.j),
+                    r.r_ij,
+                    inputs[r.i].info.taken.exposure(),
+                    inputs[r.j].info.taken.exposure(),
+                    measure.hold_sets,
+                ),
+                ..*r
+            })
+            .collect();
         let mut steps = Vec::with_capacity(inputs.len());
         for (i, (u, input)) in unary.into_iter().zip(inputs).enumerate() {
             let cam = &mut self.cameras[i];
@@ -851,7 +876,7 @@ impl RigController {
                         // its exposure).
                         let moved =
                             (bases[j] / inputs[j].info.taken.exposure()) / (bases[i] / u.taken);
-                        ratios
+                        acted
                             .iter()
                             .find(|r| r.i == i && r.j == j)
                             .and_then(|r| r.r_ij)

@@ -8,10 +8,11 @@
 //!   one frame:
 //!   - scale-and-clip: `ŝ` *is* the ratio of a linear sensor;
 //!   - γ-mapping: a Newton step on `γ̂` as a function of log exposure,
-//!     `Δ ln E = −(γ̂ − 1) / k`. The slope `k = dγ̂/d ln E` comes from the
-//!     image itself: the estimator runs once more on the image scaled by
-//!     1.3 towards the fixed point (`min(1, s·I)`, what a linear sensor
-//!     would deliver) and `k` is the difference quotient
+//!     `Δ ln E = −(γ̂ − 1) / k`. The slope `k` is a secant from the frame
+//!     to the root of `γ̂ = 1` searched on the image itself, scaled by
+//!     simulated exposure ratios (`min(1, s·I)`, what a linear sensor
+//!     would deliver; up to two more estimates, starting where a typical
+//!     slope puts the root), so that the step lands on that root
 //!     ([`Estimate::slope`]). Without a usable slope (an estimate at a
 //!     bound, or a slope that is not positive) the image statistics predict
 //!     the ratio instead: a pixel of intensity `μ` mapped by `γ̂` becomes
@@ -25,6 +26,9 @@
 //!     the step of one anchor span (`1/γ̂`) or the step that brings the mean
 //!     intensity to 0.45, whichever is larger in the same direction (this
 //!     gets a strongly over-exposed image back quickly);
+//!   - where two frames of one scene point apart (the darker asks for less,
+//!     the brighter for more), the controller follows the one with more
+//!     gradient information ([`super::bracket::Repeller`]);
 //!   - the ratio is damped in the log domain, `E' = E·ratio^β` (β = 0.8 by
 //!     default), which absorbs estimation noise without a visible overshoot.
 //!

@@ -29,7 +29,7 @@ pub use crate::image::{FrameView, PixelFormat, RoiMask};
 
 pub use balance::{BalanceParams, NeighbourGraph, PatchPair};
 pub use baselines::{MeanIntensityParams, PidParams};
-pub use bracket::{Bracket, BracketParams, Secant};
+pub use bracket::{Bracket, BracketParams, Repeller};
 pub use controller::{
     CameraController, CameraInput, CameraStep, ControlMode, ControllerConfig, FrameInfo, Hold,
     PairObservation, PairRatio, RigController, RigStep,

@@ -1,0 +1,214 @@
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+//! Exposure control under changing light, in closed loop through the app's
+//! processor on the simulated rig (one frame of latency, a command every
+//! frame): no limit cycle where the light is constant, and the fast law's
+//! step responses on the `steps` preset (+2, −2, −4, +4 stops at 1, 3, 5
+//! and 7 s).
+//!
+//! "No limit cycle": over the last [`TAIL`] frames of every run of
+//! constant light at least [`MIN_RUN`] frames long, the standard deviation
+//! of log2 E stays within [`CYCLE_SD_EV`] (probe frames left out).
+//!
+//! Run with `--nocapture` for the tables.
+
+use std::sync::Arc;
+
+use rigview_core::eval::dynamics::{constant_runs, std_dev, step_response, ResponseSpec};
+use rigview_core::exposure::{ControllerConfig, EstimatorConfig, LawKind, LawParams, Simulation};
+use rigview_core::pipeline::{ProcessingSettings, Strategy};
+use rigview_core::sim::{SimConfig, SimRender};
+
+/// Frames of the constant-light tail judged.
+const TAIL: usize = 20;
+/// Runs of constant light shorter than this are not judged.
+const MIN_RUN: usize = 40;
+/// The largest standard deviation of log2 E in a settled tail, EV.
+const CYCLE_SD_EV: f64 = 0.05;
+/// Frames of the presets whose light is constant.
+const CONSTANT_FRAMES: usize = 120;
+
+/// What a closed loop did.
+struct Run {
+    cameras: Vec<String>,
+    /// log2 of the exposure each frame was taken with, per camera.
+    log2_e: Vec<Vec<f64>>,
+    /// Whether each frame was a probe frame, per camera.
+    probe: Vec<Vec<bool>>,
+    /// The light's level per frame (any number that changes with it).
+    level: Vec<f64>,
+}
+
+fn settings(
+    strategy: Strategy,
+    law: LawKind,
+    simulation: Simulation,
+    probe: bool,
+) -> ProcessingSettings {
+    let mut controller = ControllerConfig {
+        law: LawParams {
+            kind: law,
+            ..Default::default()
+        },
+        estimator: EstimatorConfig {
+            simulation,
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    if !probe {
+        controller.probe = None;
+    }
+    ProcessingSettings {
+        strategy,
+        controller,
+        ..Default::default()
+    }
+}
+
+fn run(preset: &str, scale: f64, settings: ProcessingSettings) -> Run {
+    let config = SimConfig {
+        scale,
+        ..SimConfig::preset(preset).unwrap()
+    };
+    let frames = if config.script.is_constant() {
+        CONSTANT_FRAMES
+    } else {
+        (config.duration_s * config.trigger_hz).round() as usize
+    };
+    let render = Arc::new(SimRender::new(&config).unwrap());
+    let view = rigview_tests::test_view(&render).unwrap();
+    let edges = render.rig().neighbours.clone();
+    let mut lp = rigview_tests::sim_loop(&render, view, settings, &edges).unwrap();
+    let n = render.cameras().len();
+    let mut out = Run {
+        cameras: render.cameras().iter().map(|c| c.name.clone()).collect(),
+        log2_e: vec![Vec::new(); n],
+        probe: vec![Vec::new(); n],
+        level: Vec::new(),
+    };
+    for k in 0..frames {
+        let step = lp.step().unwrap().unwrap();
+        let output = step.output.expect("the simulated rig gives complete sets");
+        for c in &output.step.cameras {
+            out.log2_e[c.camera].push(c.taken.exposure().log2());
+            out.probe[c.camera].push(c.probe_frame);
+        }
+        let l = config.script.levels(k as f64 / config.trigger_hz);
+        out.level.push(l.sun + 1e3 * l.sky);
+    }
+    out
+}
+
+impl Run {
+    /// Per camera, the largest standard deviation of log2 E over the last
+    /// [`TAIL`] kept frames of a run of constant light.
+    fn tail_sd(&self) -> Vec<f64> {
+        let runs = constant_runs(self.level.len(), |k| self.level[k]);
+        (0..self.cameras.len())
+            .map(|cam| {
+                runs.iter()
+                    .filter(|(a, b)| b + 1 - a >= MIN_RUN)
+                    .map(|&(_, b)| {
+                        let tail: Vec<f64> = (b + 1 - TAIL..=b)
+                            .filter(|&k| !self.probe[cam][k])
+                            .map(|k| self.log2_e[cam][k])
+                            .collect();
+                        std_dev(&tail)
+                    })
+                    .fold(0.0, f64::max)
+            })
+            .collect()
+    }
+
+    /// The frames where the light changes.
+    fn steps(&self) -> Vec<usize> {
+        constant_runs(self.level.len(), |k| self.level[k])
+            .iter()
+            .skip(1)
+            .map(|r| r.0)
+            .collect()
+    }
+}
+
+/// No limit cycle on any preset, per camera, for the laws that meet it on
+/// the γ-mapping (a quarter of the resolution).
+#[test]
+fn no_limit_cycle_on_any_preset_per_camera_on_the_gamma_mapping() {
+    let mut failures = Vec::new();
+    for law in [LawKind::Linear, LawKind::Fast] {
+        for (preset, ..) in rigview_core::sim::PRESETS {
+            let r = run(
+                preset,
+                0.25,
+                settings(Strategy::Single, law, Simulation::Gamma, false),
+            );
+            let sd = r.tail_sd();
+            println!(
+                "{preset:>9} {:>9}: tail SD {}",
+                law.name(),
+                sd.iter()
+                    .zip(&r.cameras)
+                    .map(|(s, c)| format!("{c} {s:.3}"))
+                    .collect::<Vec<_>>()
+                    .join("  ")
+            );
+            for (s, c) in sd.iter().zip(&r.cameras) {
+                if *s > CYCLE_SD_EV {
+                    failures.push(format!("{preset} {} {c}: {s:.3} EV", law.name()));
+                }
+            }
+        }
+    }
+    assert!(failures.is_empty(), "limit cycles: {failures:?}");
+}
+
+/// The fast law's step responses on the `steps` preset at full resolution,
+/// with probes off and on (probe frames left out): every step settles
+/// within the 1.5 s window, and with probes off no camera cycles once it
+/// has. (rigview's goals, 4 frames for ±2 stops and 6 for ±4 with at most
+/// 0.3 EV of overshoot, are not met on every camera yet: the table shows
+/// where.)
+#[test]
+fn the_fast_law_settles_after_every_step_of_light() {
+    let spec = ResponseSpec::default();
+    let mut failures = Vec::new();
+    for probe in [false, true] {
+        let r = run(
+            "steps",
+            1.0,
+            settings(Strategy::Single, LawKind::Fast, Simulation::Gamma, probe),
+        );
+        let steps = r.steps();
+        assert_eq!(steps, vec![20, 60, 100, 140], "the preset's steps moved");
+        println!(
+            "probes {}: frames to settle / overshoot EV / jitter EV",
+            if probe { "on" } else { "off" }
+        );
+        for (cam, name) in r.cameras.iter().enumerate() {
+            let mut row = Vec::new();
+            for &s in &steps {
+                let resp = step_response(&r.log2_e[cam], &r.probe[cam], s, &spec)
+                    .expect("the run covers each step's window");
+                row.push(format!(
+                    "{:>2}/{:.2}/{:.3}",
+                    resp.settle_frames, resp.overshoot_ev, resp.jitter_ev
+                ));
+                if resp.settle_frames > spec.window {
+                    failures.push(format!("{name} step at {s}: never settled"));
+                }
+            }
+            println!("  {name:>6}: {}", row.join("  "));
+        }
+        // With probes on, a probe whose frame is better is taken: the
+        // camera moves to the probe's exposure (a deliberate step to a
+        // better fixed point, not a cycle), so the tail is judged with
+        // probes off.
+        for (s, c) in r.tail_sd().iter().zip(&r.cameras) {
+            println!("  {c:>6}: tail SD {s:.3} EV");
+            if !probe && *s > CYCLE_SD_EV {
+                failures.push(format!("probes {probe}: {c} cycles, tail SD {s:.3} EV"));
+            }
+        }
+    }
+    assert!(failures.is_empty(), "{failures:?}");
+}
