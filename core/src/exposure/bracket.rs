@@ -174,10 +174,7 @@ impl Bracket {
         let tol = params.light_tolerance;
         // A linear sensor's mean intensity grows at most in proportion to
         // the exposure (clipping only slows it) and never falls with it.
-        let changed = |e: &End| {
-            let k = (at - e.at).exp2();
-            mean < e.mean * k.min(1.0) * (1.0 - tol) || mean > e.mean * k.max(1.0) * (1.0 + tol)
-        };
+        let changed = |e: &End| !same_scene((e.at, e.mean), (at, mean), tol);
         if self.lo.iter().chain(self.hi.iter()).any(changed) {
             self.reset();
         }
@@ -285,7 +282,7 @@ impl Repeller {
     pub fn follow(&mut self, at: f64, best: f64, m: f64, mean: f64, light_tolerance: f64) -> f64 {
         let now = Seen { at, best, m, mean };
         let followed = match self.last {
-            Some(l) if same_scene(&l, &now, light_tolerance) => {
+            Some(l) if same_scene((l.at, l.mean), (at, mean), light_tolerance) => {
                 let (lo, hi) = if l.at < at { (l, now) } else { (now, l) };
                 let apart = hi.at - lo.at > 1e-6 && lo.best < lo.at && hi.best > hi.at;
                 if apart && l.m > m {
@@ -301,14 +298,14 @@ impl Repeller {
     }
 }
 
-/// Whether two frames can be of the same scene: the mean intensity of a
-/// linear sensor grows at most in proportion to the exposure and never
-/// falls with it ([`Bracket`]'s rule).
-fn same_scene(a: &Seen, b: &Seen, tol: f64) -> bool {
-    let k = (b.at - a.at).exp2();
-    let lo = a.mean * k.min(1.0) * (1.0 - tol);
-    let hi = a.mean * k.max(1.0) * (1.0 + tol);
-    (lo..=hi).contains(&b.mean)
+/// Whether frames `(log2 exposure, mean intensity)` `a` and `b` can be of
+/// the same scene: the mean intensity of a linear sensor grows at most in
+/// proportion to the exposure and never falls with it, within `tol`.
+fn same_scene(a: (f64, f64), b: (f64, f64), tol: f64) -> bool {
+    let k = (b.0 - a.0).exp2();
+    let lo = a.1 * k.min(1.0) * (1.0 - tol);
+    let hi = a.1 * k.max(1.0) * (1.0 + tol);
+    (lo..=hi).contains(&b.1)
 }
 
 #[cfg(test)]
