@@ -2,13 +2,15 @@
 //! What the operator sees of the control: the composed view through the
 //! app's processor on the simulated rig (reference preset, a quarter of the
 //! resolution), in lock step: the display gains even out the seams that
-//! balancing leaves, without touching the cameras' exposures.
+//! balancing leaves, without touching the cameras' exposures, and a probe
+//! frame is shown as bright as the frames around it.
 
 use std::sync::Arc;
 
-use rigview_core::pipeline::{DisplaySettings, LockStep, ProcessingSettings};
+use rigview_core::exposure::{ControllerConfig, EstimatorConfig, Simulation};
+use rigview_core::pipeline::{DisplaySettings, LockStep, ProcessingSettings, Strategy};
 use rigview_core::sim::{SimConfig, SimRender, SimRig};
-use rigview_core::surround::{SeamBands, SurroundView};
+use rigview_core::surround::{BlendMode, Canvas, SeamBands, SurroundView};
 
 fn render() -> Arc<SimRender> {
     let config = SimConfig {
@@ -87,4 +89,111 @@ fn display_gains_even_out_the_seams_and_leave_the_exposures_alone() {
     for s in &on {
         assert!(*s < 0.1, "seam steps with display gains {on:.3?}");
     }
+}
+
+/// Per camera, the canvas pixels only that camera shows (its blend weight
+/// is the whole of the pixel).
+fn exclusive_pixels(view: &SurroundView, blend: BlendMode) -> Vec<Vec<usize>> {
+    let m = BlendMode::ALL.iter().position(|&b| b == blend).unwrap();
+    let (width, _) = view.size();
+    view.layers()
+        .iter()
+        .map(|layer| {
+            let [x0, y0, w, _] = layer.roi;
+            let pixels: Vec<usize> = layer.weights[m]
+                .iter()
+                .enumerate()
+                .filter(|&(_, &weight)| weight == 256)
+                .map(|(i, _)| (y0 + i / w) * width + x0 + i % w)
+                .collect();
+            assert!(
+                pixels.len() > 1000,
+                "{}: {} pixels",
+                layer.name,
+                pixels.len()
+            );
+            pixels
+        })
+        .collect()
+}
+
+/// The mean of `canvas` over `pixels`.
+fn mean_over(canvas: &Canvas, pixels: &[usize]) -> f64 {
+    let ch = canvas.channels;
+    let sum: u64 = pixels
+        .iter()
+        .flat_map(|&p| &canvas.data[p * ch..(p + 1) * ch])
+        .map(|&v| u64::from(v))
+        .sum();
+    sum as f64 / (pixels.len() * ch) as f64
+}
+
+/// A probe frame is taken darker on purpose; the view shows it at its
+/// camera's exposure before the probe, scaled sample by sample and clipped
+/// as the sensor clips, so that its camera's part of the view keeps its
+/// brightness within 2 % of the set before (reference preset, each camera
+/// under its own law on scale-and-clip, which probes).
+#[test]
+fn a_probe_frame_is_shown_as_bright_as_the_frames_around_it() {
+    let render = render();
+    let settings = ProcessingSettings {
+        strategy: Strategy::Single,
+        controller: ControllerConfig {
+            estimator: EstimatorConfig {
+                simulation: Simulation::ScaleClip,
+                ..Default::default()
+            },
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    let blend = settings.blend;
+    let mut lp = composing(&render, settings);
+    let regions = exclusive_pixels(lp.processor().view().unwrap(), blend);
+    // Per set: per camera, whether its frame is a probe's, and its region's
+    // mean in the view.
+    let mut sets: Vec<(Vec<bool>, Vec<f64>)> = Vec::new();
+    for _ in 0..160 {
+        let step = lp.step().unwrap().unwrap();
+        let out = step.output.unwrap();
+        let canvas = out.canvas.as_ref().unwrap();
+        sets.push((
+            out.cameras.iter().map(|c| c.probe_frame).collect(),
+            regions.iter().map(|r| mean_over(canvas, r)).collect(),
+        ));
+    }
+    let mut probes = 0;
+    let mut worst: f64 = 0.0;
+    for k in 0..regions.len() {
+        for t in 1..sets.len() {
+            if !sets[t].0[k] {
+                continue;
+            }
+            // The last set before it whose frame was not a probe's.
+            let Some(before) = (0..t).rev().find(|&s| !sets[s].0[k]) else {
+                continue;
+            };
+            let after = (t + 1..sets.len()).find(|&s| !sets[s].0[k]);
+            let (shown, then) = (sets[t].1[k], sets[before].1[k]);
+            let d = (shown / then - 1.0).abs();
+            println!(
+                "camera {k} set {t}: probe frame shown at {shown:.1}, set {before} {then:.1}, \
+                 next {:?}",
+                after.map(|a| (a, sets[a].1[k]))
+            );
+            worst = worst.max(d);
+            probes += 1;
+            assert!(
+                d <= 0.02,
+                "camera {k}: the probe frame of set {t} is shown at {shown:.1}, \
+                 {:.1} % from set {before}'s {then:.1}",
+                100.0 * (shown / then - 1.0)
+            );
+        }
+    }
+    println!(
+        "{probes} probe frames, the largest change {:.2} %",
+        100.0 * worst
+    );
+    assert!(probes >= 2, "only {probes} probe frames were shown");
 }

@@ -1,7 +1,7 @@
 //! Camera images as the rest of the crate reads them: the pixel formats,
 //! borrowed frames, region-of-interest masks and luminance, and the image
 //! operations the crate needs (8-bit colour conversion, the Euclidean
-//! distance transform), in Rust without system libraries.
+//! distance transform, an 8-bit frame scaled by a gain), in Rust without system libraries.
 //!
 //! Luminance uses the BT.601 weights (0.299 R + 0.587 G + 0.114 B, as
 //! OpenCV's `RGB2GRAY`) on the camera's values, normalised to [0, 1] by the
@@ -16,6 +16,7 @@ mod convert;
 mod distance;
 mod format;
 mod frame;
+mod gain;
 pub(crate) mod luma;
 mod mask;
 
@@ -23,4 +24,5 @@ pub use convert::{mono8_to_rgb8, rgb8_to_mono8};
 pub use distance::distance_to_zero;
 pub use format::PixelFormat;
 pub use frame::FrameView;
+pub use gain::scale_8bit;
 pub use mask::RoiMask;

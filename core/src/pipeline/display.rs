@@ -7,8 +7,9 @@
 //! - **Deliberate exposure jumps.** A probe frame is taken darker on
 //!   purpose; shown as it is, its camera's part of the view darkens for a
 //!   set or two. The view shows such a frame at its camera's *display
-//!   exposure* `D`: its pixels scaled by `D / E_taken` (a linear sensor's
-//!   brightness follows its exposure). `D` is the exposure of the camera's
+//!   exposure* `D`: its samples scaled by `D / E_taken` (a linear sensor's
+//!   brightness follows its exposure) and clipped where the sensor clips,
+//!   before the view interpolates them. `D` is the exposure of the camera's
 //!   latest frame that was not a probe. The same holds for any frame whose
 //!   exposure dropped by more than `ease_ev` while the scene stayed the
 //!   same (its mean intensity moved with the exposure): `D` then moves
@@ -114,6 +115,26 @@ pub struct DisplayInput {
     pub probe_frame: bool,
 }
 
+/// One camera's display gain, in two parts.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DisplayGain {
+    /// `D / E_taken`: the frame shown at its camera's display exposure (a
+    /// probe frame or an eased jump; 1 otherwise). The view applies it to
+    /// the camera's samples before interpolating them, so that what the
+    /// sensor clipped stays clipped.
+    pub exposure: f32,
+    /// The seam gain `2^c_k`.
+    pub seam: f32,
+}
+
+impl DisplayGain {
+    /// Both parts together, within the composer's 1/16 to 16.
+    pub fn total(self) -> f32 {
+        let ev = f64::from(self.exposure * self.seam).log2();
+        ev.clamp(-MAX_GAIN_EV, MAX_GAIN_EV).exp2() as f32
+    }
+}
+
 /// The display gains of a rig, set by set.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct DisplayGains {
@@ -137,7 +158,7 @@ impl DisplayGains {
         settings: &DisplaySettings,
         frames: &[DisplayInput],
         log2_r: &[(usize, usize, Option<f64>)],
-    ) -> Vec<f32> {
+    ) -> Vec<DisplayGain> {
         let n = frames.len();
         if self.held.len() != n {
             self.held = vec![None; n];
@@ -193,7 +214,10 @@ impl DisplayGains {
         }
         ease.iter()
             .zip(&self.seam)
-            .map(|(a, c)| (a + c).clamp(-MAX_GAIN_EV, MAX_GAIN_EV).exp2() as f32)
+            .map(|(a, c)| DisplayGain {
+                exposure: a.clamp(-MAX_GAIN_EV, MAX_GAIN_EV).exp2() as f32,
+                seam: c.exp2() as f32,
+            })
             .collect()
     }
 }
@@ -234,6 +258,10 @@ fn seam_gains(
 mod tests {
     use super::*;
 
+    fn total(gains: &[DisplayGain]) -> Vec<f32> {
+        gains.iter().map(|g| g.total()).collect()
+    }
+
     fn frame(taken: f64, mean: f64, probe_frame: bool) -> DisplayInput {
         DisplayInput {
             taken,
@@ -249,12 +277,18 @@ mod tests {
             ..Default::default()
         };
         let mut d = DisplayGains::default();
-        assert_eq!(d.update(&s, &[frame(1000.0, 0.4, false)], &[]), &[1.0]);
-        // A probe 1 EV darker: shown twice as bright.
+        assert_eq!(
+            total(&d.update(&s, &[frame(1000.0, 0.4, false)], &[])),
+            &[1.0]
+        );
+        // A probe 1 EV darker: shown twice as bright, in its samples.
         let g = d.update(&s, &[frame(500.0, 0.2, true)], &[])[0];
-        assert!((g - 2.0).abs() < 1e-6, "{g}");
+        assert!((g.exposure - 2.0).abs() < 1e-6 && g.seam == 1.0, "{g:?}");
         // Back at its exposure: as it is.
-        assert_eq!(d.update(&s, &[frame(1000.0, 0.4, false)], &[]), &[1.0]);
+        assert_eq!(
+            total(&d.update(&s, &[frame(1000.0, 0.4, false)], &[])),
+            &[1.0]
+        );
     }
 
     #[test]
@@ -270,18 +304,21 @@ mod tests {
         let mut shown = Vec::new();
         for _ in 0..5 {
             let g = d.update(&s, &[frame(1000.0, 0.4, false)], &[])[0];
-            shown.push(f64::from(g).log2() - 1.0);
+            shown.push(f64::from(g.exposure).log2() - 1.0);
         }
         let expect = [-0.25, -0.5, -0.75, -1.0, -1.0];
         for (s, e) in shown.iter().zip(expect) {
             assert!((s - e).abs() < 1e-6, "{shown:?}");
         }
         // A brighter jump is shown as it is.
-        assert_eq!(d.update(&s, &[frame(2000.0, 0.8, false)], &[]), &[1.0]);
+        assert_eq!(
+            total(&d.update(&s, &[frame(2000.0, 0.8, false)], &[])),
+            &[1.0]
+        );
         // Two stops less light and the camera 2 EV brighter: the frame
         // looks the same, and is shown as it is.
         d.update(&s, &[frame(1000.0, 0.4, false)], &[]);
-        let g = d.update(&s, &[frame(4000.0, 0.4, false)], &[])[0];
+        let g = d.update(&s, &[frame(4000.0, 0.4, false)], &[])[0].total();
         assert!((g - 1.0).abs() < 1e-6, "{g}");
     }
 
@@ -305,7 +342,7 @@ mod tests {
         let g: Vec<f64> = d
             .update(&s, &frames, &r)
             .iter()
-            .map(|g| f64::from(*g).log2())
+            .map(|g| f64::from(g.seam).log2())
             .collect();
         for &(i, j, r) in &r {
             let shown = r.unwrap_or(0.0) + g[j] - g[i];
@@ -319,6 +356,6 @@ mod tests {
             compensate: false,
             ..s
         };
-        assert!(d.update(&off, &frames, &r).iter().all(|&g| g == 1.0));
+        assert!(d.update(&off, &frames, &r).iter().all(|g| g.total() == 1.0));
     }
 }

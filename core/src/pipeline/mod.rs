@@ -46,7 +46,7 @@ mod settings;
 mod telemetry;
 mod threads;
 
-pub use display::{DisplayGains, DisplayInput, DisplaySettings};
+pub use display::{DisplayGain, DisplayGains, DisplayInput, DisplaySettings};
 pub use lockstep::{LockStep, LoopStep};
 pub use output::{CameraOutput, Output, Overlay, PairOutput, PatchBox};
 pub use processor::{check_view, Processor};

@@ -14,6 +14,7 @@ use crate::exposure::{
     CameraMasks, Estimate, Estimator, ExposureSetting, FrameView, Meter, Metered, NeighbourGraph,
     PixelFormat, ProbeEvent, RigController,
 };
+use crate::image::scale_8bit;
 use crate::source::{CameraInfo, ExposureCommand, FrameSet};
 use crate::surround::{Canvas, Composer, SurroundView};
 
@@ -55,6 +56,8 @@ pub struct Processor {
     last_taken: Vec<Option<ExposureSetting>>,
     compose: bool,
     display: DisplayGains,
+    /// Per camera, the samples of a frame shown at another exposure.
+    scaled: Vec<Vec<u8>>,
 }
 
 impl Processor {
@@ -88,6 +91,7 @@ impl Processor {
             last_taken: vec![None; n],
             compose: true,
             display: DisplayGains::default(),
+            scaled: Vec::new(),
             cameras,
             shared_settings: Arc::new(settings.clone()),
             settings,
@@ -345,14 +349,38 @@ impl Processor {
                     })
                     .collect();
                 let ratios: Vec<_> = pairs.iter().map(|p| (p.i, p.j, p.log2_r)).collect();
-                display_gains = self
+                let gains = self
                     .display
                     .update(&self.settings.display, &inputs, &ratios);
+                display_gains = gains.iter().map(|g| g.total()).collect();
+                // A frame shown at another exposure than it was taken with
+                // is scaled sample by sample (clipped where its sensor
+                // clips); the composer applies the seam gains.
+                self.scaled.resize_with(n, Vec::new);
+                let mut shown = Vec::with_capacity(n);
+                let mut composer_gains = Vec::with_capacity(n);
+                for ((v, g), buf) in views.iter().zip(&gains).zip(&mut self.scaled) {
+                    let scaled = if (g.exposure - 1.0).abs() > 1e-6 {
+                        scale_8bit(v, g.exposure, buf)?
+                    } else {
+                        None
+                    };
+                    match scaled {
+                        Some(s) => {
+                            shown.push(s);
+                            composer_gains.push(g.seam);
+                        }
+                        None => {
+                            shown.push(*v);
+                            composer_gains.push(g.total());
+                        }
+                    }
+                }
                 match self.composer.compose_with_gains(
                     view,
-                    &views,
+                    &shown,
                     self.settings.blend,
-                    Some(&display_gains),
+                    Some(&composer_gains),
                     &mut canvas,
                 ) {
                     Ok(()) => Some(Arc::new(canvas)),
