@@ -1,9 +1,9 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 //! Exposure control under changing light, in closed loop through the app's
 //! processor on the simulated rig (one frame of latency, a command every
-//! frame): no limit cycle where the light is constant, and the fast law's
-//! step responses on the `steps` preset (+2, −2, −4, +4 stops at 1, 3, 5
-//! and 7 s).
+//! frame): no limit cycle where the light is constant, every law settled
+//! at the estimator's fixed point, and the fast law's step responses on the
+//! `steps` preset (+2, −2, −4, +4 stops at 1, 3, 5 and 7 s).
 //!
 //! "No limit cycle": over the last [`TAIL`] frames of every run of
 //! constant light at least [`MIN_RUN`] frames long, the standard deviation
@@ -16,6 +16,7 @@ use std::sync::Arc;
 use rigview_core::eval::dynamics::{constant_runs, std_dev, step_response, ResponseSpec};
 use rigview_core::exposure::{ControllerConfig, EstimatorConfig, LawKind, LawParams, Simulation};
 use rigview_core::pipeline::{ProcessingSettings, Strategy};
+use rigview_core::sim::truth::{self, FixedPointSearch};
 use rigview_core::sim::{SimConfig, SimRender};
 
 /// Frames of the constant-light tail judged.
@@ -24,6 +25,8 @@ const TAIL: usize = 20;
 const MIN_RUN: usize = 40;
 /// The largest standard deviation of log2 E in a settled tail, EV.
 const CYCLE_SD_EV: f64 = 0.05;
+/// How far (EV) a settled loop may lie from the estimator's fixed point.
+const FIXED_POINT_EV: f64 = 0.03;
 /// Frames of the presets whose light is constant.
 const CONSTANT_FRAMES: usize = 120;
 
@@ -36,6 +39,9 @@ struct Run {
     probe: Vec<Vec<bool>>,
     /// The light's level per frame (any number that changes with it).
     level: Vec<f64>,
+    /// Per camera at the end, the exposure of the darker frame its
+    /// estimate read saturated pixels from (scale-and-clip), if it did.
+    darker: Vec<Option<f64>>,
 }
 
 fn settings(
@@ -70,12 +76,16 @@ fn run(preset: &str, scale: f64, settings: ProcessingSettings) -> Run {
         scale,
         ..SimConfig::preset(preset).unwrap()
     };
+    run_config(&config, settings)
+}
+
+fn run_config(config: &SimConfig, settings: ProcessingSettings) -> Run {
     let frames = if config.script.is_constant() {
         CONSTANT_FRAMES
     } else {
         (config.duration_s * config.trigger_hz).round() as usize
     };
-    let render = Arc::new(SimRender::new(&config).unwrap());
+    let render = Arc::new(SimRender::new(config).unwrap());
     let view = rigview_tests::test_view(&render).unwrap();
     let edges = render.rig().neighbours.clone();
     let mut lp = rigview_tests::sim_loop(&render, view, settings, &edges).unwrap();
@@ -85,6 +95,7 @@ fn run(preset: &str, scale: f64, settings: ProcessingSettings) -> Run {
         log2_e: vec![Vec::new(); n],
         probe: vec![Vec::new(); n],
         level: Vec::new(),
+        darker: vec![None; n],
     };
     for k in 0..frames {
         let step = lp.step().unwrap().unwrap();
@@ -95,6 +106,17 @@ fn run(preset: &str, scale: f64, settings: ProcessingSettings) -> Run {
         }
         let l = config.script.levels(k as f64 / config.trigger_hz);
         out.level.push(l.sun + 1e3 * l.sky);
+        if k + 1 == frames {
+            for c in &output.step.cameras {
+                let declipped = c.estimate.as_ref().is_some_and(|e| e.declipped);
+                out.darker[c.camera] = declipped
+                    .then(|| {
+                        let controller = lp.processor_mut().controller_mut();
+                        controller.camera_mut(c.camera).ok()?.darker_frame()
+                    })
+                    .flatten();
+            }
+        }
     }
     out
 }
@@ -211,4 +233,69 @@ fn the_fast_law_settles_after_every_step_of_light() {
         }
     }
     assert!(failures.is_empty(), "{failures:?}");
+}
+
+/// Commanding every frame moves no fixed point: under constant light,
+/// every law settles where the estimator says the exposure is right (its
+/// γ̂ crosses 1 on the render metered like the loop), within
+/// [`FIXED_POINT_EV`], on both constant-light presets at a quarter of the
+/// resolution, each camera under its own law, both simulations, probes
+/// off. Scale-and-clip's fixed point is found reading the darker frame
+/// the loop's estimate read at the end, if it did. The loop's frames are
+/// noisy, the fixed points are found on noise-free renders.
+#[test]
+fn every_law_settles_at_the_estimators_fixed_point() {
+    let mut failures = Vec::new();
+    for preset in ["reference", "overcast"] {
+        let config = SimConfig {
+            scale: 0.25,
+            ..SimConfig::preset(preset).unwrap()
+        };
+        let render = SimRender::new(&config).unwrap();
+        let view = rigview_tests::test_view(&render).unwrap();
+        for (law, sim) in [LawKind::Linear, LawKind::Nonlinear, LawKind::Fast]
+            .into_iter()
+            .flat_map(|l| [Simulation::Gamma, Simulation::ScaleClip].map(|s| (l, s)))
+        {
+            let s = settings(Strategy::Single, law, sim, false);
+            let estimator = s.controller.estimator.clone();
+            let r = run_config(&config, s);
+            for (cam, name) in r.cameras.iter().enumerate() {
+                let t = &r.log2_e[cam];
+                let mean = t[t.len() - TAIL..].iter().sum::<f64>() / TAIL as f64;
+                let search = FixedPointSearch {
+                    estimator: estimator.clone(),
+                    lo: (mean - 1.0).exp2(),
+                    hi: (mean + 1.0).exp2(),
+                    step_ev: 0.01,
+                    darker: r.darker[cam],
+                    ..Default::default()
+                };
+                let found =
+                    truth::fixed_points(&render, cam, 0.0, view.ground_masks().get(cam), &search)
+                        .unwrap();
+                let gap = found
+                    .iter()
+                    .map(|f| f.exposure.log2() - mean)
+                    .min_by(|a, b| a.abs().total_cmp(&b.abs()));
+                println!(
+                    "{preset:>9} {:>9} {:>10} {name:>6}: settled at {mean:.3}, fixed point {}",
+                    law.name(),
+                    sim.name(),
+                    gap.map_or("none".into(), |g| format!("{:.3} ({g:+.3} EV)", mean + g))
+                );
+                if !gap.is_some_and(|g| g.abs() <= FIXED_POINT_EV) {
+                    failures.push(format!(
+                        "{preset} {} {} {name}: {gap:?}",
+                        law.name(),
+                        sim.name()
+                    ));
+                }
+            }
+        }
+    }
+    assert!(
+        failures.is_empty(),
+        "away from the fixed point: {failures:?}"
+    );
 }

@@ -343,6 +343,17 @@ impl CameraController {
         self.darker.as_ref().map(|d| d.exposure)
     }
 
+    /// The exposure of the darker frame the estimator reads saturated
+    /// pixels from while the scene stays: the probe frame, or else the
+    /// frame after which the camera's own law last sent it brighter, if
+    /// any.
+    pub fn darker_frame(&self) -> Option<f64> {
+        self.darker
+            .as_ref()
+            .or(self.passed.as_ref())
+            .map(|d| d.exposure)
+    }
+
     /// Tells the controller the camera's current setting (e.g. after the
     /// camera's built-in auto-exposure ran) and forgets the history.
     pub fn sync(&mut self, current: ExposureSetting) {
