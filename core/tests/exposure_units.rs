@@ -1296,19 +1296,33 @@ fn a_pair_without_usable_patches_keeps_its_scene_ratio() {
     use rigview_core::exposure::balance::HeldRatios;
     let mut held = HeldRatios::default();
     // Measured at E_i = 100, E_j = 200: r = 1.5, so the scene ratio is 0.75.
-    assert_eq!(held.update((0, 1), Some(1.5), 100.0, 200.0, 3), Some(1.5));
+    assert_eq!(
+        held.update((0, 1), Some(1.5), 100.0, 200.0, 3, false),
+        Some(1.5)
+    );
     // Unusable patches: at E_i = 50, E_j = 200 the held scene ratio gives
     // r = 0.75 · 200 / 50 = 3.
-    let r = held.update((0, 1), None, 50.0, 200.0, 3).unwrap();
+    let r = held.update((0, 1), None, 50.0, 200.0, 3, false).unwrap();
     assert!((r - 3.0).abs() < 1e-12, "{r}");
     // Another pair has nothing held.
-    assert_eq!(held.update((1, 0), None, 200.0, 50.0, 3), None);
+    assert_eq!(held.update((1, 0), None, 200.0, 50.0, 3, false), None);
     // Held for at most `hold_sets` sets.
-    assert!(held.update((0, 1), None, 50.0, 200.0, 3).is_some());
-    assert!(held.update((0, 1), None, 50.0, 200.0, 3).is_some());
-    assert_eq!(held.update((0, 1), None, 50.0, 200.0, 3), None);
+    assert!(held.update((0, 1), None, 50.0, 200.0, 3, false).is_some());
+    assert!(held.update((0, 1), None, 50.0, 200.0, 3, false).is_some());
+    assert_eq!(held.update((0, 1), None, 50.0, 200.0, 3, false), None);
     // A new measurement starts again.
-    assert_eq!(held.update((0, 1), Some(2.0), 50.0, 200.0, 3), Some(2.0));
+    assert_eq!(
+        held.update((0, 1), Some(2.0), 50.0, 200.0, 3, false),
+        Some(2.0)
+    );
+    // Sets whose patches are clipped do not age the held ratio.
+    for _ in 0..10 {
+        assert!(held.update((0, 1), None, 50.0, 200.0, 3, true).is_some());
+    }
+    for _ in 0..3 {
+        assert!(held.update((0, 1), None, 50.0, 200.0, 3, false).is_some());
+    }
+    assert_eq!(held.update((0, 1), None, 50.0, 200.0, 3, false), None);
     held.clear();
-    assert_eq!(held.update((0, 1), None, 50.0, 200.0, 3), None);
+    assert_eq!(held.update((0, 1), None, 50.0, 200.0, 3, true), None);
 }

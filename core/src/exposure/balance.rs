@@ -32,7 +32,10 @@
 //! `recover_ev` that way since the last reversal. A camera that follows its scene (a
 //! tunnel, a step of light) keeps `κ = 1` and Eq. 5 as written; one that
 //! circles is slowed until the loop gain is below 1. The fixed points are
-//! Eq. 5's: `E*_{t+1} = E_t` is a fixed point for every `κ`.
+//! Eq. 5's: `E*_{t+1} = E_t` is a fixed point for every `κ`. A change of
+//! light (a frame whose mean intensity its exposure cannot explain) ends
+//! the damping: `κ` is 1 again, so that a camera damped while it rested
+//! follows the new light at the full step.
 //!
 //! The distance before `κ` grows again catches a saw-tooth as well as a
 //! two-step cycle: where the balanced target jumps (γ̂ of the γ-mapping
@@ -43,6 +46,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use super::bracket::same_scene;
 use crate::error::{check_range, Error, Result};
 
 /// Parameters of the balancing.
@@ -60,7 +64,8 @@ pub struct BalanceParams {
     #[serde(default)]
     pub damping: DampingParams,
     /// For how many sets a pair's last measured scene ratio stands in
-    /// while its patches are unusable ([`HeldRatios`]; 0: never).
+    /// while its patches are unusable, not counting sets in which they are
+    /// clipped ([`HeldRatios`]; 0: never).
     #[serde(default = "default_hold_sets")]
     pub hold_sets: u32,
 }
@@ -153,6 +158,19 @@ pub fn pair_ratio(patches: &[PatchPair], params: &BalanceParams) -> Option<f64> 
     Some(median(&mut ratios))
 }
 
+/// Whether most of a pair's patches are left out because either camera
+/// saturates them (rather than because they are dark).
+pub fn clipped(patches: &[PatchPair], params: &BalanceParams) -> bool {
+    let clips = patches
+        .iter()
+        .filter(|p| {
+            f64::from(p.saturated_i) > params.max_saturated
+                || f64::from(p.saturated_j) > params.max_saturated
+        })
+        .count();
+    2 * clips > patches.len()
+}
+
 /// The last usable ratio of each ordered pair, as a ratio of the scene
 /// (exposure removed), standing in while the pair's patches are unusable.
 ///
@@ -165,6 +183,14 @@ pub fn pair_ratio(patches: &[PatchPair], params: &BalanceParams) -> Option<f64> 
 /// `ρ_ij = r_ij·E_i/E_j = L_j/L_i` does not change with the exposures, and
 /// a step of light over the whole scene leaves it as it was: the held `ρ`
 /// gives `r_ij = ρ_ij·E_j/E_i` at the exposures the frames were taken with.
+///
+/// The held ratio stands for `hold_sets` sets, the scene in the overlap
+/// may have changed after that, but for as long as the patches stay
+/// clipped it does not age: a balanced camera whose neighbours see the
+/// overlap much brighter may clip the shared patches at its balanced
+/// exposure, and dropping the pair there would make it jump to its own
+/// law's exposure (2 EV on the tunnel's front camera 5 s after the exit,
+/// under scale-and-clip), and back once the patches show again.
 #[derive(Clone, Debug, Default)]
 pub struct HeldRatios {
     /// `((i, j), log2 ρ_ij, sets since it was measured)`.
@@ -173,8 +199,9 @@ pub struct HeldRatios {
 
 impl HeldRatios {
     /// `r_ij` for frames taken at `e_i` and `e_j`: the measured one (which
-    /// is kept), or the held scene ratio for at most `hold_sets` sets.
-    /// Call once per ordered pair and set.
+    /// is kept), or the held scene ratio for at most `hold_sets` sets in
+    /// which the patches were not `clipped`. Call once per ordered pair and
+    /// set.
     pub fn update(
         &mut self,
         (i, j): (usize, usize),
@@ -182,6 +209,7 @@ impl HeldRatios {
         e_i: f64,
         e_j: f64,
         hold_sets: u32,
+        clipped: bool,
     ) -> Option<f64> {
         let exposure = (e_j / e_i).log2();
         let slot = self.held.iter().position(|h| h.0 == (i, j));
@@ -196,7 +224,9 @@ impl HeldRatios {
             }
             (None, Some(k)) => {
                 let h = &mut self.held[k];
-                h.2 = h.2.saturating_add(1);
+                if !clipped {
+                    h.2 = h.2.saturating_add(1);
+                }
                 (h.2 <= hold_sets && exposure.is_finite()).then(|| (h.1 + exposure).exp2())
             }
             (None, None) => None,
@@ -333,6 +363,8 @@ pub struct Damping {
     last: Option<f64>,
     /// How far (|log2|, EV) the camera has moved since the last reversal.
     travel: f64,
+    /// The last frame seen: log2 of its exposure and its mean intensity.
+    frame: Option<(f64, f64)>,
 }
 
 impl Default for Damping {
@@ -341,6 +373,7 @@ impl Default for Damping {
             kappa: 1.0,
             last: None,
             travel: 0.0,
+            frame: None,
         }
     }
 }
@@ -355,6 +388,22 @@ impl Damping {
     /// Forgets the history (`κ = 1`): for a step that did not balance.
     pub fn reset(&mut self) {
         *self = Self::default();
+    }
+
+    /// Takes the camera's frame (`log2` of the exposure it was taken with,
+    /// its mean intensity): where it cannot be of the last frame's scene
+    /// (the light changed: the bracket's rule, within `light_tolerance`), the
+    /// circling it was damped for is over, and `κ` is 1 again, so that the
+    /// camera follows the new light at Eq. 5's full step.
+    pub fn observe(&mut self, log2_exposure: f64, mean: f64, light_tolerance: f64) {
+        let now = (log2_exposure, mean);
+        if self
+            .frame
+            .is_some_and(|last| !same_scene(last, now, light_tolerance))
+        {
+            *self = Self::default();
+        }
+        self.frame = Some(now);
     }
 
     /// The exposure to command for the balanced target `target` of a frame

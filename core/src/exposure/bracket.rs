@@ -244,19 +244,35 @@ impl Bracket {
     }
 }
 
-/// Two frames of one scene whose predictions of the best exposure point
-/// away from each other: the darker asks for less, the brighter for more.
-/// Between them lies a point the estimate is repelled from (a surface
-/// saturating, two humps of `M`), and with a frame of latency the commands
-/// of even and odd frames follow different frames and the camera swings
-/// between the two sides every frame (0.23 EV on the steps preset's back
-/// camera under scale-and-clip). [`Repeller`] keeps the last frame and,
-/// when the new one points away from it, follows the frame with the more
+/// Two frames of one scene that do not ask towards each other: the darker
+/// asks for less and the brighter for more, or each asks to stay (to move
+/// less than a quarter of the distance between them). With a frame of
+/// latency the commands of even and odd frames follow different frames (a
+/// command rests on the frame it was computed from), and such frames keep
+/// two chains apart:
+/// between them lies a point the estimate is repelled from (a surface
+/// saturating, two humps of `M`: 0.23 EV every frame on the steps preset's
+/// back camera under scale-and-clip), or each sits at a fixed point of its
+/// own (γ̂ crossing 1 twice: 1 EV every frame on the tunnel's right camera
+/// under the nonlinear law). [`Repeller`] keeps the last frame and, when
+/// the new one does not ask towards it, follows the frame with the more
 /// gradient information: the camera settles on that side.
+///
+/// Frames closer than [`REPEL_MIN_EV`] are left alone: there the frames'
+/// noise decides which asks which way, and following the one with more M
+/// would hold a camera against a gentle slope of its estimate.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Repeller {
     last: Option<Seen>,
 }
+
+/// How far apart (EV) two frames must lie for [`Repeller`] to choose
+/// between them.
+pub const REPEL_MIN_EV: f64 = 0.06;
+
+/// A frame asks to stay when it asks to move less than this fraction of
+/// the distance to the other frame.
+const TOWARDS: f64 = 0.25;
 
 /// A frame as [`Repeller`] keeps it.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -273,18 +289,21 @@ impl Repeller {
         self.last = None;
     }
 
-    /// The best exposure (log2) to follow for a frame at `at` whose law
-    /// predicts `best`, with gradient information `m` and mean intensity
-    /// `mean`: `best` itself, or the last frame's prediction when the two
-    /// point away from each other and the last frame had more information.
-    /// Frames whose means disagree with their exposures by more than
+    /// The exposure (log2) to follow for a frame at `at` whose law asks
+    /// for `best`, with gradient information `m` and mean intensity
+    /// `mean`: `best` itself, or the last frame's when the two do not ask
+    /// towards each other and the last frame had more information. Frames
+    /// whose means disagree with their exposures by more than
     /// `light_tolerance` are taken for another scene.
     pub fn follow(&mut self, at: f64, best: f64, m: f64, mean: f64, light_tolerance: f64) -> f64 {
         let now = Seen { at, best, m, mean };
         let followed = match self.last {
             Some(l) if same_scene((l.at, l.mean), (at, mean), light_tolerance) => {
                 let (lo, hi) = if l.at < at { (l, now) } else { (now, l) };
-                let apart = hi.at - lo.at > 1e-6 && lo.best < lo.at && hi.best > hi.at;
+                let reach = TOWARDS * (hi.at - lo.at);
+                let opposite = lo.best < lo.at && hi.best > hi.at;
+                let staying = (lo.best - lo.at).abs() <= reach && (hi.best - hi.at).abs() <= reach;
+                let apart = hi.at - lo.at > REPEL_MIN_EV && (opposite || staying);
                 if apart && l.m > m {
                     l.best
                 } else {
@@ -301,7 +320,7 @@ impl Repeller {
 /// Whether frames `(log2 exposure, mean intensity)` `a` and `b` can be of
 /// the same scene: the mean intensity of a linear sensor grows at most in
 /// proportion to the exposure and never falls with it, within `tol`.
-fn same_scene(a: (f64, f64), b: (f64, f64), tol: f64) -> bool {
+pub(crate) fn same_scene(a: (f64, f64), b: (f64, f64), tol: f64) -> bool {
     let k = (b.0 - a.0).exp2();
     let lo = a.1 * k.min(1.0) * (1.0 - tol);
     let hi = a.1 * k.max(1.0) * (1.0 + tol);
@@ -314,7 +333,7 @@ mod tests {
     use super::*;
 
     #[test]
-    fn frames_pointing_apart_follow_the_one_with_more_information() {
+    fn frames_that_do_not_ask_towards_each_other_follow_the_one_with_more_information() {
         let mut r = Repeller::default();
         // A frame at 12.27 EV asks for 12.22; the next, at 12.52 with less
         // M, asks for 12.55: the camera follows the first.
@@ -328,6 +347,23 @@ mod tests {
         r.reset();
         assert_eq!(r.follow(12.27, 12.40, 2.0, 0.40, 0.1), 12.40);
         assert_eq!(r.follow(12.52, 12.40, 1.5, 0.47, 0.1), 12.40);
+        // Two frames 1 EV apart that each ask to stay (two fixed points):
+        // the one with more M is followed.
+        r.reset();
+        assert_eq!(r.follow(11.20, 11.20, 3.4, 0.51, 0.1), 11.20);
+        assert_eq!(r.follow(12.19, 12.19, 2.2, 0.67, 0.1), 11.20);
+        assert_eq!(r.follow(11.20, 11.21, 3.4, 0.51, 0.1), 11.21);
+        // Frames that ask towards each other converge by themselves, even
+        // where only one of them does.
+        r.reset();
+        assert_eq!(r.follow(11.20, 11.80, 3.4, 0.51, 0.1), 11.80);
+        assert_eq!(r.follow(12.19, 11.60, 2.2, 0.67, 0.1), 11.60);
+        assert_eq!(r.follow(11.20, 11.10, 3.4, 0.51, 0.1), 11.10);
+        assert_eq!(r.follow(12.19, 11.80, 2.2, 0.67, 0.1), 11.80);
+        // Both asking one way is no repeller, however far the darker asks.
+        r.reset();
+        assert_eq!(r.follow(9.81, 8.10, 3.1, 0.54, 0.1), 8.10);
+        assert_eq!(r.follow(10.10, 10.05, 2.9, 0.58, 0.1), 10.05);
         // A change of light (the mean halves at a brighter exposure) is
         // another scene.
         r.reset();

@@ -485,25 +485,26 @@ impl CameraController {
             ),
             _ => LawStep::Relative(1.0),
         };
-        // The fast law's prediction, between frames that point apart.
-        let step = match (step, &estimate) {
-            (LawStep::Predicted { ratio }, Some(e)) if own_law && hold.is_none() => {
-                let best = self.repeller.follow(
-                    taken.log2(),
-                    (taken * ratio).log2(),
+        // Under the camera's own law, between frames that do not ask
+        // towards each other.
+        let step = match &estimate {
+            Some(e) if own_law && hold.is_none() => {
+                let at = taken.log2();
+                let asked = at + step.frame_ev();
+                let followed = self.repeller.follow(
+                    at,
+                    asked,
                     e.m_current,
                     mean,
                     config.bracket.light_tolerance,
                 );
-                LawStep::Predicted {
-                    ratio: (best - taken.log2()).exp2(),
-                }
+                step.with_frame_ev(followed - at)
             }
-            (s, _) => {
+            _ => {
                 if hold.is_none() {
                     self.repeller.reset();
                 }
-                s
+                step
             }
         };
         let mut desired = match self.manual {
@@ -813,6 +814,8 @@ impl RigController {
         // The ratios are measured in every mode (telemetry); only balancing
         // acts on them.
         let mut ratios = Vec::with_capacity(pairs.len() * 2);
+        // Per ratio, whether its patches are clipped.
+        let mut clipped = Vec::with_capacity(pairs.len() * 2);
         let measure = config.balancing.unwrap_or_default();
         {
             let params = &measure;
@@ -845,6 +848,8 @@ impl RigController {
                     j: p.i,
                     r_ij: balance::pair_ratio(&swapped, params),
                 });
+                let clips = balance::clipped(&p.patches, params);
+                clipped.extend([clips, clips]);
             }
         }
         // Where each camera will be once its commands in flight show: the
@@ -860,13 +865,15 @@ impl RigController {
         // scene ratio while its patches are unusable.
         let acted: Vec<PairRatio> = ratios
             .iter()
-            .map(|r| PairRatio {
+            .zip(&clipped)
+            .map(|(r, &clipped)| PairRatio {
                 r_ij: self.held.update(
                     (r.i, r.j),
                     r.r_ij,
                     inputs[r.i].info.taken.exposure(),
                     inputs[r.j].info.taken.exposure(),
                     measure.hold_sets,
+                    clipped,
                 ),
                 ..*r
             })
@@ -898,6 +905,11 @@ impl RigController {
             };
             let (target, alpha, damping) = match balancing.filter(|_| !neighbour.is_empty()) {
                 Some(params) => {
+                    cam.damping.observe(
+                        input.info.taken.exposure().log2(),
+                        f64::from(input.metered.stats().mean),
+                        config.bracket.light_tolerance,
+                    );
                     let b = balance::balance(u.desired, bases[i], &neighbour);
                     let (e, kappa) = if u.hold.is_some() {
                         (b.exposure, cam.damping.kappa())

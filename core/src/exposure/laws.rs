@@ -26,14 +26,16 @@
 //!     the step of one anchor span (`1/γ̂`) or the step that brings the mean
 //!     intensity to 0.45, whichever is larger in the same direction (this
 //!     gets a strongly over-exposed image back quickly);
-//!   - where two frames of one scene point apart (the darker asks for less,
-//!     the brighter for more), the controller follows the one with more
-//!     gradient information ([`super::bracket::Repeller`]);
 //!   - the ratio is damped in the log domain, `E' = E·ratio^β` (β = 0.8 by
 //!     default), which absorbs estimation noise without a visible overshoot.
 //!
 //! In all laws `α = 1/2` when `γ̂ ≥ 1` and `α = 1` when `γ̂ < 1`, and every
-//! law bounds the change per frame to `[1/max_step, max_step]`.
+//! law bounds the change per frame to `[1/max_step, max_step]`. Under a
+//! camera's own law, where two frames of one scene do not ask towards each
+//! other (each stays on its side of their midpoint), the controller
+//! follows the one with more gradient information
+//! ([`super::bracket::Repeller`]): with a frame of latency, even and odd
+//! frames would otherwise keep two chains of commands apart.
 
 use serde::{Deserialize, Serialize};
 
@@ -184,6 +186,17 @@ impl LawStep {
     pub fn frame_ev(self) -> f64 {
         match self {
             Self::Relative(r) | Self::AtLeast(r) | Self::Predicted { ratio: r } => r.log2(),
+        }
+    }
+
+    /// The same kind of step to `ev` (log2 of the ratio to the frame's
+    /// exposure).
+    pub fn with_frame_ev(self, ev: f64) -> Self {
+        let r = ev.exp2();
+        match self {
+            Self::Relative(_) => Self::Relative(r),
+            Self::AtLeast(_) => Self::AtLeast(r),
+            Self::Predicted { .. } => Self::Predicted { ratio: r },
         }
     }
 }
