@@ -238,25 +238,31 @@ fn no_limit_cycle_on_any_preset() {
 }
 
 /// The fast law's step responses on the `steps` preset at full resolution,
-/// with probes off and on (probe frames left out): every step settles
-/// within the 1.5 s window, and with probes off no camera cycles once it
-/// has. (rigview's goals, 4 frames for ±2 stops and 6 for ±4 with at most
-/// 0.3 EV of overshoot, are not met on every camera yet: the table shows
-/// where.)
+/// both simulations, with probes off and on (probe frames left out): every
+/// step settles within the 1.5 s window, and on the γ-mapping with probes
+/// off no camera cycles once it has. (rigview's goals, 4 frames for ±2
+/// stops and 6 for ±4 with at most 0.3 EV of overshoot, are not met on
+/// every camera yet: the table shows where.)
 #[test]
 fn the_fast_law_settles_after_every_step_of_light() {
     let spec = ResponseSpec::default();
     let mut failures = Vec::new();
-    for probe in [false, true] {
+    for (sim, probe) in [
+        (Simulation::Gamma, false),
+        (Simulation::Gamma, true),
+        (Simulation::ScaleClip, false),
+        (Simulation::ScaleClip, true),
+    ] {
         let r = run(
             "steps",
             1.0,
-            settings(Strategy::Single, LawKind::Fast, Simulation::Gamma, probe),
+            settings(Strategy::Single, LawKind::Fast, sim, probe),
         );
         let steps = r.steps();
         assert_eq!(steps, vec![20, 60, 100, 140], "the preset's steps moved");
         println!(
-            "probes {}: frames to settle / overshoot EV / jitter EV",
+            "{}, probes {}: frames to settle / overshoot EV / jitter EV",
+            sim.name(),
             if probe { "on" } else { "off" }
         );
         for (cam, name) in r.cameras.iter().enumerate() {
@@ -277,10 +283,13 @@ fn the_fast_law_settles_after_every_step_of_light() {
         // With probes on, a probe whose frame is better is taken: the
         // camera moves to the probe's exposure (a deliberate step to a
         // better fixed point, not a cycle), so the tail is judged with
-        // probes off.
+        // probes off. Under scale-and-clip at full resolution the back
+        // camera is still creeping up 1.5 s after +4 stops (its ŝ asks for
+        // 0.03 EV at a time), which is slow, not a cycle: cycles are judged
+        // with the light held longer (`no_limit_cycle_on_any_preset`).
         for (s, c) in r.tail_sd().iter().zip(&r.cameras) {
             println!("  {c:>6}: tail SD {s:.3} EV");
-            if !probe && *s > CYCLE_SD_EV {
+            if !probe && sim == Simulation::Gamma && *s > CYCLE_SD_EV {
                 failures.push(format!("probes {probe}: {c} cycles, tail SD {s:.3} EV"));
             }
         }
