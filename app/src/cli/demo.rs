@@ -5,11 +5,10 @@ use std::io::Write;
 
 use anyhow::{Context, Result};
 use clap::Args;
-use rigview_core::exposure::{LawKind, Simulation};
-use rigview_core::pipeline::{MeterRoi, ProcessingSettings, Strategy};
+use rigview_core::pipeline::ProcessingSettings;
 use rigview_core::sim::SimConfig;
 
-use super::ProcessingArgs;
+use super::ControlArgs;
 use crate::demo::{self, Demo};
 
 /// Options of `rigview demo`.
@@ -26,18 +25,10 @@ pub struct DemoArgs {
     /// Print every K-th frame set.
     #[arg(long, default_value_t = 1)]
     pub every: u64,
-    /// How exposure is decided [default: multi, balanced gradient AE].
-    #[arg(long, value_enum)]
-    pub strategy: Option<Strategy>,
-    /// Update law [default: nonlinear].
-    #[arg(long, value_enum)]
-    pub law: Option<LawKind>,
-    /// Exposure simulation of the estimator [default: gamma].
-    #[arg(long, value_enum)]
-    pub simulation: Option<Simulation>,
-    /// Which pixels are metered [default: ground].
-    #[arg(long, value_enum, value_name = "ROI")]
-    pub meter: Option<MeterRoi>,
+    /// The control loop's options [defaults: multi, nonlinear, gamma,
+    /// ground, probes on].
+    #[command(flatten)]
+    pub control: ControlArgs,
     /// Frames between a command and the first frame that shows it, 0 to 2
     /// [default: the scenario's].
     #[arg(long)]
@@ -63,15 +54,7 @@ impl DemoArgs {
     /// The processing settings: the defaults, with the options given.
     pub fn settings(&self) -> ProcessingSettings {
         let mut s = ProcessingSettings::default();
-        ProcessingArgs {
-            strategy: self.strategy,
-            law: self.law,
-            simulation: self.simulation,
-            meter: self.meter,
-            blend: None,
-            probe: None,
-        }
-        .apply(&mut s);
+        self.control.apply(&mut s);
         s
     }
 

@@ -129,30 +129,40 @@ impl ViewArgs {
     }
 }
 
-/// Processing options that override the saved settings, for every command
-/// that runs the processor.
+/// Options of the control loop, for every command that runs it: they
+/// override the saved settings (`rigview demo`: the built-in defaults).
 #[derive(Clone, Debug, Default, Args)]
-pub struct ProcessingArgs {
-    /// How exposure is decided (overrides the saved strategy).
+pub struct ControlArgs {
+    /// How exposure is decided.
     #[arg(long, value_enum)]
     pub strategy: Option<Strategy>,
-    /// The update law (overrides the saved one).
+    /// The update law.
     #[arg(long, value_enum)]
     pub law: Option<LawKind>,
-    /// The estimator's exposure simulation (overrides the saved one).
+    /// The estimator's exposure simulation.
     #[arg(long, value_enum)]
     pub simulation: Option<Simulation>,
-    /// Which pixels are metered (overrides the saved choice).
+    /// Which pixels are metered.
     #[arg(long, value_enum, value_name = "ROI")]
     pub meter: Option<MeterRoi>,
+    /// Darker probes of a camera under its own law (`off` for measuring
+    /// the law alone).
+    #[arg(long, value_enum, value_name = "ON|OFF")]
+    pub probe: Option<Switch>,
+}
+
+/// Processing options that override the saved settings, for every command
+/// that runs the processor and composes a view: the control loop's, and
+/// the view's blending.
+#[derive(Clone, Debug, Default, Args)]
+pub struct ProcessingArgs {
+    /// The control loop's options.
+    #[command(flatten)]
+    pub control: ControlArgs,
     /// How the overlaps of the view are blended (overrides the saved
     /// choice).
     #[arg(long, value_enum)]
     pub blend: Option<BlendMode>,
-    /// Darker probes of a camera under its own law (overrides the saved
-    /// choice; `off` for measuring the law alone).
-    #[arg(long, value_enum, value_name = "ON|OFF")]
-    pub probe: Option<Switch>,
 }
 
 /// A setting switched on or off on the command line.
@@ -164,7 +174,7 @@ pub enum Switch {
     Off,
 }
 
-impl ProcessingArgs {
+impl ControlArgs {
     /// Applies the options given to `p`.
     pub fn apply(&self, p: &mut ProcessingSettings) {
         if let Some(s) = self.strategy {
@@ -179,15 +189,22 @@ impl ProcessingArgs {
         if let Some(m) = self.meter {
             p.roi = m;
         }
-        if let Some(b) = self.blend {
-            p.blend = b;
-        }
         match self.probe {
             Some(Switch::Off) => p.controller.probe = None,
             Some(Switch::On) => {
                 p.controller.probe.get_or_insert_with(ProbeParams::default);
             }
             None => {}
+        }
+    }
+}
+
+impl ProcessingArgs {
+    /// Applies the options given to `p`.
+    pub fn apply(&self, p: &mut ProcessingSettings) {
+        self.control.apply(p);
+        if let Some(b) = self.blend {
+            p.blend = b;
         }
     }
 }
