@@ -860,8 +860,13 @@ fn reference_frame_size_and_roi_mask() {
 
 #[test]
 fn the_controller_commands_every_frame_and_never_reacts_twice() {
+    // Eq. 4: a step anchored to the frame it was computed from.
     let config = ControllerConfig {
         balancing: None,
+        law: LawParams {
+            kind: LawKind::Nonlinear,
+            ..Default::default()
+        },
         ..Default::default()
     };
     let dark = metered_scene(2000.0);

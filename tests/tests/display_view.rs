@@ -1,7 +1,6 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 //! What the operator sees of the control: the composed view through the
-//! app's processor on the simulated rig (reference preset, a quarter of the
-//! resolution), in lock step: the display gains even out the seams that
+//! app's processor on the simulated rig (reference preset), in lock step: the display gains even out the seams that
 //! balancing leaves, without touching the cameras' exposures, and a probe
 //! frame is shown as bright as the frames around it.
 
@@ -12,9 +11,9 @@ use rigview_core::pipeline::{DisplaySettings, LockStep, ProcessingSettings, Stra
 use rigview_core::sim::{SimConfig, SimRender, SimRig};
 use rigview_core::surround::{BlendMode, Canvas, SeamBands, SurroundView};
 
-fn render() -> Arc<SimRender> {
+fn render(scale: f64) -> Arc<SimRender> {
     let config = SimConfig {
-        scale: 0.25,
+        scale,
         ..SimConfig::preset("reference").unwrap()
     };
     Arc::new(SimRender::new(&config).unwrap())
@@ -33,10 +32,13 @@ fn composing(render: &Arc<SimRender>, settings: ProcessingSettings) -> LockStep<
 
 /// The default mode (balanced) leaves brightness steps at the seams; the
 /// display gains remove them (median step below 0.1 EV on every seam)
-/// while every camera's exposure stays exactly as without them.
+/// while every camera's exposure stays exactly as without them. At the
+/// product's resolution: at a quarter of it a seam band's pixels are
+/// single sensor pixels, whose noise alone puts the median step near
+/// 0.1 EV (0.08–0.11 EV on the two rear seams with the gains).
 #[test]
 fn display_gains_even_out_the_seams_and_leave_the_exposures_alone() {
-    let render = render();
+    let render = render(1.0);
     let run = |compensate: bool| {
         let settings = ProcessingSettings {
             display: DisplaySettings {
@@ -135,7 +137,7 @@ fn mean_over(canvas: &Canvas, pixels: &[usize]) -> f64 {
 /// under its own law on scale-and-clip, which probes).
 #[test]
 fn a_probe_frame_is_shown_as_bright_as_the_frames_around_it() {
-    let render = render();
+    let render = render(0.25);
     let settings = ProcessingSettings {
         strategy: Strategy::Single,
         controller: ControllerConfig {

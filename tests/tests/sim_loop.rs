@@ -18,7 +18,9 @@
 
 use std::sync::Arc;
 
-use rigview_core::exposure::{ControllerConfig, EstimatorConfig, ProbeEvent, Simulation};
+use rigview_core::exposure::{
+    ControllerConfig, EstimatorConfig, LawKind, LawParams, ProbeEvent, Simulation,
+};
 use rigview_core::pipeline::{LockStep, ProcessingSettings, Strategy};
 use rigview_core::sim::truth::{self, FixedPoint, FixedPointSearch, Sweep, SweepOptions};
 use rigview_core::sim::{Event, Script, SimConfig, SimRender, SimRig};
@@ -66,13 +68,17 @@ fn view(render: &SimRender) -> SurroundView {
     rigview_tests::test_view(render).unwrap()
 }
 
-/// Each camera under its own gradient law with `simulation`.
+/// Each camera under its own gradient law (Eq. 4) with `simulation`.
 fn config_for(simulation: Simulation) -> ProcessingSettings {
     ProcessingSettings {
         strategy: Strategy::Single,
         controller: ControllerConfig {
             estimator: EstimatorConfig {
                 simulation,
+                ..Default::default()
+            },
+            law: LawParams {
+                kind: LawKind::Nonlinear,
                 ..Default::default()
             },
             ..Default::default()
@@ -418,7 +424,7 @@ fn tail_band(t: &[f64]) -> f64 {
     tail.iter().copied().fold(f64::MIN, f64::max) - tail.iter().copied().fold(f64::MAX, f64::min)
 }
 
-/// The app's default mode (γ-mapping, nonlinear law, balancing over the
+/// The app's default mode (γ-mapping, fast law, balancing over the
 /// rig's overlaps) on the reference preset at `scale`: balancing adds no
 /// cycle of its own. Every camera's last exposures lie in a band at most
 /// 0.15 EV wider than the same camera's alone.

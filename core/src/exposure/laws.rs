@@ -51,9 +51,11 @@ pub enum LawKind {
     /// Eq. 3.
     Linear,
     /// Eq. 4 (the paper's best).
-    #[default]
     Nonlinear,
-    /// rigview's ratio-predicting law (see the module documentation).
+    /// rigview's ratio-predicting law (see the module documentation), the
+    /// default: the fastest under changing light, with or without
+    /// balancing, and as good at rest (`docs/exposure-results.md`).
+    #[default]
     Fast,
 }
 
@@ -86,7 +88,7 @@ pub struct LawParams {
 impl Default for LawParams {
     fn default() -> Self {
         Self {
-            kind: LawKind::Nonlinear,
+            kind: LawKind::default(),
             kp: 1.0,
             d: 0.8,
             damping: 0.8,

@@ -24,9 +24,15 @@
 //!   sense with a prior that keeps gains near 1 (as OpenCV's stitcher's
 //!   gain compensation does): `Σ_(i,j) (log2 r_ij + c_j − c_i)² + λ Σ c_k²`,
 //!   over the pairs whose ratio was measured, shifted so that the smallest
-//!   is 1. The ratios come from unsaturated patches only (Eq. 5's clipping
-//!   rule), so clipped areas do not pull the gains, and the gains only
-//!   brighten, so what a camera clipped stays white. The gains move `smoothing` of the way to the
+//!   is 1. The ratios are the ones the view shows: the median log ratio of
+//!   the two cameras' pixels near each seam (`surround::SeamBands`), where
+//!   the overlap patches' `r_ij` (the balancing's) is a median over the
+//!   whole overlap (gains that evened the patches out to 0.02 EV left
+//!   0.11 EV at a seam); a seam with no usable pixel falls back to its
+//!   patches. Pixels either camera
+//!   clips are left out (Eq. 5's rule), so clipped areas do not pull the
+//!   gains, and the gains only brighten, so what a camera clipped stays
+//!   white. The gains move `smoothing` of the way to the
 //!   solution each set, and hold on a set with a probe frame (it sees
 //!   patches that its camera's normal frames saturate).
 //!

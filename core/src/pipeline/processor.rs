@@ -16,7 +16,10 @@ use crate::exposure::{
 };
 use crate::image::scale_8bit;
 use crate::source::{CameraInfo, ExposureCommand, FrameSet};
-use crate::surround::{Canvas, Composer, SurroundView};
+use crate::surround::{Canvas, Composer, SeamBands, SurroundView};
+
+/// How far (canvas pixels) from a seam the seam gains compare the cameras.
+const SEAM_BAND_PX: usize = 3;
 
 /// Checks that a surround view fits the source's cameras (count and image
 /// sizes).
@@ -58,6 +61,8 @@ pub struct Processor {
     display: DisplayGains,
     /// Per camera, the samples of a frame shown at another exposure.
     scaled: Vec<Vec<u8>>,
+    /// The view's seam bands, for the seam gains (built when first needed).
+    seams: Option<SeamBands>,
 }
 
 impl Processor {
@@ -92,6 +97,7 @@ impl Processor {
             compose: true,
             display: DisplayGains::default(),
             scaled: Vec::new(),
+            seams: None,
             cameras,
             shared_settings: Arc::new(settings.clone()),
             settings,
@@ -236,6 +242,7 @@ impl Processor {
         self.display.reset();
         self.overlay = Arc::new(Overlay::of(view.as_ref(), self.cameras.len()));
         self.view = view;
+        self.seams = None;
         self.update_masks();
         Ok(())
     }
@@ -348,7 +355,25 @@ impl Processor {
                         probe_frame: c.probe_frame,
                     })
                     .collect();
-                let ratios: Vec<_> = pairs.iter().map(|p| (p.i, p.j, p.log2_r)).collect();
+                // The seam gains even out the ratios the view shows at its
+                // seams; a seam with no pixel both cameras show unclipped
+                // falls back to its overlap's patches.
+                let patch = |i: usize, j: usize| {
+                    pairs
+                        .iter()
+                        .find(|p| (p.i, p.j) == (i, j))
+                        .and_then(|p| p.log2_r)
+                };
+                let ratios: Vec<_> = if self.settings.display.compensate {
+                    self.seams
+                        .get_or_insert_with(|| SeamBands::new(view, SEAM_BAND_PX))
+                        .ratios(&views)?
+                        .into_iter()
+                        .map(|(i, j, r)| (i, j, r.or_else(|| patch(i, j))))
+                        .collect()
+                } else {
+                    Vec::new()
+                };
                 let gains = self
                     .display
                     .update(&self.settings.display, &inputs, &ratios);

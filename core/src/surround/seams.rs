@@ -131,6 +131,49 @@ impl SeamBands {
     /// The step across each seam (in the view's overlap order) of `frames`
     /// shown with display `gains` (`None`: 1 for every camera).
     pub fn steps(&self, frames: &[FrameView<'_>], gains: Option<&[f32]>) -> Result<Vec<SeamStep>> {
+        Ok(self
+            .differences(frames, gains)?
+            .into_iter()
+            .zip(&self.bands)
+            .map(|(d, b)| {
+                let mut d: Vec<f64> = d.iter().map(|v| v.abs()).collect();
+                d.sort_by(f64::total_cmp);
+                SeamStep {
+                    i: b.i,
+                    j: b.j,
+                    step_ev: (!d.is_empty()).then(|| d[d.len() / 2]),
+                    samples: d.len(),
+                }
+            })
+            .collect())
+    }
+
+    /// Per seam (in the view's overlap order) `(i, j, log2 r_ij)`: the
+    /// median of `log2(I_j / I_i)` over the pixels both cameras show
+    /// unclipped near the seam, how much brighter `j` shows the ground
+    /// there than `i` (`None`: no such pixel). This is the ratio the view
+    /// shows, where the overlap patches' `r_ij` is the ratio over the
+    /// whole overlap: with lens fall-off and parallax the two differ.
+    pub fn ratios(&self, frames: &[FrameView<'_>]) -> Result<Vec<(usize, usize, Option<f64>)>> {
+        Ok(self
+            .differences(frames, None)?
+            .into_iter()
+            .zip(&self.bands)
+            .map(|(mut d, b)| {
+                d.sort_by(f64::total_cmp);
+                let n = d.len();
+                (b.i, b.j, (n > 0).then(|| 0.5 * (d[(n - 1) / 2] + d[n / 2])))
+            })
+            .collect())
+    }
+
+    /// Per seam, `log2(g_j·I_j / g_i·I_i)` at each pixel both cameras show
+    /// unclipped.
+    fn differences(
+        &self,
+        frames: &[FrameView<'_>],
+        gains: Option<&[f32]>,
+    ) -> Result<Vec<Vec<f64>>> {
         if frames.len() != self.cameras || gains.is_some_and(|g| g.len() != self.cameras) {
             return Err(Error::InvalidConfig(format!(
                 "seam steps: {} frames and {} gains for a view of {} cameras",
@@ -155,21 +198,13 @@ impl SeamBands {
             .bands
             .iter()
             .map(|b| {
-                let mut d: Vec<f64> = b
-                    .pixels
+                b.pixels
                     .iter()
                     .filter_map(|&(pi, pj)| {
                         let (vi, vj) = (shown(b.i, pi)?, shown(b.j, pj)?);
-                        Some(f64::from(vi / vj).log2().abs())
+                        Some(f64::from(vj / vi).log2())
                     })
-                    .collect();
-                d.sort_by(f64::total_cmp);
-                SeamStep {
-                    i: b.i,
-                    j: b.j,
-                    step_ev: (!d.is_empty()).then(|| d[d.len() / 2]),
-                    samples: d.len(),
-                }
+                    .collect()
             })
             .collect())
     }
