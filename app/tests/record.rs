@@ -97,6 +97,7 @@ fn a_replayed_recording_measures_what_the_run_measured() {
     // info, and repair of a copy cut in its last set.
     let info = recording::info_text(&file).unwrap();
     assert!(info.contains("40 complete sets"), "{info}");
+    assert!(info.contains("calibration: attached (rig.yaml)"), "{info}");
     assert!(info.contains("/rig/telemetry"), "{info}");
     let bytes = std::fs::read(&file).unwrap();
     let cut = dir.path().join("cut.mcap");
@@ -104,6 +105,7 @@ fn a_replayed_recording_measures_what_the_run_measured() {
     std::fs::write(&cut, &bytes[..summary_start]).unwrap();
     let info = recording::info_text(&cut).unwrap();
     assert!(info.contains("NOT CLOSED"), "{info}");
+    assert!(info.contains("calibration: attached (rig.yaml)"), "{info}");
     let fixed = dir.path().join("fixed.mcap");
     let report = recording::repair_text(&cut, &fixed).unwrap();
     assert!(report.contains("complete sets"), "{report}");

@@ -795,8 +795,56 @@ impl RecordingInfo {
     }
 }
 
-/// Reads a recording from start to end without decoding its images.
+/// What a recording holds: from its summary if it has one, else by reading
+/// it from start to end (without decoding its images).
 pub fn info(file: &Path) -> Result<RecordingInfo> {
+    match IndexedRecording::open(file) {
+        Ok(r) => Ok(r.info()),
+        Err(_) => scan_info(file),
+    }
+}
+
+impl IndexedRecording {
+    /// What the summary says.
+    pub fn info(&self) -> RecordingInfo {
+        let counts = self
+            .summary
+            .stats
+            .as_ref()
+            .map(|s| s.channel_message_counts.clone())
+            .unwrap_or_default();
+        let topics = self
+            .summary
+            .channels
+            .values()
+            .map(|c| {
+                let schema = c
+                    .schema
+                    .as_ref()
+                    .map(|s| s.name.clone())
+                    .unwrap_or_default();
+                let n = counts.get(&c.id).copied().unwrap_or(0);
+                (c.topic.clone(), (schema, n))
+            })
+            .collect();
+        RecordingInfo {
+            meta: self.meta.clone(),
+            sets: self.times.len() as u64,
+            span_ns: self
+                .times
+                .first()
+                .zip(self.times.last())
+                .map(|(a, b)| (*a, *b)),
+            topics,
+            dropped: self.end.as_ref().map_or(0, |e| e.dropped),
+            end: self.end.clone(),
+            tail: None,
+        }
+    }
+}
+
+/// [`info`] of a file without a summary.
+fn scan_info(file: &Path) -> Result<RecordingInfo> {
     let f = File::open(file).map_err(|e| RecordError::io(file, e))?;
     let mut pump = Pump::new(file, BufReader::with_capacity(1 << 20, f), false);
     enum Item {
@@ -804,13 +852,14 @@ pub fn info(file: &Path) -> Result<RecordingInfo> {
         Channel(u16, u16, String),
         Message(u16, u64, Option<u64>),
         Meta(String, BTreeMap<String, String>),
+        Rig(Vec<u8>),
         Other,
     }
     let mut schemas = HashMap::new();
     let mut channels: HashMap<u16, (String, u16)> = HashMap::new();
     let mut telemetry = None;
     let mut topics: BTreeMap<String, (String, u64)> = BTreeMap::new();
-    let (mut meta, mut end) = (None, None);
+    let (mut meta, mut end, mut rig) = (None, None, None);
     let (mut sets, mut span, mut dropped) = (0u64, None::<(u64, u64)>, 0u64);
     while let Some(item) = pump.next(|r| match r {
         Record::Schema { header, .. } => Item::Schema(header.id, header.name),
@@ -823,6 +872,9 @@ pub fn info(file: &Path) -> Result<RecordingInfo> {
             Item::Message(header.channel_id, header.log_time, t)
         }
         Record::Metadata(m) => Item::Meta(m.name, m.metadata),
+        Record::Attachment { header, data, .. } if header.name == RIG_ATTACHMENT => {
+            Item::Rig(data.into_owned())
+        }
         _ => Item::Other,
     }) {
         match item? {
@@ -853,15 +905,17 @@ pub fn info(file: &Path) -> Result<RecordingInfo> {
             }
             Item::Meta(name, m) if name == METADATA => meta = Some(parse_meta(file, &m)?),
             Item::Meta(name, m) if name == END_METADATA => end = Some(parse_end(&m)),
+            Item::Rig(bytes) => rig = Some(String::from_utf8_lossy(&bytes).into_owned()),
             _ => {}
         }
     }
-    let meta = meta.ok_or_else(|| {
+    let mut meta: RecordingMeta = meta.ok_or_else(|| {
         RecordError::format(
             file,
             format!("no metadata record \"{METADATA}\": not a rigview recording"),
         )
     })?;
+    meta.rig_yaml = rig;
     if let Some(e) = &end {
         dropped = dropped.max(e.dropped);
     }
