@@ -197,8 +197,12 @@ pub fn start_replay(
     notify: Notify,
     record: Option<&RecordSpec>,
 ) -> Result<Session> {
-    let source = ReplaySource::open(&spec.file)
+    let mut source = ReplaySource::open(&spec.file)
         .with_context(|| format!("cannot replay {}", spec.file.display()))?;
+    if !options.lockstep {
+        // In the window: at the recorded rate.
+        source.set_speed(Some(1.0));
+    }
     let cameras = source.cameras().to_vec();
     let rig = replay_rig(spec, &source)?;
     let (view, graph, calibration) = match &rig {

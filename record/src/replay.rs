@@ -1,19 +1,19 @@
 //! A recording as a [`FrameSource`]: it gives exactly the recorded sets, in
-//! order, as fast as asked, and then finishes. Replay is open loop: the
-//! frames are what they were, so commands are taken and ignored.
+//! order, as fast as asked or at a multiple of the recorded rate, and then
+//! finishes. Replay is open loop: the frames are what they were, so
+//! commands are taken and ignored.
 
 use std::fs::File;
 use std::io::BufReader;
 use std::path::{Path, PathBuf};
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use rigview_core::source::{
     CameraInfo, ExposureCommand, FrameSet, FrameSource, SourceError, StreamHealth,
 };
 
 use crate::error::Result;
-use crate::msgs::SetTelemetryMsg;
-use crate::reader::{RecordingMeta, SetStream};
+use crate::reader::{RecordedSet, RecordingMeta, SetStream};
 
 /// A recording replayed (see the module documentation).
 pub struct ReplaySource {
@@ -23,10 +23,13 @@ pub struct ReplaySource {
     health: Vec<StreamHealth>,
     finished: bool,
     messages: Vec<String>,
-    recorded: Vec<SetTelemetryMsg>,
-    keep_telemetry: bool,
-    /// The first set, read at open (the rig attachment precedes it).
-    first: Option<Result<crate::RecordedSet>>,
+    /// The next set, read ahead (at open, because the rig attachment
+    /// precedes it; when paced, until it is due).
+    ahead: Option<Result<RecordedSet>>,
+    /// Replay speed (`None`: as fast as asked).
+    speed: Option<f64>,
+    /// When paced: a moment and the log time that plays at it.
+    clock: Option<(Instant, u64)>,
 }
 
 impl std::fmt::Debug for ReplaySource {
@@ -42,7 +45,7 @@ impl ReplaySource {
     /// Opens `file` (a killed file replays up to its last complete set).
     pub fn open(file: &Path) -> Result<Self> {
         let mut stream = SetStream::open(file, false)?;
-        let first = stream.next();
+        let ahead = stream.next();
         let meta = stream
             .meta()
             .cloned()
@@ -54,21 +57,28 @@ impl ReplaySource {
             stream,
             finished: false,
             messages: Vec::new(),
-            recorded: Vec::new(),
-            keep_telemetry: false,
-            first,
+            ahead,
+            speed: None,
+            clock: None,
         })
     }
 
-    /// Keeps each replayed set's recorded telemetry ([`Self::take_recorded`]).
-    pub fn keep_telemetry(mut self, keep: bool) -> Self {
-        self.keep_telemetry = keep;
-        self
+    /// Replays at `speed` times the recorded rate from the next set on
+    /// (`None`: as fast as asked, the default).
+    pub fn set_speed(&mut self, speed: Option<f64>) {
+        self.speed = speed.filter(|s| s.is_finite() && *s > 0.0);
+        self.clock = None;
     }
 
-    /// The recorded telemetry of the sets replayed since the last call.
-    pub fn take_recorded(&mut self) -> Vec<SetTelemetryMsg> {
-        std::mem::take(&mut self.recorded)
+    /// How long to wait until `log_time` is due (zero if it is, or when
+    /// not paced).
+    fn wait_for(&mut self, log_time: u64) -> Duration {
+        let Some(speed) = self.speed else {
+            return Duration::ZERO;
+        };
+        let (t0, l0) = *self.clock.get_or_insert((Instant::now(), log_time));
+        let due = t0 + Duration::from_secs_f64(log_time.saturating_sub(l0) as f64 * 1e-9 / speed);
+        due.saturating_duration_since(Instant::now())
     }
 
     /// What the recording says about itself, with its rig.
@@ -87,24 +97,28 @@ impl FrameSource for ReplaySource {
         &self.meta.cameras
     }
 
-    fn next_set(&mut self, _timeout: Duration) -> Result<Option<FrameSet>, SourceError> {
+    fn next_set(&mut self, timeout: Duration) -> Result<Option<FrameSet>, SourceError> {
         if self.finished {
             return Ok(None);
         }
-        let next = match self.first.take() {
-            Some(first) => Some(first),
+        let next = match self.ahead.take() {
+            Some(ahead) => Some(ahead),
             None => self.stream.next(),
         };
         match next {
             Some(Ok(r)) => {
+                let wait = self.wait_for(r.log_time);
+                if wait > timeout {
+                    std::thread::sleep(timeout);
+                    self.ahead = Some(Ok(r));
+                    return Ok(None);
+                }
+                std::thread::sleep(wait);
                 for (h, f) in self.health.iter_mut().zip(&r.set.frames) {
                     match f {
                         Some(f) if f.is_complete() => h.completed += 1,
                         _ => h.failed += 1,
                     }
-                }
-                if self.keep_telemetry {
-                    self.recorded.push(r.telemetry);
                 }
                 Ok(Some(r.set))
             }
