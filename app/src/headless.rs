@@ -160,7 +160,11 @@ pub fn run(
         w.flush()
             .with_context(|| format!("writing {}", csv.display()))?;
     }
-    crate::plot_png::write(&telemetry, &out.join("exposure.png"), 1400, 1500)?;
+    // A replay's plot shows the recorded exposures next to the commands
+    // the chosen strategy would have sent.
+    let replay = matches!(spec, SourceSpec::Replay(_));
+    let height = if replay { 1800 } else { 1500 };
+    crate::plot_png::write_with(&telemetry, &out.join("exposure.png"), 1400, height, replay)?;
     let of = if frames == u64::MAX {
         "all".to_owned()
     } else {

@@ -188,6 +188,11 @@ fn the_command_line_records_replays_and_describes_recordings() {
     assert!(summary.contains("12 of all sets processed"), "{summary}");
     let (_, rows) = csv(&d.join("b/telemetry.csv"));
     assert_eq!(rows.len(), 12);
+    // The replay's plot has the panel of the commands the strategy would
+    // have sent under the recorded exposures.
+    let live = image::image_dimensions(d.join("a/exposure.png")).unwrap();
+    let replayed = image::image_dimensions(d.join("b/exposure.png")).unwrap();
+    assert_eq!(replayed.1 * 5, live.1 * 6, "{live:?} {replayed:?}");
     let info = rigview(&["recording", "info", f], d);
     assert!(info.contains("12 complete sets"), "{info}");
     assert!(
