@@ -221,6 +221,32 @@ fn the_command_line_records_replays_and_describes_recordings() {
     let fixed = out("fixed.mcap");
     let report = rigview(&["recording", "repair", &sim, &fixed], d);
     assert!(report.contains("complete sets"), "{report}");
+
+    // Capture without processing from Aravis's fake cameras.
+    let fake = out("fake.mcap");
+    let summary = rigview(
+        &[
+            "record",
+            "--fake",
+            "--scale",
+            "0.25",
+            "--seconds",
+            "2",
+            "--out",
+            &fake,
+        ],
+        d,
+    );
+    assert!(
+        summary.contains(&format!("recording {fake}: ")),
+        "{summary}"
+    );
+    let sets: Vec<_> = rigview_record::SetStream::open(Path::new(&fake), true)
+        .unwrap()
+        .map(|s| s.unwrap())
+        .collect();
+    assert!(sets.len() >= 5, "{} sets in 2 s at 20 Hz", sets.len());
+    assert!(sets.iter().all(|s| !s.telemetry.processed));
 }
 
 #[test]

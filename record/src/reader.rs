@@ -671,13 +671,17 @@ pub struct RepairReport {
     pub tail: Option<String>,
 }
 
-/// Rewrites `input` into `output` with its summary and indexes, keeping
-/// every complete set (as `mcap recover` does, plus rigview's metadata and
+/// Rewrites `input` into `output` (a new file) with its summary and
+/// indexes, keeping every complete set (as `mcap recover` does, plus rigview's metadata and
 /// attachment). A set cut off at the end is left out.
 pub fn repair(input: &Path, output: &Path) -> Result<RepairReport> {
     let f = File::open(input).map_err(|e| RecordError::io(input, e))?;
     let mut pump = Pump::new(input, BufReader::with_capacity(1 << 20, f), false);
-    let out = File::create(output).map_err(|e| RecordError::io(output, e))?;
+    let out = File::options()
+        .write(true)
+        .create_new(true)
+        .open(output)
+        .map_err(|e| RecordError::io(output, e))?;
     let mut w = mcap::WriteOptions::new()
         .profile("ros2")
         .library(format!(

@@ -115,11 +115,16 @@ fn free_space_of(file: &Path) -> FreeSpace {
 }
 
 impl Recorder {
-    /// Creates `file` and starts recording into it. The start (header,
+    /// Creates `file` (which must not exist: a recording is never
+    /// overwritten) and starts recording into it. The start (header,
     /// schemas, rig, metadata) is written before this returns, so a file
     /// that cannot be written is an error here.
     pub fn create(file: &Path, setup: &RecordingSetup, options: RecorderOptions) -> Result<Self> {
-        let f = File::create(file).map_err(|e| RecordError::io(file, e))?;
+        let f = File::options()
+            .write(true)
+            .create_new(true)
+            .open(file)
+            .map_err(|e| RecordError::io(file, e))?;
         let out = BufWriter::with_capacity(1 << 22, f);
         Self::start(file, out, setup, options, free_space_of(file))
     }

@@ -333,3 +333,18 @@ fn a_stalled_writer_never_blocks_capture_and_dropped_sets_are_counted_and_marked
     );
     assert_eq!(stream.end().unwrap().dropped, 40 - taken);
 }
+
+#[test]
+fn a_recording_is_never_overwritten() {
+    let sim = Sim::new(PixelFormat::Mono8, 0.25);
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("drive.mcap");
+    std::fs::write(&path, b"a drive recorded before").unwrap();
+    let e = Recorder::create(&path, &sim.setup(), RecorderOptions::default()).unwrap_err();
+    assert!(e.to_string().contains("drive.mcap"), "{e}");
+    assert_eq!(std::fs::read(&path).unwrap(), b"a drive recorded before");
+    let copy = dir.path().join("copy.mcap");
+    std::fs::write(&copy, b"kept").unwrap();
+    assert!(rigview_record::repair(&path, &copy).is_err());
+    assert_eq!(std::fs::read(&copy).unwrap(), b"kept");
+}
