@@ -17,7 +17,7 @@ use std::sync::Arc;
 use mcap::records::{MessageHeader, Record};
 use mcap::sans_io::indexed_reader::{IndexedReadEvent, IndexedReader, IndexedReaderOptions};
 use mcap::sans_io::linear_reader::{LinearReadEvent, LinearReader, LinearReaderOptions};
-use mcap::sans_io::summary_reader::{SummaryReadEvent, SummaryReader};
+use mcap::sans_io::summary_reader::{SummaryReadEvent, SummaryReader, SummaryReaderOptions};
 use rigview_core::exposure::ExposureSetting;
 use rigview_core::source::{CameraInfo, Frame, FrameMeta, FrameSet};
 
@@ -255,6 +255,10 @@ impl Assembler {
     }
 }
 
+/// The largest record read (a set's chunk of four 4K 16-bit frames is a
+/// tenth of it): a damaged length field is an error, not an allocation.
+const RECORD_LIMIT: usize = 1 << 30;
+
 /// Records of a file in order, without its index.
 struct Pump<R> {
     file: PathBuf,
@@ -267,7 +271,8 @@ struct Pump<R> {
 impl<R: Read> Pump<R> {
     fn new(file: &Path, src: R, strict: bool) -> Self {
         let options = LinearReaderOptions::default()
-            .with_validate_chunk_crcs(strict)
+            .with_record_length_limit(RECORD_LIMIT)
+            .with_prevalidate_chunk_crcs(strict)
             .with_validate_data_section_crc(strict)
             .with_validate_summary_section_crc(strict);
         Self {
@@ -502,6 +507,12 @@ fn read_record_at(file: &Path, f: &mut File, offset: u64, length: u64) -> Result
             format!("the record at byte {offset} is longer than its index says"),
         ));
     }
+    if len > RECORD_LIMIT as u64 {
+        return Err(RecordError::format(
+            file,
+            format!("the record at byte {offset} claims {len} bytes"),
+        ));
+    }
     let mut body = vec![0u8; usize::try_from(len).unwrap_or(0)];
     f.read_exact(&mut body).map_err(io)?;
     Ok((head[0], body))
@@ -512,7 +523,12 @@ impl IndexedRecording {
     /// short) is an error that says to repair it.
     pub fn open(file: &Path) -> Result<Self> {
         let mut f = File::open(file).map_err(|e| RecordError::io(file, e))?;
-        let mut reader = SummaryReader::new();
+        let size = f.metadata().map_err(|e| RecordError::io(file, e))?.len();
+        let mut reader = SummaryReader::new_with_options(
+            SummaryReaderOptions::default()
+                .with_file_size(size)
+                .with_record_length_limit(RECORD_LIMIT),
+        );
         while let Some(event) = reader.next_event() {
             match event.map_err(|e| RecordError::mcap(file, e))? {
                 SummaryReadEvent::ReadRequest(n) => {
@@ -627,6 +643,7 @@ impl IndexedRecording {
             .ending_before(t.saturating_add(1));
         let mut reader = IndexedReader::new_with_options(&self.summary, options)
             .map_err(|e| RecordError::mcap(&self.file, e))?;
+        reader.record_length_limit = Some(RECORD_LIMIT);
         let mut asm = Assembler::new(&self.file);
         asm.set_meta(self.meta.clone());
         for c in self.summary.channels.values() {

@@ -43,8 +43,10 @@ impl std::fmt::Debug for ReplaySource {
 
 impl ReplaySource {
     /// Opens `file` (a killed file replays up to its last complete set).
+    /// Chunk CRCs are checked before a set is given: a damaged chunk ends
+    /// the replay there instead of giving damaged pixels.
     pub fn open(file: &Path) -> Result<Self> {
-        let mut stream = SetStream::open(file, false)?;
+        let mut stream = SetStream::open(file, true)?;
         let ahead = stream.next();
         let meta = stream
             .meta()

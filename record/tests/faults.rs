@@ -348,3 +348,29 @@ fn a_recording_is_never_overwritten() {
     assert!(rigview_record::repair(&path, &copy).is_err());
     assert_eq!(std::fs::read(&copy).unwrap(), b"kept");
 }
+
+#[test]
+fn a_damaged_recording_read_with_crcs_gives_an_exact_prefix_and_no_panic() {
+    let sim = Sim::new(PixelFormat::Mono8, 0.25);
+    let sets: Vec<_> = (0..6).map(|k| sim.set(13, k)).collect();
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("damaged.mcap");
+    record(&sim, &sets, &path);
+    let good = std::fs::read(&path).unwrap();
+    let offset = sim.setup().time_offset_ns;
+    for i in 0..100u64 {
+        // Eight bytes of all ones (what a kill leaves in a chunk's length)
+        // anywhere in the file.
+        let at = (good.len() as u64 * i / 100) as usize;
+        let mut bytes = good.clone();
+        let end = (at + 8).min(bytes.len());
+        bytes[at..end].fill(0xff);
+        let Ok(stream) = SetStream::new(&path, Cursor::new(&bytes[..]), true) else {
+            continue;
+        };
+        for (k, got) in stream.enumerate() {
+            let Ok(got) = got else { break };
+            assert_same(&got, &sets[k], offset);
+        }
+    }
+}

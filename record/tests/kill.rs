@@ -72,7 +72,7 @@ fn a_killed_recording_replays_every_set_it_flushed() {
         }
     }
     let sim = Sim::new(PixelFormat::Mono8, 0.25);
-    let mut stream = SetStream::open(&path, false).unwrap();
+    let mut stream = SetStream::open(&path, true).unwrap();
     let got: Vec<_> = stream
         .by_ref()
         .map(|s| s.expect("an error before the tail"))
