@@ -26,6 +26,33 @@ fn record(sim: &Sim, sets: &[FrameSet], path: &Path) {
     w.finish("finished").unwrap();
 }
 
+/// A recording of `n` sets of a run seeded by `seed`, and its bytes.
+struct Recorded {
+    sim: Sim,
+    sets: Vec<FrameSet>,
+    _dir: tempfile::TempDir,
+    path: std::path::PathBuf,
+    bytes: Vec<u8>,
+}
+
+impl Recorded {
+    fn new(seed: u64, n: u64) -> Self {
+        let sim = Sim::new(PixelFormat::Mono8, 0.25);
+        let sets: Vec<_> = (0..n).map(|k| sim.set(seed, k)).collect();
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("run.mcap");
+        record(&sim, &sets, &path);
+        let bytes = std::fs::read(&path).unwrap();
+        Self {
+            sim,
+            sets,
+            _dir: dir,
+            path,
+            bytes,
+        }
+    }
+}
+
 /// Reads every set of `bytes`; an error at open (cut before the recording's
 /// metadata) counts as no set.
 fn replay(path: &Path, bytes: &[u8]) -> Vec<rigview_record::RecordedSet> {
@@ -37,23 +64,19 @@ fn replay(path: &Path, bytes: &[u8]) -> Vec<rigview_record::RecordedSet> {
 
 #[test]
 fn a_recording_cut_at_any_of_200_offsets_replays_an_exact_prefix() {
-    let sim = Sim::new(PixelFormat::Mono8, 0.25);
-    let sets: Vec<_> = (0..8).map(|k| sim.set(7, k)).collect();
-    let dir = tempfile::tempdir().unwrap();
-    let path = dir.path().join("cut.mcap");
-    record(&sim, &sets, &path);
-    let bytes = std::fs::read(&path).unwrap();
-    let offset = sim.setup().time_offset_ns;
+    let r = Recorded::new(7, 8);
+    let (sets, path, bytes) = (&r.sets, &r.path, &r.bytes);
+    let offset = r.sim.setup().time_offset_ns;
     let mut last = 0;
     for i in 0..200u64 {
         let cut = (bytes.len() as u64 * i / 200) as usize;
-        let got = replay(&path, &bytes[..cut]);
+        let got = replay(path, &bytes[..cut]);
         assert!(
             got.len() >= last,
             "cut at {cut}: fewer sets than a shorter cut"
         );
         last = got.len();
-        for (g, w) in got.iter().zip(&sets) {
+        for (g, w) in got.iter().zip(sets) {
             assert_same(g, w, offset);
         }
     }
@@ -61,7 +84,7 @@ fn a_recording_cut_at_any_of_200_offsets_replays_an_exact_prefix() {
         last >= sets.len() - 1,
         "the last cuts keep all but the last set"
     );
-    assert_eq!(replay(&path, &bytes).len(), sets.len());
+    assert_eq!(replay(path, bytes).len(), sets.len());
 }
 
 /// A file that takes `left` bytes, then fails as a full disk does.
@@ -351,13 +374,9 @@ fn a_recording_is_never_overwritten() {
 
 #[test]
 fn a_damaged_recording_read_with_crcs_gives_an_exact_prefix_and_no_panic() {
-    let sim = Sim::new(PixelFormat::Mono8, 0.25);
-    let sets: Vec<_> = (0..6).map(|k| sim.set(13, k)).collect();
-    let dir = tempfile::tempdir().unwrap();
-    let path = dir.path().join("damaged.mcap");
-    record(&sim, &sets, &path);
-    let good = std::fs::read(&path).unwrap();
-    let offset = sim.setup().time_offset_ns;
+    let r = Recorded::new(13, 6);
+    let (sets, path, good) = (&r.sets, &r.path, &r.bytes);
+    let offset = r.sim.setup().time_offset_ns;
     for i in 0..100u64 {
         // Eight bytes of all ones (what a kill leaves in a chunk's length)
         // anywhere in the file.
@@ -365,7 +384,7 @@ fn a_damaged_recording_read_with_crcs_gives_an_exact_prefix_and_no_panic() {
         let mut bytes = good.clone();
         let end = (at + 8).min(bytes.len());
         bytes[at..end].fill(0xff);
-        let Ok(stream) = SetStream::new(&path, Cursor::new(&bytes[..]), true) else {
+        let Ok(stream) = SetStream::new(path, Cursor::new(&bytes[..]), true) else {
             continue;
         };
         for (k, got) in stream.enumerate() {
