@@ -73,6 +73,8 @@ struct Job {
     set: FrameSet,
     telemetry: SetTelemetryMsg,
     host_ns: u64,
+    /// Sets dropped before this one was queued.
+    drops_before: u64,
 }
 
 #[derive(Debug, Default)]
@@ -176,12 +178,15 @@ impl Recorder {
             return false;
         }
         let telemetry = msgs::telemetry_of(set, processed.as_ref(), &self.names);
+        let queue = self.queue.lock().unwrap_or_else(PoisonError::into_inner);
+        // Under the queue's lock, so that the count is the drops before
+        // this set.
         let job = Job {
             set: set.clone(),
             telemetry,
             host_ns: unix_now_ns(),
+            drops_before: self.shared.dropped.load(Ordering::SeqCst),
         };
-        let queue = self.queue.lock().unwrap_or_else(PoisonError::into_inner);
         let Some(tx) = queue.as_ref() else {
             return false;
         };
@@ -279,9 +284,8 @@ fn write_loop<W: Write + Seek>(
                 }
             }
         }
-        let drops = shared.dropped.load(Ordering::SeqCst);
-        let before = drops - counted_drops;
-        counted_drops = drops;
+        let before = job.drops_before.saturating_sub(counted_drops);
+        counted_drops = counted_drops.max(job.drops_before);
         let bytes: u64 = job
             .set
             .frames

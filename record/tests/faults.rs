@@ -324,17 +324,31 @@ fn a_stalled_writer_never_blocks_capture_and_dropped_sets_are_counted_and_marked
     // this loop would never end); at most the queue and the set being
     // written get through.
     let sets: Vec<_> = (0..40).map(|k| sim.set(5, k)).collect();
-    let taken = sets.iter().filter(|s| rec.offer(s, None)).count() as u64;
+    let accepted: Vec<bool> = sets.iter().map(|s| rec.offer(s, None)).collect();
+    let taken = accepted.iter().filter(|&&a| a).count() as u64;
+    // Each set written carries the sets refused since the one before it;
+    // the set after the stall carries those refused after the last one.
+    let mut want = Vec::new();
+    let mut refused = 0;
+    for a in &accepted {
+        if *a {
+            want.push(refused);
+            refused = 0;
+        } else {
+            refused += 1;
+        }
+    }
+    want.push(refused);
     assert!(taken <= 5, "{taken} sets queued behind a stalled disk");
     assert_eq!(rec.stats().dropped, 40 - taken);
     *gate.0.lock().unwrap() = true;
     gate.1.notify_all();
-    // After the disk is back, the next set goes through and carries the
-    // count of the sets dropped before it.
-    let late = sim.set(5, 40);
-    while !rec.offer(&late, None) {
+    // After the disk is back and the queue is written, the next set goes
+    // through and carries the count of the sets dropped before it.
+    while rec.stats().sets < taken {
         std::thread::sleep(Duration::from_millis(1));
     }
+    assert!(rec.offer(&sim.set(5, 40), None));
     let stats = rec.finish();
     assert!(stats.finished);
     assert_eq!(stats.dropped, 40 - taken);
@@ -345,11 +359,7 @@ fn a_stalled_writer_never_blocks_capture_and_dropped_sets_are_counted_and_marked
     let marked: u64 = got.iter().map(|g| g.telemetry.dropped_since_last).sum();
     assert_eq!(marked, 40 - taken, "the drops are marked in the file");
     let marks: Vec<_> = got.iter().map(|g| g.telemetry.dropped_since_last).collect();
-    assert_eq!(
-        marks.iter().filter(|&&m| m == 40 - taken).count(),
-        1,
-        "the set written after the run of drops carries their count: {marks:?}"
-    );
+    assert_eq!(marks, want, "each set carries the drops right before it");
     assert_eq!(
         got.last().unwrap().telemetry.dropped_by_recorder,
         40 - taken
