@@ -15,7 +15,6 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use mcap::records::{MessageHeader, Record};
-use mcap::sans_io::indexed_reader::{IndexedReadEvent, IndexedReader, IndexedReaderOptions};
 use mcap::sans_io::linear_reader::{LinearReadEvent, LinearReader, LinearReaderOptions};
 use mcap::sans_io::summary_reader::{SummaryReadEvent, SummaryReader, SummaryReaderOptions};
 use rigview_core::exposure::ExposureSetting;
@@ -275,6 +274,10 @@ impl<R: Read> Pump<R> {
             .with_prevalidate_chunk_crcs(strict)
             .with_validate_data_section_crc(strict)
             .with_validate_summary_section_crc(strict);
+        Self::with_options(file, src, options)
+    }
+
+    fn with_options(file: &Path, src: R, options: LinearReaderOptions) -> Self {
         Self {
             file: file.to_owned(),
             src,
@@ -483,6 +486,8 @@ pub struct IndexedRecording {
     end: Option<RecordingEnd>,
     /// Per set (in log-time order), its log time.
     times: Vec<u64>,
+    /// Per set, where its chunk record is (offset, length).
+    chunks: Vec<(u64, u64)>,
     buf: Vec<u8>,
 }
 
@@ -584,13 +589,15 @@ impl IndexedRecording {
             .values()
             .find(|c| c.topic == TELEMETRY_TOPIC)
             .map(|c| c.id);
-        let mut times: Vec<u64> = summary
+        let mut sets: Vec<(u64, u64, u64)> = summary
             .chunk_indexes
             .iter()
             .filter(|c| telemetry.is_some_and(|t| c.message_index_offsets.contains_key(&t)))
-            .map(|c| c.message_start_time)
+            .map(|c| (c.message_start_time, c.chunk_start_offset, c.chunk_length))
             .collect();
-        times.sort_unstable();
+        sets.sort_unstable();
+        let times = sets.iter().map(|s| s.0).collect();
+        let chunks = sets.iter().map(|s| (s.1, s.2)).collect();
         Ok(Self {
             file: file.to_owned(),
             f,
@@ -598,6 +605,7 @@ impl IndexedRecording {
             meta,
             end,
             times,
+            chunks,
             buf: Vec::new(),
         })
     }
@@ -633,43 +641,44 @@ impl IndexedRecording {
         self.times.partition_point(|&t| t < log_time)
     }
 
-    /// Set number `k` (in log-time order).
+    /// Set number `k` (in log-time order). Its chunk is read on its own
+    /// and its CRC checked before the set is given.
     pub fn set(&mut self, k: usize) -> Result<Option<RecordedSet>> {
-        let Some(&t) = self.times.get(k) else {
+        let Some(&(offset, length)) = self.chunks.get(k) else {
             return Ok(None);
         };
-        let options = IndexedReaderOptions::new()
-            .starting_at(t)
-            .ending_before(t.saturating_add(1));
-        let mut reader = IndexedReader::new_with_options(&self.summary, options)
-            .map_err(|e| RecordError::mcap(&self.file, e))?;
-        reader.record_length_limit = Some(RECORD_LIMIT);
+        let io = |e| RecordError::io(&self.file, e);
+        if length > RECORD_LIMIT as u64 {
+            return Err(RecordError::format(
+                &self.file,
+                format!("the chunk at byte {offset} claims {length} bytes"),
+            ));
+        }
+        self.f.seek(SeekFrom::Start(offset)).map_err(io)?;
+        self.buf.resize(usize::try_from(length).unwrap_or(0), 0);
+        self.f.read_exact(&mut self.buf).map_err(io)?;
+        let options = LinearReaderOptions::default()
+            .with_skip_start_magic(true)
+            .with_skip_end_magic(true)
+            .with_record_length_limit(RECORD_LIMIT)
+            .with_prevalidate_chunk_crcs(true);
+        let mut pump = Pump::with_options(&self.file, &self.buf[..], options);
         let mut asm = Assembler::new(&self.file);
         asm.set_meta(self.meta.clone());
         for c in self.summary.channels.values() {
             asm.channel(c.id, &c.topic);
         }
-        while let Some(event) = reader.next_event() {
-            match event.map_err(|e| RecordError::mcap(&self.file, e))? {
-                IndexedReadEvent::ReadChunkRequest { offset, length } => {
-                    let io = |e| RecordError::io(&self.file, e);
-                    self.f.seek(SeekFrom::Start(offset)).map_err(io)?;
-                    self.buf.resize(length, 0);
-                    self.f.read_exact(&mut self.buf).map_err(io)?;
-                    reader
-                        .insert_chunk_record_data(offset, &self.buf)
-                        .map_err(|e| RecordError::mcap(&self.file, e))?;
-                }
-                IndexedReadEvent::Message { header, data } => {
-                    if let Some(set) = asm.message(header.channel_id, header.log_time, data)? {
-                        return Ok(Some(set));
-                    }
+        while let Some(r) = pump.next(|r| seen(r, true)) {
+            if let Seen::Message(h, data) = r? {
+                if let Some(set) = asm.message(h.channel_id, h.log_time, &data)? {
+                    return Ok(Some(set));
                 }
             }
         }
+        let why = pump.tail.map(|t| format!(": {t}")).unwrap_or_default();
         Err(RecordError::format(
             &self.file,
-            format!("the set at log time {t} has no telemetry message"),
+            format!("the set in the chunk at byte {offset} is not whole{why}"),
         ))
     }
 

@@ -2,6 +2,12 @@
 //! order, as fast as asked or at a multiple of the recorded rate, and then
 //! finishes. Replay is open loop: the frames are what they were, so
 //! commands are taken and ignored.
+//!
+//! A file with its index (closed properly, or repaired) is read through
+//! it, so a replay can go to any set ([`ReplaySource::seek`]); a file
+//! without one (killed, cut short) is read from start to end, up to its
+//! last complete set. Either way each chunk's CRC is checked before its set
+//! is given.
 
 use std::fs::File;
 use std::io::BufReader;
@@ -12,13 +18,24 @@ use rigview_core::source::{
     CameraInfo, ExposureCommand, FrameSet, FrameSource, SourceError, StreamHealth,
 };
 
-use crate::error::Result;
-use crate::reader::{RecordedSet, RecordingMeta, SetStream};
+use crate::error::{RecordError, Result};
+use crate::reader::{IndexedRecording, RecordedSet, RecordingMeta, SetStream};
+
+/// How the recording is read.
+enum Reader {
+    /// From start to end (no index).
+    Stream(Box<SetStream<BufReader<File>>>),
+    /// By its index; `next` is the number of the next set.
+    Indexed {
+        recording: Box<IndexedRecording>,
+        next: usize,
+    },
+}
 
 /// A recording replayed (see the module documentation).
 pub struct ReplaySource {
     file: PathBuf,
-    stream: SetStream<BufReader<File>>,
+    reader: Reader,
     meta: RecordingMeta,
     health: Vec<StreamHealth>,
     finished: bool,
@@ -42,27 +59,89 @@ impl std::fmt::Debug for ReplaySource {
 }
 
 impl ReplaySource {
-    /// Opens `file` (a killed file replays up to its last complete set).
-    /// Chunk CRCs are checked before a set is given: a damaged chunk ends
-    /// the replay there instead of giving damaged pixels.
+    /// Opens `file`: through its index if it has one, else from start to
+    /// end (a killed file replays up to its last complete set).
     pub fn open(file: &Path) -> Result<Self> {
-        let mut stream = SetStream::open(file, true)?;
-        let ahead = stream.next();
-        let meta = stream
-            .meta()
-            .cloned()
-            .ok_or_else(|| crate::RecordError::format(file, "no metadata"))?;
+        let (reader, meta, ahead) = match IndexedRecording::open(file) {
+            Ok(recording) => {
+                let meta = recording.meta().clone();
+                let reader = Reader::Indexed {
+                    recording: Box::new(recording),
+                    next: 0,
+                };
+                (reader, meta, None)
+            }
+            Err(_) => {
+                let mut stream = SetStream::open(file, true)?;
+                // The rig attachment comes before the first set.
+                let ahead = stream.next();
+                let meta = stream
+                    .meta()
+                    .cloned()
+                    .ok_or_else(|| RecordError::format(file, "no metadata record"))?;
+                (Reader::Stream(Box::new(stream)), meta, ahead)
+            }
+        };
         Ok(Self {
             file: file.to_owned(),
             health: vec![StreamHealth::default(); meta.cameras.len()],
             meta,
-            stream,
+            reader,
             finished: false,
             messages: Vec::new(),
             ahead,
             speed: None,
             clock: None,
         })
+    }
+
+    /// The sets' log times, if the file has its index.
+    pub fn times(&self) -> Option<&[u64]> {
+        match &self.reader {
+            Reader::Indexed { recording, .. } => Some(recording.times()),
+            Reader::Stream(_) => None,
+        }
+    }
+
+    /// The number of the next set, if the file has its index.
+    pub fn position(&self) -> Option<usize> {
+        match &self.reader {
+            // A set held back until it is due has been read already.
+            Reader::Indexed { next, .. } => Some(next - usize::from(self.ahead.is_some())),
+            Reader::Stream(_) => None,
+        }
+    }
+
+    /// Goes to set number `k` (the next set given; past the end: the
+    /// replay has finished). Needs the file's index.
+    pub fn seek(&mut self, k: usize) -> Result<()> {
+        let Reader::Indexed { recording, next } = &mut self.reader else {
+            return Err(RecordError::format(
+                &self.file,
+                "the file has no index to seek by (it was not closed); \
+                 `rigview recording repair` rewrites it with one",
+            ));
+        };
+        *next = k.min(recording.len());
+        self.finished = *next >= recording.len();
+        self.ahead = None;
+        self.clock = None;
+        Ok(())
+    }
+
+    /// The next set as recorded (`None`: the end).
+    fn read(&mut self) -> Option<Result<RecordedSet>> {
+        if let Some(ahead) = self.ahead.take() {
+            return Some(ahead);
+        }
+        match &mut self.reader {
+            Reader::Stream(stream) => stream.next(),
+            Reader::Indexed { recording, next } => {
+                let set = recording.set(*next).transpose()?;
+                *next += 1;
+                Some(set)
+            }
+        }
     }
 
     /// Replays at `speed` times the recorded rate from the next set on
@@ -103,11 +182,7 @@ impl FrameSource for ReplaySource {
         if self.finished {
             return Ok(None);
         }
-        let next = match self.ahead.take() {
-            Some(ahead) => Some(ahead),
-            None => self.stream.next(),
-        };
-        match next {
+        match self.read() {
             Some(Ok(r)) => {
                 let wait = self.wait_for(r.log_time);
                 if wait > timeout {
@@ -130,7 +205,11 @@ impl FrameSource for ReplaySource {
             }
             None => {
                 self.finished = true;
-                if let Some(t) = self.stream.tail() {
+                let tail = match &self.reader {
+                    Reader::Stream(stream) => stream.tail(),
+                    Reader::Indexed { .. } => None,
+                };
+                if let Some(t) = tail {
                     self.messages.push(format!(
                         "{}: the recording ends early ({t}); replayed up to its last complete set",
                         self.file.display()

@@ -1,5 +1,6 @@
 //! A recording as a frame source: exactly the recorded sets, in order; a
-//! paced replay holds a set back until it is due without losing it.
+//! paced replay holds a set back until it is due without losing it; an
+//! indexed file seeks to any set, a killed one replays without seeking.
 
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
@@ -55,4 +56,40 @@ fn a_replay_gives_the_recorded_sets_and_a_paced_one_holds_them_back() {
         replay.take_messages().is_empty(),
         "a closed file ends quietly"
     );
+
+    // Seeking: to set 2, one back, past the end, to the start.
+    assert_eq!(replay.times().unwrap().len(), 4);
+    replay.seek(2).unwrap();
+    assert!(!replay.is_finished());
+    assert_eq!(replay.position(), Some(2));
+    assert_eq!(replay.next_set(t).unwrap().unwrap().trigger, 2);
+    replay.seek(replay.position().unwrap() - 2).unwrap();
+    assert_eq!(replay.next_set(t).unwrap().unwrap().trigger, 1);
+    replay.seek(9).unwrap();
+    assert!(replay.is_finished());
+    assert!(replay.next_set(t).unwrap().is_none());
+    replay.seek(0).unwrap();
+    let again = replay.next_set(t).unwrap().unwrap();
+    assert_eq!(again.trigger, 0);
+    assert!(
+        again.frames[0].as_ref().unwrap().data[..] == sets[0].frames[0].as_ref().unwrap().data[..]
+    );
+
+    // A killed file (cut in its last set) replays from start to end and
+    // cannot seek.
+    let bytes = std::fs::read(&path).unwrap();
+    let cut = dir.path().join("cut.mcap");
+    std::fs::write(&cut, &bytes[..bytes.len() * 9 / 10]).unwrap();
+    let mut killed = ReplaySource::open(&cut).unwrap();
+    assert!(killed.times().is_none());
+    let e = killed.seek(1).unwrap_err().to_string();
+    assert!(e.contains("repair"), "{e}");
+    let mut n = 0;
+    while let Some(s) = killed.next_set(t).unwrap() {
+        assert_eq!(s.trigger, n);
+        n += 1;
+    }
+    assert_eq!(n, 3, "the cut set is left out");
+    let notes = killed.take_messages();
+    assert!(notes.iter().any(|m| m.contains("ends early")), "{notes:?}");
 }
