@@ -47,6 +47,32 @@ pub struct ReplaySource {
     speed: Option<f64>,
     /// When paced: a moment and the log time that plays at it.
     clock: Option<(Instant, u64)>,
+    /// Sets given over the last second.
+    rate: Rate,
+}
+
+/// Sets per second over the last second.
+#[derive(Debug, Default)]
+struct Rate(std::collections::VecDeque<Instant>);
+
+impl Rate {
+    /// Counts a set given `now`; returns the rate.
+    fn tick(&mut self, now: Instant) -> f64 {
+        self.0.push_back(now);
+        while self
+            .0
+            .front()
+            .is_some_and(|t| now.duration_since(*t) > Duration::from_secs(1))
+        {
+            self.0.pop_front();
+        }
+        match (self.0.front(), self.0.len()) {
+            (Some(first), n) if n > 1 => {
+                (n - 1) as f64 / now.duration_since(*first).as_secs_f64().max(1e-9)
+            }
+            _ => 0.0,
+        }
+    }
 }
 
 impl std::fmt::Debug for ReplaySource {
@@ -92,6 +118,7 @@ impl ReplaySource {
             ahead,
             speed: None,
             clock: None,
+            rate: Rate::default(),
         })
     }
 
@@ -191,11 +218,13 @@ impl FrameSource for ReplaySource {
                     return Ok(None);
                 }
                 std::thread::sleep(wait);
+                let fps = self.rate.tick(Instant::now());
                 for (h, f) in self.health.iter_mut().zip(&r.set.frames) {
                     match f {
                         Some(f) if f.is_complete() => h.completed += 1,
                         _ => h.failed += 1,
                     }
+                    h.fps = fps;
                 }
                 Ok(Some(r.set))
             }
@@ -234,5 +263,22 @@ impl FrameSource for ReplaySource {
 
     fn take_messages(&mut self) -> Vec<String> {
         std::mem::take(&mut self.messages)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_rate_counts_the_sets_of_the_last_second() {
+        let mut rate = Rate::default();
+        let t0 = Instant::now();
+        let mut r = 0.0;
+        for k in 0..60u32 {
+            r = rate.tick(t0 + Duration::from_millis(50) * k);
+        }
+        assert!((r - 20.0).abs() < 1e-6, "{r}");
+        assert_eq!(rate.0.len(), 21, "a second of sets and the first of it");
     }
 }
