@@ -531,6 +531,27 @@ mod tests {
     }
 
     #[test]
+    fn camera_info_reads_back_with_the_rig_calibration() {
+        let intrinsics = rigview_calib::Intrinsics {
+            width: 1288,
+            height: 964,
+            fx: 410.5,
+            fy: 409.25,
+            cx: 644.0,
+            cy: 481.5,
+            distortion: Distortion::Fisheye([0.02, -0.005, 0.001, 0.0]),
+        };
+        let camera = Camera::new("front", intrinsics);
+        let m = decode_camera_info(&encode_camera_info(5, "front_optical", &camera)).unwrap();
+        assert_eq!(m.frame_id, "front_optical");
+        assert_eq!((m.width, m.height), (1288, 964));
+        assert_eq!(m.distortion_model, "equidistant");
+        assert_eq!(m.d, vec![0.02, -0.005, 0.001, 0.0]);
+        let k = [410.5, 0.0, 644.0, 0.0, 409.25, 481.5, 0.0, 0.0, 1.0];
+        assert_eq!(m.k.map(f64::to_bits), k.map(f64::to_bits));
+    }
+
+    #[test]
     fn frame_meta_and_telemetry_read_back() {
         let m = FrameMetaMsg {
             stamp_ns: 1_700_000_000_123_456_789,

@@ -138,15 +138,11 @@ impl<W: Write + Seek> std::fmt::Debug for SetWriter<W> {
     }
 }
 
-fn now_unix_ns() -> u64 {
+/// The wall clock, Unix ns.
+pub fn unix_now_ns() -> u64 {
     std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
         .map_or(0, |d| u64::try_from(d.as_nanos()).unwrap_or(u64::MAX))
-}
-
-/// The wall clock, Unix ns.
-pub fn unix_now_ns() -> u64 {
-    now_unix_ns()
 }
 
 impl<W: Write + Seek> SetWriter<W> {
@@ -197,7 +193,7 @@ impl<W: Write + Seek> SetWriter<W> {
         let telemetry = mcap
             .add_channel(telemetry, TELEMETRY_TOPIC, "cdr", &qos)
             .map_err(e)?;
-        let now = now_unix_ns();
+        let now = unix_now_ns();
         let cameras_yaml = serde_norway::to_string(&setup.cameras)
             .map_err(|err| RecordError::format(file, format!("the cameras as YAML: {err}")))?;
         let list = |f: &dyn Fn(&CameraInfo) -> String| {
