@@ -26,6 +26,8 @@ pub struct HeadlessRun {
     pub out: PathBuf,
     /// Write the composed view of every `every`-th set (and of the last).
     pub every: u64,
+    /// Record every processed set.
+    pub record: Option<crate::recording::RecordSpec>,
 }
 
 fn write_canvas(c: &Canvas, path: &Path) -> Result<()> {
@@ -57,12 +59,16 @@ pub fn run(
         .with_context(|| format!("creating the output folder {}", out.display()))?;
     let frames = run.frames;
     let spec = &run.source;
-    let lockstep = matches!(spec, SourceSpec::Sim(s) if !s.realtime);
+    let lockstep = match spec {
+        SourceSpec::Sim(s) => !s.realtime,
+        SourceSpec::Replay(_) => true,
+        SourceSpec::Live(_) => false,
+    };
     let cpu = CpuMeter::start();
     let first = log.next_seq();
     let mut seen = first;
     let mut status_log = StatusLog::default();
-    let mut session = session::start(
+    let mut session = session::start_recording(
         spec,
         settings,
         PipelineOptions {
@@ -74,6 +80,7 @@ pub fn run(
             ..Default::default()
         },
         Arc::new(|| {}),
+        run.record.as_ref(),
     )?;
     let bar = if progress {
         indicatif::ProgressBar::new(frames)
@@ -90,14 +97,21 @@ pub fn run(
     let mut last: Option<Arc<Output>> = None;
     let mut written = 0usize;
     let every = run.every.max(1);
-    while done < frames {
+    // Processing may record the last sets before their outputs are taken:
+    // the loop goes on until the output of the newest row is taken.
+    let mut caught_up = true;
+    while done < frames || !caught_up {
         let Some(o) = session.pipeline.next_output(Duration::from_millis(200)) else {
-            if session.pipeline.is_stopped() {
+            if session.pipeline.is_stopped() || done >= frames {
                 break;
             }
             continue;
         };
-        done = session.pipeline.telemetry().total();
+        {
+            let telemetry = session.pipeline.telemetry();
+            done = telemetry.total();
+            caught_up = telemetry.last().is_none_or(|r| r.trigger == o.trigger);
+        }
         bar.set_position(done);
         status_log.forward(&session.pipeline.status());
         if let Some(e) = log.read(&mut seen).last() {
@@ -116,6 +130,10 @@ pub fn run(
     }
     session.pipeline.stop();
     bar.finish_and_clear();
+    let recorded = session
+        .recorder
+        .as_ref()
+        .map(|r| crate::recording::describe(r.file(), &r.finish()));
     if let Some(o) = &last {
         if o.trigger % every != 0 {
             if let Some(c) = &o.canvas {
@@ -142,9 +160,18 @@ pub fn run(
         w.flush()
             .with_context(|| format!("writing {}", csv.display()))?;
     }
-    crate::plot_png::write(&telemetry, &out.join("exposure.png"), 1400, 1500)?;
+    // A replay's plot shows the recorded exposures next to the commands
+    // the chosen strategy would have sent.
+    let replay = matches!(spec, SourceSpec::Replay(_));
+    let height = if replay { 1800 } else { 1500 };
+    crate::plot_png::write_with(&telemetry, &out.join("exposure.png"), 1400, height, replay)?;
+    let of = if frames == u64::MAX {
+        "all".to_owned()
+    } else {
+        frames.to_string()
+    };
     let mut summary = format!(
-        "rigview run: {} on {}; {} of {frames} sets processed; {written} views in {}, telemetry {}, plot {}\n{}",
+        "rigview run: {} on {}; {} of {of} sets processed; {written} views in {}, telemetry {}, plot {}\n{}",
         settings.strategy.label(),
         session.source_name,
         telemetry.total(),
@@ -155,6 +182,9 @@ pub fn run(
     );
     if let Some(c) = cpu.cores() {
         summary += &format!("\nCPU use: {c:.2} cores");
+    }
+    if let Some(r) = recorded {
+        summary += &format!("\n{r}");
     }
     summary += &report::messages(&log.since(first));
     std::fs::write(out.join("summary.txt"), &summary)

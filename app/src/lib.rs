@@ -29,6 +29,7 @@ pub mod headless;
 pub mod live;
 pub mod logging;
 pub mod plot_png;
+pub mod recording;
 pub mod report;
 pub mod session;
 pub mod settings;

@@ -20,5 +20,7 @@ fn main() -> Result<()> {
         Some(Command::Calib(args)) => cli::calib::run(args, out),
         Some(Command::Surround(args)) => cli::surround::run(args, out),
         Some(Command::Live(args)) => cli::live::run(args, &cli.view, out),
+        Some(Command::Record(args)) => cli::record::run(args, out),
+        Some(Command::Recording(args)) => cli::record::run_recording(args, out),
     }
 }

@@ -35,23 +35,37 @@ const COLOURS: [RGBColor; 6] = [
 
 type Value = fn(&TelemetryRow, usize) -> Option<f64>;
 
+/// `log2 e` of a positive exposure.
+fn log2_of(e: Option<f64>) -> Option<f64> {
+    e.filter(|e| *e > 0.0).map(f64::log2)
+}
+
 /// Writes the plot of `telemetry` to `path` (`width`×`height` pixels).
 pub fn write(telemetry: &Telemetry, path: &Path, width: u32, height: u32) -> Result<()> {
+    write_with(telemetry, path, width, height, false)
+}
+
+/// [`write`], with a panel of the exposures the strategy commanded under
+/// the exposures the frames were taken with if `commands` (a replay: the
+/// recorded exposures next to what the chosen strategy would have sent).
+pub fn write_with(
+    telemetry: &Telemetry,
+    path: &Path,
+    width: u32,
+    height: u32,
+    commands: bool,
+) -> Result<()> {
     register_font()?;
     let mut buf = vec![0u8; width as usize * height as usize * 3];
     {
         let root = BitMapBackend::with_buffer(&mut buf, (width, height)).into_drawing_area();
         root.fill(&WHITE)
             .map_err(|e| anyhow::anyhow!("plot: {e}"))?;
-        let panels = root.split_evenly((5, 1));
+        let panels = root.split_evenly((if commands { 6 } else { 5 }, 1));
         let cams = telemetry.camera_names().len();
-        let camera_panels: [(&str, Value); 4] = [
+        let mut camera_panels: Vec<(&str, Value)> = vec![
             ("log2 E (E = shutter_us · 10^(gain_dB/20))", |r, k| {
-                r.cameras
-                    .get(k)
-                    .map(|c| c.exposure)
-                    .filter(|e| *e > 0.0)
-                    .map(f64::log2)
+                log2_of(r.cameras.get(k).map(|c| c.exposure))
             }),
             ("gain (dB)", |r, k| r.cameras.get(k).map(|c| c.gain_db)),
             ("gamma-hat (γ-equivalent)", |r, k| {
@@ -61,6 +75,15 @@ pub fn write(telemetry: &Telemetry, path: &Path, width: u32, height: u32) -> Res
                 r.cameras.get(k).and_then(|c| c.m)
             }),
         ];
+        if commands {
+            camera_panels.insert(
+                1,
+                ("log2 E the strategy would command", |r, k| {
+                    log2_of(r.cameras.get(k).and_then(|c| c.command))
+                }),
+            );
+        }
+        let pair_panel = camera_panels.len();
         for (area, (title, value)) in panels.iter().zip(camera_panels) {
             let series: Vec<(String, Vec<(f64, f64)>)> = (0..cams)
                 .map(|k| {
@@ -76,7 +99,7 @@ pub fn write(telemetry: &Telemetry, path: &Path, width: u32, height: u32) -> Res
                 .collect();
             panel(area, title, &series)?;
         }
-        if let Some(area) = panels.get(4) {
+        if let Some(area) = panels.get(pair_panel) {
             let series: Vec<(String, Vec<(f64, f64)>)> = telemetry
                 .pair_names()
                 .iter()

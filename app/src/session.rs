@@ -17,6 +17,7 @@ use rigview_core::source::{Budget, CameraInfo, FrameSource};
 use rigview_core::surround::{CanvasSpec, SurroundOptions, SurroundView};
 
 use crate::live::LiveSpec;
+use crate::recording::{start_session, Origin, RecordSpec};
 
 /// The simulated rig to run.
 #[derive(Clone, Debug, PartialEq)]
@@ -50,6 +51,8 @@ pub enum SourceSpec {
     Sim(SimSpec),
     /// Live cameras.
     Live(LiveSpec),
+    /// A recording replayed.
+    Replay(crate::recording::ReplaySpec),
 }
 
 /// A running session.
@@ -63,6 +66,8 @@ pub struct Session {
     pub calibration: String,
     /// Whether the cameras have their own auto-exposure.
     pub camera_auto: bool,
+    /// The recording in progress (`--record`).
+    pub recorder: Option<Arc<rigview_record::Recorder>>,
 }
 
 impl Session {
@@ -108,9 +113,24 @@ pub fn start(
     options: PipelineOptions,
     notify: Notify,
 ) -> Result<Session> {
+    start_recording(spec, processing, options, notify, None)
+}
+
+/// Starts a session that also records every set it processes into
+/// `record` (if given).
+pub fn start_recording(
+    spec: &SourceSpec,
+    processing: &ProcessingSettings,
+    options: PipelineOptions,
+    notify: Notify,
+    record: Option<&RecordSpec>,
+) -> Result<Session> {
     match spec {
-        SourceSpec::Sim(s) => start_sim(s, processing, options, notify),
-        SourceSpec::Live(live) => start_live(live, processing, options, notify),
+        SourceSpec::Sim(s) => start_sim(s, processing, options, notify, record),
+        SourceSpec::Live(live) => start_live(live, processing, options, notify, record),
+        SourceSpec::Replay(r) => {
+            crate::recording::start_replay(r, processing, options, notify, record)
+        }
     }
 }
 
@@ -119,6 +139,7 @@ fn start_sim(
     processing: &ProcessingSettings,
     options: PipelineOptions,
     notify: Notify,
+    record: Option<&RecordSpec>,
 ) -> Result<Session> {
     let mut config = SimConfig::named(&spec.scenario)
         .with_context(|| format!("loading the simulation \"{}\"", spec.scenario))?;
@@ -145,11 +166,8 @@ fn start_sim(
         },
     )?;
     let processor = Processor::new(cameras.clone(), Some(view), graph, processing.clone())?;
-    let camera_auto = source.has_camera_auto();
-    let pipeline = Pipeline::start(source, processor, options, notify)?;
     let first = cameras.first();
-    Ok(Session {
-        pipeline,
+    let origin = Origin {
         source_name: format!(
             "simulated rig \"{}\" ({} × {}×{} at {} Hz)",
             spec.scenario,
@@ -159,8 +177,11 @@ fn start_sim(
             config.trigger_hz
         ),
         calibration: "the simulated rig's exact calibration".into(),
-        camera_auto,
-    })
+        rig: Some(render.rig()),
+        // The simulation's clock starts at 0: a recording's times start now.
+        time_offset_ns: rigview_record::writer::unix_now_ns(),
+    };
+    start_session(source, processor, options, notify, record, origin)
 }
 
 #[cfg(not(feature = "aravis"))]
@@ -169,6 +190,7 @@ fn start_live(
     _processing: &ProcessingSettings,
     _options: PipelineOptions,
     _notify: Notify,
+    _record: Option<&RecordSpec>,
 ) -> Result<Session> {
     Err(crate::live::LiveError::NoAravis.into())
 }
@@ -179,6 +201,7 @@ fn start_live(
     processing: &ProcessingSettings,
     options: PipelineOptions,
     notify: Notify,
+    record: Option<&RecordSpec>,
 ) -> Result<Session> {
     let crate::live::Opened { source, rig } = crate::live::open(spec)?;
     let what = spec.describe();
@@ -196,19 +219,27 @@ fn start_live(
             )
         }
     };
+    let calibrated = view.is_some().then_some(&rig);
     let mut processor = Processor::new(cameras.clone(), view, graph, processing.clone())?;
     // The controller starts from where the cameras' own start-up
     // auto-exposure left them.
     processor.sync(source.start_settings())?;
-    let camera_auto = source.has_camera_auto();
-    let pipeline = match spec.frames {
-        Some(n) => Pipeline::start(Budget::new(source, n), processor, options, notify)?,
-        None => Pipeline::start(source, processor, options, notify)?,
-    };
-    Ok(Session {
-        pipeline,
+    let origin = Origin {
         source_name: format!("live: {} cameras ({what})", cameras.len()),
         calibration,
-        camera_auto,
-    })
+        rig: calibrated,
+        // Live cameras' sets are stamped with the host's Unix time.
+        time_offset_ns: 0,
+    };
+    match spec.frames {
+        Some(n) => start_session(
+            Budget::new(source, n),
+            processor,
+            options,
+            notify,
+            record,
+            origin,
+        ),
+        None => start_session(source, processor, options, notify, record, origin),
+    }
 }

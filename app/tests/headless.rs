@@ -2,41 +2,18 @@
 //! `rigview run --headless`: the pipeline without the window writes the
 //! composed views, the telemetry CSV, the exposure plot and a summary.
 
+mod common;
+
 use std::path::Path;
 use std::process::Command;
 
-fn run(args: &[&str], dir: &Path) -> String {
-    let out = Command::new(env!("CARGO_BIN_EXE_rigview"))
-        .args(["run", "--headless", "--settings"])
-        .arg(dir.join("settings.yaml"))
-        .arg("--out")
-        .arg(dir.join("out"))
-        .args(args)
-        .output()
-        .unwrap();
-    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
-    assert!(
-        out.status.success(),
-        "{stdout}\n{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    stdout
-}
+use common::{csv, rigview};
 
-/// The CSV as a header and rows of fields.
-fn csv(path: &Path) -> (Vec<String>, Vec<Vec<String>>) {
-    let text = std::fs::read_to_string(path).unwrap();
-    let mut lines = text.lines();
-    let header = lines
-        .next()
-        .unwrap()
-        .split(',')
-        .map(str::to_owned)
-        .collect();
-    let rows = lines
-        .map(|l| l.split(',').map(str::to_owned).collect())
-        .collect();
-    (header, rows)
+fn run(args: &[&str], dir: &Path) -> String {
+    let out = dir.join("out");
+    let mut all = vec!["run", "--headless", "--out", out.to_str().unwrap()];
+    all.extend(args);
+    rigview(&all, dir)
 }
 
 #[test]

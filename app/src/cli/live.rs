@@ -105,6 +105,13 @@ pub struct LiveArgs {
     /// Processing overrides.
     #[command(flatten)]
     pub processing: ProcessingArgs,
+    /// Record every processed set into this MCAP file (headless; the
+    /// window's Record button is to come).
+    #[arg(long, value_name = "FILE")]
+    pub record: Option<PathBuf>,
+    /// How the recording is written.
+    #[command(flatten)]
+    pub recording: super::record::RecordingArgs,
 }
 
 fn parse_pixel_format(s: &str) -> std::result::Result<PixelFormat, String> {
@@ -191,6 +198,11 @@ pub fn run(args: &LiveArgs, view: &ViewArgs, out: &mut dyn Write) -> Result<()> 
         let settings = view.settings(&args.processing);
         headless(args, &settings.processing, LogBuffer::global(), out)
     } else {
+        if args.record.is_some() {
+            anyhow::bail!(
+                "--record is for --headless runs (the window's Record button is to come)"
+            );
+        }
         view.window(&args.processing, SourceSpec::Live(args.spec()?))
     }
 }
@@ -203,5 +215,13 @@ pub fn headless(
     log: &LogBuffer,
     out: &mut dyn Write,
 ) -> Result<()> {
-    live::headless::run(&args.spec()?, args.limit()?, settings, log, out)
+    let record = args.record.clone().map(|f| args.recording.spec(f));
+    live::headless::run(
+        &args.spec()?,
+        args.limit()?,
+        settings,
+        log,
+        record.as_ref(),
+        out,
+    )
 }

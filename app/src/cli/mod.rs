@@ -5,6 +5,7 @@
 pub mod calib;
 pub mod demo;
 pub mod live;
+pub mod record;
 pub mod run;
 pub mod surround;
 
@@ -55,6 +56,10 @@ pub enum Command {
     /// The desktop app on the rig's GenICam cameras (`--headless`: a status
     /// block per second on the terminal instead).
     Live(live::LiveArgs),
+    /// Capture into a recording (MCAP) without processing.
+    Record(record::RecordArgs),
+    /// Look at or repair a recording.
+    Recording(record::RecordingCmd),
 }
 
 /// Options of the window and of `rigview run`.

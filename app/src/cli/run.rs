@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 
 use anyhow::{Context, Result};
-use clap::{Args, ValueEnum};
+use clap::Args;
 
 use super::{ProcessingArgs, ViewArgs};
 use crate::headless::{self, HeadlessRun};
@@ -13,12 +13,30 @@ use crate::logging::LogBuffer;
 use crate::session::{SimSpec, SourceSpec};
 
 /// Where frame sets come from.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+#[derive(Clone, Debug, PartialEq, Eq)]
 pub enum SourceKind {
     /// The simulated four-camera rig.
     Sim,
     /// Live cameras (`--rig FILE`, or `--fake` for Aravis's fake cameras).
     Live,
+    /// A recording (`replay:FILE`).
+    Replay(PathBuf),
+}
+
+impl std::str::FromStr for SourceKind {
+    type Err = String;
+    fn from_str(s: &str) -> std::result::Result<Self, Self::Err> {
+        match s {
+            "sim" => Ok(Self::Sim),
+            "live" => Ok(Self::Live),
+            _ => match s.strip_prefix("replay:") {
+                Some(f) if !f.is_empty() => Ok(Self::Replay(PathBuf::from(f))),
+                _ => Err(format!(
+                    "unknown source \"{s}\" (known: sim, live, replay:FILE)"
+                )),
+            },
+        }
+    }
 }
 
 /// Options of `rigview run`.
@@ -27,9 +45,16 @@ pub struct RunArgs {
     /// Without the window: write views, telemetry and a plot to `--out`.
     #[arg(long)]
     pub headless: bool,
-    /// Where frame sets come from.
-    #[arg(long, value_enum, default_value_t = SourceKind::Sim)]
+    /// Where frame sets come from: sim, live or replay:FILE (a recording;
+    /// its calibration unless --rig gives another).
+    #[arg(long, value_name = "sim|live|replay:FILE", default_value = "sim")]
     pub source: SourceKind,
+    /// Record every processed set into this MCAP file.
+    #[arg(long, value_name = "FILE")]
+    pub record: Option<PathBuf>,
+    /// How the recording is written.
+    #[command(flatten)]
+    pub recording: super::record::RecordingArgs,
     /// Frame sets to run (headless) [default: 100].
     #[arg(long, value_name = "N")]
     pub frames: Option<u64>,
@@ -50,7 +75,7 @@ pub struct RunArgs {
     /// as processing takes the sets, in lock step, unless this is given).
     #[arg(long)]
     pub realtime: bool,
-    /// The rig file of `--source live`.
+    /// The rig file of `--source live`, or the calibration of a replay.
     #[arg(long, value_name = "FILE")]
     pub rig: Option<PathBuf>,
     /// `--source live` on Aravis's in-process fake cameras showing the
@@ -68,7 +93,16 @@ const FRAMES: u64 = 100;
 impl RunArgs {
     /// The source these options name, for a headless run or the window.
     pub fn source(&self, headless: bool) -> Result<SourceSpec> {
-        match self.source {
+        match &self.source {
+            SourceKind::Replay(file) => {
+                if self.fake {
+                    anyhow::bail!("--fake is an option of --source live");
+                }
+                Ok(SourceSpec::Replay(crate::recording::ReplaySpec {
+                    file: file.clone(),
+                    rig: self.rig.clone(),
+                }))
+            }
             SourceKind::Sim => {
                 if self.rig.is_some() || self.fake {
                     anyhow::bail!("--rig and --fake are options of --source live");
@@ -104,11 +138,18 @@ impl RunArgs {
 pub fn run(args: &RunArgs, view: &ViewArgs) -> Result<()> {
     if args.headless {
         let out = args.out.clone().context("--headless needs --out DIR")?;
+        let source = args.source(true)?;
+        // A replay runs to the recording's end unless --frames says.
+        let frames = match source {
+            SourceSpec::Replay(_) => args.frames.unwrap_or(u64::MAX),
+            _ => args.frames.unwrap_or(FRAMES),
+        };
         let run = HeadlessRun {
-            source: args.source(true)?,
-            frames: args.frames.unwrap_or(FRAMES),
+            source,
+            frames,
             out,
             every: args.every,
+            record: args.record.clone().map(|f| args.recording.spec(f)),
         };
         let settings = view.settings(&args.processing);
         let summary = headless::run(&run, &settings.processing, LogBuffer::global(), true)?;
@@ -117,6 +158,9 @@ pub fn run(args: &RunArgs, view: &ViewArgs) -> Result<()> {
     } else {
         if args.out.is_some() {
             anyhow::bail!("--out is for --headless runs");
+        }
+        if args.record.is_some() {
+            anyhow::bail!("--record is for --headless runs and rigview live (the window's Record button is to come)");
         }
         view.window(&args.processing, args.source(false)?)
     }

@@ -108,6 +108,7 @@ pub fn run(
     limit: Option<Duration>,
     settings: &ProcessingSettings,
     log: &LogBuffer,
+    record: Option<&crate::recording::RecordSpec>,
     out: &mut dyn Write,
 ) -> Result<()> {
     writeln!(
@@ -118,12 +119,14 @@ pub fn run(
     )?;
     let t0 = Instant::now();
     let mut seen = log.next_seq();
-    let mut session = session::start(
+    let mut session = session::start_recording(
         &SourceSpec::Live(spec.clone()),
         settings,
         PipelineOptions::default(),
         Arc::new(|| {}),
+        record,
     )?;
+    let recorder = session.recorder.clone();
     writeln!(
         out,
         "{}; calibration: {}",
@@ -162,6 +165,13 @@ pub fn run(
         if Instant::now() >= next_print {
             let block = format_status(t0.elapsed(), &names, &status, last.as_deref());
             write!(out, "{block}")?;
+            if let Some(r) = &recorder {
+                writeln!(
+                    out,
+                    "  {}",
+                    crate::recording::describe(r.file(), &r.stats())
+                )?;
+            }
             next_print += Duration::from_secs(1);
         }
         std::thread::sleep(Duration::from_millis(20));
@@ -178,5 +188,8 @@ pub fn run(
         "done: {} frame sets, {} fed to the controller, {} incomplete kept from it, {} dropped",
         status.sets, status.processed, status.incomplete, status.capture_queue.dropped
     )?;
+    if let Some(r) = &recorder {
+        writeln!(out, "{}", crate::recording::describe(r.file(), &r.finish()))?;
+    }
     Ok(())
 }

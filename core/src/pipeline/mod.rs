@@ -43,6 +43,7 @@ mod output;
 mod processor;
 mod queue;
 mod settings;
+mod sink;
 mod telemetry;
 mod threads;
 
@@ -52,6 +53,7 @@ pub use output::{CameraOutput, Output, Overlay, PairOutput, PatchBox};
 pub use processor::{check_view, Processor};
 pub use queue::{DropOldest, QueueStats};
 pub use settings::{Control, MeterRoi, ProcessingSettings, Strategy};
+pub use sink::{Processed, SetSink};
 pub use telemetry::{CameraRow, StageTimes, Telemetry, TelemetryRow};
 pub use threads::{Notify, Pipeline, PipelineOptions, PipelineStatus};
 

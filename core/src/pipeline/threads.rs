@@ -10,8 +10,8 @@ use std::time::{Duration, Instant};
 
 use super::processor::ms;
 use super::{
-    Control, DropOldest, Output, Processor, QueueStats, StageTimes, Strategy, Telemetry,
-    TelemetryRow,
+    Control, DropOldest, Output, Processed, Processor, QueueStats, SetSink, StageTimes, Strategy,
+    Telemetry, TelemetryRow,
 };
 use crate::error::{Error, Result};
 use crate::source::{
@@ -153,6 +153,18 @@ impl Pipeline {
         options: PipelineOptions,
         notify: Notify,
     ) -> Result<Self> {
+        Self::start_with_sink(source, processor, options, notify, None)
+    }
+
+    /// Starts the threads on `source`; every set the processing thread
+    /// takes also goes to `sink` (a recorder).
+    pub fn start_with_sink<S: FrameSource + 'static>(
+        source: S,
+        processor: Processor,
+        options: PipelineOptions,
+        notify: Notify,
+        sink: Option<Arc<dyn SetSink>>,
+    ) -> Result<Self> {
         let cameras = source.cameras().to_vec();
         if cameras.len() != processor.cameras().len() {
             return Err(Error::InvalidConfig(format!(
@@ -205,6 +217,7 @@ impl Pipeline {
                         capture: &capture_tx,
                         notify: &notify,
                         recent: VecDeque::new(),
+                        sink,
                     };
                     ctx.run();
                     output.close();
@@ -416,6 +429,7 @@ struct ProcessingLoop<'a> {
     capture: &'a Sender<CaptureMsg>,
     notify: &'a Notify,
     recent: VecDeque<Instant>,
+    sink: Option<Arc<dyn SetSink>>,
 }
 
 impl ProcessingLoop<'_> {
@@ -476,6 +490,9 @@ impl ProcessingLoop<'_> {
         } = item;
         if !set.is_complete() {
             lock(&self.shared.status).incomplete += 1;
+            if let Some(sink) = &self.sink {
+                sink.offer(&set, None);
+            }
             return;
         }
         self.recent.push_back(ready);
@@ -516,6 +533,17 @@ impl ProcessingLoop<'_> {
                     set.timestamp_ns.saturating_sub(base) as f64 * 1e-9
                 };
                 let row = TelemetryRow::of(&output, time_s, rate, dropped);
+                if let Some(sink) = &self.sink {
+                    let pair_names = lock(&self.shared.telemetry).pair_names().to_vec();
+                    sink.offer(
+                        &set,
+                        Some(Processed {
+                            row: &row,
+                            settings: self.processor.settings(),
+                            pair_names: &pair_names,
+                        }),
+                    );
+                }
                 lock(&self.shared.telemetry).push(row);
                 {
                     let mut s = lock(&self.shared.status);
