@@ -7,6 +7,23 @@ use rigview::cli::{self, Cli, Command, ProcessingArgs};
 use rigview::session::{SimSpec, SourceSpec};
 
 fn main() -> Result<()> {
+    match run() {
+        // The reader of the output went away (`rigview … | head`): what it
+        // wanted was written, and there is nothing to report.
+        Err(e) if is_broken_pipe(&e) => Ok(()),
+        r => r,
+    }
+}
+
+/// Whether `e` comes from writing to a pipe whose reader has closed it.
+fn is_broken_pipe(e: &anyhow::Error) -> bool {
+    e.chain().any(|c| {
+        c.downcast_ref::<std::io::Error>()
+            .is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe)
+    })
+}
+
+fn run() -> Result<()> {
     let cli = Cli::parse();
     rigview::logging::init(cli.verbose)?;
     let out = &mut std::io::stdout().lock();

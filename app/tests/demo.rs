@@ -163,3 +163,27 @@ fn a_bad_scenario_is_a_clear_error() {
     assert!(stderr.contains("latency_frames"), "{stderr}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// A reader that stops early (`rigview demo | head -1`) ends the demo
+/// quietly: success, and nothing on stderr.
+#[test]
+fn a_reader_that_stops_early_ends_the_demo_quietly() {
+    use std::io::{BufRead, BufReader};
+    use std::process::Stdio;
+    let mut child = Command::new(env!("CARGO_BIN_EXE_rigview"))
+        .args(["demo", "--scale", "0.25", "--frames", "2000"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut first = String::new();
+    BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut first)
+        .unwrap();
+    assert!(!first.is_empty());
+    // The pipe's reader is gone; the demo writes on into it.
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{:?}: {stderr}", out.status);
+    assert!(stderr.trim().is_empty(), "{stderr}");
+}

@@ -1,6 +1,7 @@
 //! `rigview run`: the pipeline on a chosen source, in the window or
 //! headless.
 
+use std::io::Write;
 use std::path::PathBuf;
 
 use anyhow::{Context, Result};
@@ -153,7 +154,7 @@ pub fn run(args: &RunArgs, view: &ViewArgs) -> Result<()> {
         };
         let settings = view.settings(&args.processing);
         let summary = headless::run(&run, &settings.processing, LogBuffer::global(), true)?;
-        println!("{summary}");
+        writeln!(std::io::stdout().lock(), "{summary}")?;
         Ok(())
     } else {
         if args.out.is_some() {

@@ -20,6 +20,8 @@ use crate::surround::{Canvas, Composer, SeamBands, SurroundView};
 
 /// How far (canvas pixels) from a seam the seam gains compare the cameras.
 const SEAM_BAND_PX: usize = 3;
+/// At most this many pixels of each seam's band are compared per set.
+const SEAM_SAMPLES: usize = 512;
 
 /// Checks that a surround view fits the source's cameras (count and image
 /// sizes).
@@ -367,7 +369,7 @@ impl Processor {
                 let ratios: Vec<_> = if self.settings.display.compensate {
                     self.seams
                         .get_or_insert_with(|| SeamBands::new(view, SEAM_BAND_PX))
-                        .ratios(&views)?
+                        .ratios(&views, SEAM_SAMPLES)?
                         .into_iter()
                         .map(|(i, j, r)| (i, j, r.or_else(|| patch(i, j))))
                         .collect()
