@@ -131,8 +131,7 @@ pub fn run(
     session.pipeline.stop();
     bar.finish_and_clear();
     let recorded = session
-        .recorder
-        .as_ref()
+        .recorder()
         .map(|r| crate::recording::describe(r.file(), &r.finish()));
     if let Some(o) = &last {
         if o.trigger % every != 0 {

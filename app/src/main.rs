@@ -14,6 +14,7 @@ fn main() -> Result<()> {
         None => cli.view.window(
             &ProcessingArgs::default(),
             SourceSpec::Sim(SimSpec::default()),
+            None,
         ),
         Some(Command::Run(args)) => cli::run::run(args, &cli.view),
         Some(Command::Demo(args)) => cli::demo::run(args, out),

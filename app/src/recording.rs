@@ -6,17 +6,19 @@
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex, PoisonError};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
 use rigview_calib::Rig;
 use rigview_core::exposure::NeighbourGraph;
 use rigview_core::pipeline::{
-    Notify, Pipeline, PipelineOptions, ProcessingSettings, Processor, SetSink,
+    Notify, Pipeline, PipelineOptions, Processed, ProcessingSettings, Processor, SetSink,
 };
 use rigview_core::sim::{Pacing, SimConfig, SimRender, SimRig, SimRigOptions};
-use rigview_core::source::{CameraInfo, FrameSource};
+use rigview_core::source::{
+    CameraInfo, ExposureCommand, FrameSet, FrameSource, SourceError, StreamHealth,
+};
 use rigview_record::{
     Compression, Recorder, RecorderOptions, RecorderStats, RecordingSetup, ReplaySource,
 };
@@ -102,6 +104,53 @@ pub struct Origin<'a> {
     pub time_offset_ns: u64,
 }
 
+/// The recording a session's pipeline hands its sets to: none, or one
+/// started at start-up (`--record`) or by the window's Record button and
+/// stopped by it. The pipeline always has this sink; it offers a set only
+/// while a recorder is in it.
+#[derive(Debug, Default)]
+pub struct RecordSlot {
+    current: Mutex<Option<Arc<Recorder>>>,
+}
+
+impl RecordSlot {
+    fn lock(&self) -> std::sync::MutexGuard<'_, Option<Arc<Recorder>>> {
+        // The slot holds an `Option`; no update leaves it half done.
+        self.current.lock().unwrap_or_else(PoisonError::into_inner)
+    }
+
+    /// The recording in progress.
+    pub fn recorder(&self) -> Option<Arc<Recorder>> {
+        self.lock().clone()
+    }
+
+    /// Puts `recorder` in the slot; returns the one it replaces.
+    pub fn replace(&self, recorder: Option<Arc<Recorder>>) -> Option<Arc<Recorder>> {
+        std::mem::replace(&mut *self.lock(), recorder)
+    }
+}
+
+impl SetSink for RecordSlot {
+    fn offer(&self, set: &FrameSet, processed: Option<Processed<'_>>) {
+        if let Some(r) = self.recorder() {
+            r.offer(set, processed);
+        }
+    }
+}
+
+/// What a recording of a session's sets needs to know about its source.
+#[derive(Clone, Debug)]
+pub struct RecordOrigin {
+    /// The cameras.
+    pub cameras: Vec<CameraInfo>,
+    /// The calibration.
+    pub rig: Option<Rig>,
+    /// The source, in words.
+    pub source_name: String,
+    /// Added to the source's timestamps to make Unix time.
+    pub time_offset_ns: u64,
+}
+
 /// Starts the pipeline on `source` and, if `record` says, a recorder on it.
 pub fn start_session<S: FrameSource + 'static>(
     source: S,
@@ -111,21 +160,29 @@ pub fn start_session<S: FrameSource + 'static>(
     record: Option<&RecordSpec>,
     origin: Origin<'_>,
 ) -> Result<Session> {
-    let recorder = match record {
-        Some(r) => Some(Arc::new(r.create(
-            source.cameras(),
-            origin.rig,
-            &origin.source_name,
-            origin.time_offset_ns,
-        )?)),
-        None => None,
+    let record_origin = RecordOrigin {
+        cameras: source.cameras().to_vec(),
+        rig: origin.rig.cloned(),
+        source_name: origin.source_name.clone(),
+        time_offset_ns: origin.time_offset_ns,
     };
+    let slot = Arc::new(RecordSlot::default());
+    if let Some(r) = record {
+        slot.replace(Some(Arc::new(r.create(
+            &record_origin.cameras,
+            record_origin.rig.as_ref(),
+            &record_origin.source_name,
+            record_origin.time_offset_ns,
+        )?)));
+    }
     let camera_auto = source.has_camera_auto();
-    let sink = recorder.clone().map(|r| r as Arc<dyn SetSink>);
-    let pipeline = Pipeline::start_with_sink(source, processor, options, notify, sink)?;
+    let sink = slot.clone() as Arc<dyn SetSink>;
+    let pipeline = Pipeline::start_with_sink(source, processor, options, notify, Some(sink))?;
     Ok(Session {
         pipeline,
-        recorder,
+        record: slot,
+        record_origin,
+        replay: None,
         source_name: origin.source_name,
         calibration: origin.calibration,
         camera_auto,
@@ -139,6 +196,10 @@ pub struct ReplaySpec {
     pub file: PathBuf,
     /// A calibration to use instead of the recording's own.
     pub rig: Option<PathBuf>,
+    /// Replayed under the window's controls ([`ReplayControl`]): held at
+    /// its end (paused) instead of finishing, so that it can be sought
+    /// back.
+    pub interactive: bool,
 }
 
 /// The calibration a replay uses: `--rig` if given (it must fit the
@@ -197,12 +258,8 @@ pub fn start_replay(
     notify: Notify,
     record: Option<&RecordSpec>,
 ) -> Result<Session> {
-    let mut source = ReplaySource::open(&spec.file)
+    let source = ReplaySource::open(&spec.file)
         .with_context(|| format!("cannot replay {}", spec.file.display()))?;
-    if !options.lockstep {
-        // In the window: at the recorded rate.
-        source.set_speed(Some(1.0));
-    }
     let cameras = source.cameras().to_vec();
     let rig = replay_rig(spec, &source)?;
     let (view, graph, calibration) = match &rig {
@@ -228,7 +285,258 @@ pub fn start_replay(
         rig: rig.as_ref().map(|(r, _)| r),
         time_offset_ns: source.meta().time_offset_ns,
     };
-    start_session(source, processor, options, notify, record, origin)
+    // In the window: at the recorded rate; in lock step as fast as asked.
+    let speed = (!options.lockstep).then_some(1.0);
+    let (source, control) = Controlled::new(source, speed, spec.interactive);
+    let mut session = start_session(source, processor, options, notify, record, origin)?;
+    session.replay = Some(control);
+    Ok(session)
+}
+
+/// What the window asks of a replay, and where the replay is.
+#[derive(Debug, Default)]
+struct ControlState {
+    paused: bool,
+    /// Sets to step from the last one given (negative: back).
+    steps: i64,
+    seek: Option<usize>,
+    /// A new speed (`Some(None)`: as fast as possible).
+    speed: Option<Option<f64>>,
+    /// The speed in use.
+    current_speed: Option<f64>,
+    /// The number of the last set given.
+    shown: Option<usize>,
+    at_end: bool,
+}
+
+/// The window's hold on a replay: play and pause, steps, seeks, speed,
+/// and where the replay is. Requests take effect when the capture thread
+/// next asks the replay for a set.
+#[derive(Clone, Debug)]
+pub struct ReplayControl {
+    state: Arc<Mutex<ControlState>>,
+    /// The sets' log times (`None`: the file has no index).
+    times: Option<Arc<[u64]>>,
+    file: PathBuf,
+}
+
+impl ReplayControl {
+    fn lock(&self) -> std::sync::MutexGuard<'_, ControlState> {
+        // Plain fields: no update leaves them half done.
+        self.state.lock().unwrap_or_else(PoisonError::into_inner)
+    }
+
+    /// The recording.
+    pub fn file(&self) -> &Path {
+        &self.file
+    }
+
+    /// The sets' log times (Unix ns), if the file has its index (without
+    /// one it can be played and stepped forward, not sought).
+    pub fn times(&self) -> Option<&[u64]> {
+        self.times.as_deref()
+    }
+
+    /// Pauses or plays (playing at the end starts again from the first
+    /// set).
+    pub fn set_paused(&self, paused: bool) {
+        let mut s = self.lock();
+        if !paused && s.at_end && self.times.is_some() {
+            s.seek = Some(0);
+            s.steps = 0;
+        }
+        s.paused = paused;
+    }
+
+    /// Whether the replay is paused (also at the end of an interactive
+    /// replay).
+    pub fn is_paused(&self) -> bool {
+        self.lock().paused
+    }
+
+    /// Pauses and steps `n` sets from the last one given (negative: back,
+    /// which needs the index).
+    pub fn step(&self, n: i64) {
+        let mut s = self.lock();
+        s.paused = true;
+        s.steps += n;
+    }
+
+    /// Goes to set number `k` (shown at once, even when paused).
+    pub fn seek(&self, k: usize) {
+        let mut s = self.lock();
+        s.seek = Some(k);
+        s.steps = 0;
+    }
+
+    /// The number of the set at or after `log_time` (the last one past
+    /// the end), if the file has its index.
+    pub fn set_at(&self, log_time: u64) -> Option<usize> {
+        let times = self.times()?;
+        let k = times.partition_point(|&t| t < log_time);
+        Some(k.min(times.len().saturating_sub(1)))
+    }
+
+    /// Replays at `speed` times the recorded rate (`None`: as fast as
+    /// possible).
+    pub fn set_speed(&self, speed: Option<f64>) {
+        let mut s = self.lock();
+        s.speed = Some(speed);
+        s.current_speed = speed;
+    }
+
+    /// The speed asked for.
+    pub fn speed(&self) -> Option<f64> {
+        self.lock().current_speed
+    }
+
+    /// The number of the last set given to processing.
+    pub fn shown(&self) -> Option<usize> {
+        self.lock().shown
+    }
+
+    /// Whether the replay has given its last set.
+    pub fn at_end(&self) -> bool {
+        self.lock().at_end
+    }
+}
+
+/// A [`ReplaySource`] under a [`ReplayControl`].
+struct Controlled {
+    inner: ReplaySource,
+    control: ReplayControl,
+    /// Held at the end instead of finishing.
+    hold: bool,
+    speed: Option<f64>,
+    was_paused: bool,
+    messages: Vec<String>,
+}
+
+impl Controlled {
+    fn new(mut inner: ReplaySource, speed: Option<f64>, hold: bool) -> (Self, ReplayControl) {
+        inner.set_speed(speed);
+        let control = ReplayControl {
+            state: Arc::new(Mutex::new(ControlState {
+                current_speed: speed,
+                ..Default::default()
+            })),
+            times: inner.times().map(Arc::from),
+            file: inner.file().to_owned(),
+        };
+        let source = Self {
+            inner,
+            control: control.clone(),
+            hold,
+            speed,
+            was_paused: false,
+            messages: Vec::new(),
+        };
+        (source, control)
+    }
+
+    /// Carries out the window's requests; whether a set is to be given now
+    /// even though the replay is paused.
+    fn apply_requests(&mut self) -> (bool, bool) {
+        let (seek, steps, speed, paused, shown) = {
+            let mut s = self.control.lock();
+            (
+                s.seek.take(),
+                std::mem::take(&mut s.steps),
+                s.speed.take(),
+                s.paused,
+                s.shown,
+            )
+        };
+        if let Some(speed) = speed {
+            self.speed = speed;
+            self.inner.set_speed(speed);
+        }
+        if !paused && self.was_paused {
+            // The pause is not replayed: the clock starts again now.
+            self.inner.set_speed(self.speed);
+        }
+        self.was_paused = paused;
+        let mut one = false;
+        if let Some(k) = seek {
+            match self.inner.seek(k) {
+                Ok(()) => one = true,
+                Err(e) => self.messages.push(e.to_string()),
+            }
+        }
+        if steps != 0 {
+            let from = shown.map_or(-1, |k| i64::try_from(k).unwrap_or(i64::MAX));
+            let target = usize::try_from(from.saturating_add(steps).max(0)).unwrap_or(0);
+            if self.inner.position().is_some() {
+                match self.inner.seek(target) {
+                    Ok(()) => one = true,
+                    Err(e) => self.messages.push(e.to_string()),
+                }
+            } else if steps == 1 {
+                // Without the index the next set is the only one to step to.
+                one = true;
+            } else {
+                self.messages.push(format!(
+                    "{}: the file has no index, so it steps forward one set at a time only; \
+                     `rigview recording repair` rewrites it with one",
+                    self.inner.file().display()
+                ));
+            }
+        }
+        if one {
+            // Given at once, whatever the pacing.
+            self.inner.set_speed(self.speed);
+        }
+        (paused, one)
+    }
+}
+
+impl FrameSource for Controlled {
+    fn cameras(&self) -> &[CameraInfo] {
+        self.inner.cameras()
+    }
+
+    fn next_set(&mut self, timeout: Duration) -> Result<Option<FrameSet>, SourceError> {
+        let (paused, one) = self.apply_requests();
+        if paused && !one {
+            std::thread::sleep(timeout.min(Duration::from_millis(20)));
+            return Ok(None);
+        }
+        let k = self.inner.position();
+        let got = self.inner.next_set(timeout);
+        let mut s = self.control.lock();
+        match &got {
+            Ok(Some(_)) => {
+                s.shown = k.or_else(|| Some(s.shown.map_or(0, |n| n + 1)));
+                s.at_end = false;
+            }
+            Ok(None) if self.inner.is_finished() => {
+                s.at_end = true;
+                if self.hold {
+                    s.paused = true;
+                }
+            }
+            Ok(None) | Err(_) => {}
+        }
+        got
+    }
+
+    fn apply(&mut self, _commands: &[ExposureCommand]) -> Result<(), SourceError> {
+        Ok(())
+    }
+
+    fn health(&self) -> Vec<StreamHealth> {
+        self.inner.health()
+    }
+
+    fn is_finished(&self) -> bool {
+        !self.hold && self.inner.is_finished()
+    }
+
+    fn take_messages(&mut self) -> Vec<String> {
+        let mut m = std::mem::take(&mut self.messages);
+        m.extend(self.inner.take_messages());
+        m
+    }
 }
 
 /// What `rigview record` captures from.

@@ -49,6 +49,7 @@ fn app(dir: &Path, frames: Option<u64>, log: &LogBuffer) -> RigviewApp {
                 ..Default::default()
             },
             log: log.clone(),
+            record: None,
         },
     )
 }

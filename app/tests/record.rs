@@ -60,6 +60,7 @@ fn a_replayed_recording_measures_what_the_run_measured() {
         source: SourceSpec::Replay(ReplaySpec {
             file: file.clone(),
             rig: None,
+            interactive: false,
         }),
         frames: u64::MAX,
         out: dir.path().join("replay"),
@@ -136,6 +137,7 @@ fn a_replayed_recording_measures_what_the_run_measured() {
         source: SourceSpec::Replay(ReplaySpec {
             file: file.clone(),
             rig: Some(other.clone()),
+            interactive: false,
         }),
         frames: 5,
         out: dir.path().join("bad"),

@@ -101,6 +101,7 @@ impl RunArgs {
                 Ok(SourceSpec::Replay(crate::recording::ReplaySpec {
                     file: file.clone(),
                     rig: self.rig.clone(),
+                    interactive: !headless,
                 }))
             }
             SourceKind::Sim => {
@@ -159,10 +160,8 @@ pub fn run(args: &RunArgs, view: &ViewArgs) -> Result<()> {
         if args.out.is_some() {
             anyhow::bail!("--out is for --headless runs");
         }
-        if args.record.is_some() {
-            anyhow::bail!("--record is for --headless runs and rigview live (the window's Record button is to come)");
-        }
-        view.window(&args.processing, args.source(false)?)
+        let record = args.record.clone().map(|f| args.recording.spec(f));
+        view.window(&args.processing, args.source(false)?, record)
     }
 }
 
