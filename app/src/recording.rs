@@ -369,12 +369,17 @@ impl ReplayControl {
         s.steps = 0;
     }
 
-    /// The number of the set at or after `log_time` (the last one past
-    /// the end), if the file has its index.
+    /// The number of the set nearest to `log_time`, if the file has its
+    /// index (and a set).
     pub fn set_at(&self, log_time: u64) -> Option<usize> {
         let times = self.times()?;
-        let k = times.partition_point(|&t| t < log_time);
-        Some(k.min(times.len().saturating_sub(1)))
+        let after = times.partition_point(|&t| t < log_time);
+        let before = after.checked_sub(1);
+        match (before, times.get(after)) {
+            (Some(b), Some(&ta)) if log_time - times[b] < ta - log_time => Some(b),
+            (_, Some(_)) => Some(after),
+            (b, None) => b,
+        }
     }
 
     /// Replays at `speed` times the recorded rate (`None`: as fast as
@@ -734,4 +739,44 @@ pub fn repair_text(input: &Path, output: &Path) -> Result<String> {
         output.display(),
         r.sets
     ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn control(times: Option<Vec<u64>>) -> ReplayControl {
+        ReplayControl {
+            state: Arc::default(),
+            times: times.map(Arc::from),
+            file: PathBuf::from("drive.mcap"),
+        }
+    }
+
+    #[test]
+    fn a_seek_by_time_goes_to_the_nearest_set() {
+        let c = control(Some(vec![100, 200, 300]));
+        assert_eq!(c.set_at(0), Some(0));
+        assert_eq!(c.set_at(149), Some(0));
+        assert_eq!(c.set_at(151), Some(1));
+        assert_eq!(c.set_at(300), Some(2));
+        assert_eq!(c.set_at(10_000), Some(2));
+        assert_eq!(control(Some(Vec::new())).set_at(5), None);
+        // Without the index there is nothing to seek by.
+        assert_eq!(control(None).set_at(5), None);
+    }
+
+    #[test]
+    fn steps_pause_and_playing_at_the_end_starts_again() {
+        let c = control(Some(vec![100, 200, 300]));
+        c.step(1);
+        c.step(-2);
+        assert!(c.is_paused());
+        assert_eq!(c.lock().steps, -1);
+        c.lock().at_end = true;
+        c.set_paused(false);
+        assert!(!c.is_paused());
+        let s = c.lock();
+        assert_eq!((s.seek, s.steps), (Some(0), 0));
+    }
 }

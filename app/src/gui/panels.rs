@@ -271,16 +271,14 @@ pub(super) fn replay_bar(app: &mut RigviewApp, ui: &mut Ui) {
                     let mut at = shown.and_then(|k| times.get(k)).map_or(0.0, |&t| secs(t));
                     let l = ui.label("time (s)");
                     let slider = ui
-                        .add(
-                            egui::Slider::new(&mut at, 0.0..=end.max(1e-3))
-                                .fixed_decimals(2)
-                                .show_value(true),
-                        )
+                        .add(egui::Slider::new(&mut at, 0.0..=end.max(1e-3)).show_value(true))
                         .labelled_by(l.id);
                     if slider.changed() {
                         // Whole nanoseconds from the recording's start.
                         let t = t0.saturating_add((at.max(0.0) * 1e9).round() as u64);
-                        if let Some(k) = control.set_at(t) {
+                        // Only a move to another set seeks (not the slider
+                        // following the replay).
+                        if let Some(k) = control.set_at(t).filter(|k| Some(*k) != shown) {
                             control.seek(k);
                         }
                     }
