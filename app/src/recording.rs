@@ -13,7 +13,7 @@ use anyhow::{Context, Result};
 use rigview_calib::Rig;
 use rigview_core::exposure::NeighbourGraph;
 use rigview_core::pipeline::{
-    Notify, Pipeline, PipelineOptions, Processed, ProcessingSettings, Processor, SetSink,
+    Notify, Pipeline, PipelineOptions, Processed, ProcessingSettings, Processor, SetSink, Telemetry,
 };
 use rigview_core::sim::{Pacing, SimConfig, SimRender, SimRig, SimRigOptions};
 use rigview_core::source::{
@@ -111,7 +111,14 @@ pub struct Origin<'a> {
 #[derive(Debug, Default)]
 pub struct RecordSlot {
     current: Mutex<Option<Arc<Recorder>>>,
+    /// Per processed set while recording: its trigger and the sets the
+    /// recorder had dropped by then (the last [`DROPS_KEPT`]).
+    drops: Mutex<std::collections::VecDeque<(u64, u64)>>,
 }
+
+/// Sets whose recorder drops a [`RecordSlot`] keeps for `telemetry.csv`
+/// (an hour and a half at 20 Hz).
+const DROPS_KEPT: usize = 100_000;
 
 impl RecordSlot {
     fn lock(&self) -> std::sync::MutexGuard<'_, Option<Arc<Recorder>>> {
@@ -128,12 +135,59 @@ impl RecordSlot {
     pub fn replace(&self, recorder: Option<Arc<Recorder>>) -> Option<Arc<Recorder>> {
         std::mem::replace(&mut *self.lock(), recorder)
     }
+
+    /// The sets the recorder had dropped when the set `trigger` was
+    /// processed (`None`: no recording was in progress then).
+    pub fn dropped_at(&self, trigger: u64) -> Option<u64> {
+        let drops = self.drops.lock().unwrap_or_else(PoisonError::into_inner);
+        drops.iter().rev().find(|(t, _)| *t == trigger).map(|d| d.1)
+    }
+
+    /// Writes `telemetry` as `telemetry.csv` does, with a last column
+    /// `recorder_dropped`: the sets the recorder had dropped by each set
+    /// (empty while nothing was recorded).
+    pub fn write_csv(&self, telemetry: &Telemetry, out: &mut dyn std::io::Write) -> Result<()> {
+        let mut line = Vec::new();
+        telemetry.write_csv_header(&mut line)?;
+        with_column(&mut line, "recorder_dropped");
+        out.write_all(&line)?;
+        let drops = self.drops.lock().unwrap_or_else(PoisonError::into_inner);
+        let by_trigger: std::collections::HashMap<u64, u64> = drops.iter().copied().collect();
+        for row in telemetry.rows() {
+            line.clear();
+            telemetry.write_csv_row(&mut line, row)?;
+            let d = by_trigger
+                .get(&row.trigger)
+                .map_or_else(String::new, u64::to_string);
+            with_column(&mut line, &d);
+            out.write_all(&line)?;
+        }
+        Ok(())
+    }
+}
+
+/// Adds `field` at the end of the CSV `line`.
+fn with_column(line: &mut Vec<u8>, field: &str) {
+    if line.last() == Some(&b'\n') {
+        line.pop();
+    }
+    line.push(b',');
+    line.extend_from_slice(field.as_bytes());
+    line.push(b'\n');
 }
 
 impl SetSink for RecordSlot {
     fn offer(&self, set: &FrameSet, processed: Option<Processed<'_>>) {
-        if let Some(r) = self.recorder() {
-            r.offer(set, processed);
+        let Some(r) = self.recorder() else {
+            return;
+        };
+        r.offer(set, processed);
+        if let Some(p) = processed {
+            let mut drops = self.drops.lock().unwrap_or_else(PoisonError::into_inner);
+            drops.push_back((p.row.trigger, r.stats().dropped));
+            while drops.len() > DROPS_KEPT {
+                drops.pop_front();
+            }
         }
     }
 }
