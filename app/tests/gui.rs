@@ -656,3 +656,41 @@ fn a_recording_opened_in_the_window_pauses_steps_and_seeks() {
         .query_by_label("log2 E the strategy would command (not applied)")
         .is_some());
 }
+
+#[test]
+fn a_recording_that_stops_on_its_own_is_told_and_the_view_goes_on() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("full.mcap");
+    let log = LogBuffer::new();
+    let _events = logging::capture(&log);
+    let mut h = harness(app(dir.path(), None, &log));
+    step_until(&mut h, 120.0, "first sets", |a| a.shown() >= 2);
+    // A reserve no disk has: the recorder stops at its first check.
+    let spec = RecordSpec {
+        reserve_bytes: u64::MAX,
+        ..RecordSpec::new(file.clone())
+    };
+    h.state_mut().start_recording(&spec);
+    step_until(&mut h, 60.0, "the stop told", |a| {
+        a.messages()
+            .iter()
+            .any(|m| m.error && m.text.contains("full.mcap") && m.text.contains("reserve"))
+    });
+    h.step();
+    // Under the Record button and in the status bar.
+    assert_eq!(
+        h.query_all_by_label_contains("STOPPED: stopped:").count(),
+        2,
+        "the stop is not in the window"
+    );
+    let before = h.state().shown();
+    step_until(&mut h, 60.0, "more sets after the stop", |a| {
+        a.shown() >= before + 3
+    });
+    // The file is still a recording: its start, readable, with no set.
+    h.get_by_label("Stop recording").click();
+    step_until(&mut h, 30.0, "the recording closed", |a| {
+        !a.is_finishing_recording() && a.recorder().is_none()
+    });
+    assert!(recorded_triggers(&file).is_empty());
+}
