@@ -55,18 +55,22 @@ impl RecordSpec {
         source: &str,
         time_offset_ns: u64,
     ) -> Result<Recorder> {
-        let setup = RecordingSetup {
+        self.create_for(&RecordingSetup {
             cameras: cameras.to_vec(),
             rig: rig.cloned(),
             source: source.to_owned(),
             time_offset_ns,
-        };
+        })
+    }
+
+    /// Starts the recorder for the source `setup` describes.
+    pub fn create_for(&self, setup: &RecordingSetup) -> Result<Recorder> {
         let options = RecorderOptions {
             compression: self.compression,
             reserve_bytes: self.reserve_bytes,
             ..Default::default()
         };
-        Recorder::create(&self.file, &setup, options)
+        Recorder::create(&self.file, setup, options)
             .with_context(|| format!("cannot record into {}", self.file.display()))
     }
 }
@@ -192,19 +196,6 @@ impl SetSink for RecordSlot {
     }
 }
 
-/// What a recording of a session's sets needs to know about its source.
-#[derive(Clone, Debug)]
-pub struct RecordOrigin {
-    /// The cameras.
-    pub cameras: Vec<CameraInfo>,
-    /// The calibration.
-    pub rig: Option<Rig>,
-    /// The source, in words.
-    pub source_name: String,
-    /// Added to the source's timestamps to make Unix time.
-    pub time_offset_ns: u64,
-}
-
 /// Starts the pipeline on `source` and, if `record` says, a recorder on it.
 pub fn start_session<S: FrameSource + 'static>(
     source: S,
@@ -214,20 +205,15 @@ pub fn start_session<S: FrameSource + 'static>(
     record: Option<&RecordSpec>,
     origin: Origin<'_>,
 ) -> Result<Session> {
-    let record_origin = RecordOrigin {
+    let record_setup = RecordingSetup {
         cameras: source.cameras().to_vec(),
         rig: origin.rig.cloned(),
-        source_name: origin.source_name.clone(),
+        source: origin.source_name.clone(),
         time_offset_ns: origin.time_offset_ns,
     };
     let slot = Arc::new(RecordSlot::default());
     if let Some(r) = record {
-        slot.replace(Some(Arc::new(r.create(
-            &record_origin.cameras,
-            record_origin.rig.as_ref(),
-            &record_origin.source_name,
-            record_origin.time_offset_ns,
-        )?)));
+        slot.replace(Some(Arc::new(r.create_for(&record_setup)?)));
     }
     let camera_auto = source.has_camera_auto();
     let sink = slot.clone() as Arc<dyn SetSink>;
@@ -235,7 +221,7 @@ pub fn start_session<S: FrameSource + 'static>(
     Ok(Session {
         pipeline,
         record: slot,
-        record_origin,
+        record_setup,
         replay: None,
         source_name: origin.source_name,
         calibration: origin.calibration,

@@ -17,9 +17,7 @@ use rigview_core::source::{Budget, CameraInfo, FrameSource};
 use rigview_core::surround::{CanvasSpec, SurroundOptions, SurroundView};
 
 use crate::live::LiveSpec;
-use crate::recording::{
-    start_session, Origin, RecordOrigin, RecordSlot, RecordSpec, ReplayControl,
-};
+use crate::recording::{start_session, Origin, RecordSlot, RecordSpec, ReplayControl};
 use rigview_record::Recorder;
 
 /// The simulated rig to run.
@@ -72,8 +70,8 @@ pub struct Session {
     /// The recording the pipeline hands its sets to (`--record`, the
     /// window's Record button).
     pub record: Arc<RecordSlot>,
-    /// What a recording of this session needs to know about its source.
-    pub record_origin: RecordOrigin,
+    /// What a recording of this session says about its source.
+    pub record_setup: rigview_record::RecordingSetup,
     /// The window's hold on a replay (a replay session only).
     pub replay: Option<ReplayControl>,
 }
@@ -102,9 +100,7 @@ impl Session {
                 r.file().display()
             );
         }
-        let o = &self.record_origin;
-        let recorder =
-            Arc::new(spec.create(&o.cameras, o.rig.as_ref(), &o.source_name, o.time_offset_ns)?);
+        let recorder = Arc::new(spec.create_for(&self.record_setup)?);
         self.record.replace(Some(recorder.clone()));
         Ok(recorder)
     }

@@ -35,6 +35,26 @@ pub fn thumbnail_image(cam: &CameraOutput, show_roi: bool) -> ColorImage {
     ColorImage::from_rgb([w, h], &rgb)
 }
 
+/// A path typed into `text` and its button; the path when the button is
+/// pressed with one.
+fn path_entry(
+    ui: &mut Ui,
+    text: &mut String,
+    hint: &str,
+    button: &str,
+) -> Option<std::path::PathBuf> {
+    ui.horizontal(|ui| {
+        ui.add(
+            egui::TextEdit::singleline(text)
+                .hint_text(hint)
+                .desired_width(280.0),
+        );
+        let pressed = ui.button(button).clicked();
+        (pressed && !text.trim().is_empty()).then(|| std::path::PathBuf::from(text.trim()))
+    })
+    .inner
+}
+
 pub(super) fn menu_bar(app: &mut RigviewApp, ui: &mut Ui) {
     egui::Panel::top("menu").show(ui, |ui| {
         egui::MenuBar::new().ui(ui, |ui| {
@@ -49,31 +69,19 @@ pub(super) fn menu_bar(app: &mut RigviewApp, ui: &mut Ui) {
                 }
                 ui.separator();
                 ui.label("Open a calibration by path:");
-                ui.horizontal(|ui| {
-                    ui.add(
-                        egui::TextEdit::singleline(&mut app.open_path)
-                            .hint_text("rig or calibration file")
-                            .desired_width(280.0),
-                    );
-                    if ui.button("Open").clicked() && !app.open_path.trim().is_empty() {
-                        let p = std::path::PathBuf::from(app.open_path.trim());
-                        app.open_calibration(&p);
-                        ui.close();
-                    }
-                });
+                if let Some(p) =
+                    path_entry(ui, &mut app.open_path, "rig or calibration file", "Open")
+                {
+                    app.open_calibration(&p);
+                    ui.close();
+                }
                 ui.label("Open a recording by path:");
-                ui.horizontal(|ui| {
-                    ui.add(
-                        egui::TextEdit::singleline(&mut app.recording_path)
-                            .hint_text("recording (.mcap)")
-                            .desired_width(280.0),
-                    );
-                    if ui.button("Replay").clicked() && !app.recording_path.trim().is_empty() {
-                        let p = std::path::PathBuf::from(app.recording_path.trim());
-                        app.open_recording(&p);
-                        ui.close();
-                    }
-                });
+                if let Some(p) =
+                    path_entry(ui, &mut app.recording_path, "recording (.mcap)", "Replay")
+                {
+                    app.open_recording(&p);
+                    ui.close();
+                }
                 if !app.settings.window.recent.is_empty() {
                     ui.separator();
                     ui.label("Recent:");
