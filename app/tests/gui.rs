@@ -627,7 +627,7 @@ fn a_recording_opened_in_the_window_pauses_steps_and_seeks() {
     h.get_by_role_and_label(egui::accesskit::Role::Slider, "time (s)")
         .set_value_accesskit((times[20] - times[0]) as f64 * 1e-9);
     step_until_shown(&mut h, 30.0, "seek to set 20", triggers[20]);
-    assert!(h.query_by_label("set 21 of 40").is_some());
+    assert!(h.query_by_label("21 / 40 sets").is_some());
     h.get_by_label("Step forward").click();
     step_until_shown(&mut h, 30.0, "one step forward", triggers[21]);
     h.get_by_label("Step back").click();

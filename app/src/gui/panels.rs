@@ -291,7 +291,7 @@ pub(super) fn replay_bar(app: &mut RigviewApp, ui: &mut Ui) {
                         }
                     }
                     ui.label(format!(
-                        "set {} of {}",
+                        "{} / {} sets",
                         shown.map_or(0, |k| k + 1),
                         times.len()
                     ));
