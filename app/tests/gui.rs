@@ -15,7 +15,7 @@ use std::path::Path;
 use std::sync::Arc;
 use std::time::Duration;
 
-use egui_kittest::kittest::Queryable;
+use egui_kittest::kittest::{NodeT, Queryable};
 use egui_kittest::{Harness, SnapshotOptions, SnapshotResults};
 use rigview::gui::{panels, plots, AppOptions, RigviewApp};
 use rigview::headless::{self, HeadlessRun};
@@ -655,6 +655,36 @@ fn a_recording_opened_in_the_window_pauses_steps_and_seeks() {
     assert!(h
         .query_by_label("log2 E the strategy would command (not applied)")
         .is_some());
+
+    // A file cut before its summary (killed while recording) has no
+    // index: it plays and steps forward, and says to repair it to seek.
+    let bytes = std::fs::read(&file).unwrap();
+    let cut = dir.path().join("cut.mcap");
+    std::fs::write(&cut, &bytes[..bytes.len() * 97 / 100]).unwrap();
+    h.state_mut().open_recording(&cut);
+    let control = h.state().replay().expect("not replaying").clone();
+    assert!(control.times().is_none());
+    control.set_speed(Some(0.25));
+    h.step();
+    h.get_by_label("Pause").click();
+    h.step();
+    h.step();
+    assert!(h
+        .query_by_label_contains("recording repair IN OUT")
+        .is_some());
+    assert!(h.get_by_label("Step back").accesskit_node().is_disabled());
+    step_until(&mut h, 30.0, "a set of the cut file shown", |a| {
+        a.latest().is_some()
+    });
+    let k = control.shown().unwrap();
+    step_until_shown(&mut h, 30.0, "the set paused at", triggers[k]);
+    h.get_by_label("Step forward").click();
+    step_until_shown(
+        &mut h,
+        30.0,
+        "a step forward without the index",
+        triggers[k + 1],
+    );
 }
 
 #[test]
