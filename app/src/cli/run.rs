@@ -161,7 +161,14 @@ pub fn run(args: &RunArgs, view: &ViewArgs) -> Result<()> {
             anyhow::bail!("--out is for --headless runs");
         }
         let record = args.record.clone().map(|f| args.recording.spec(f));
-        view.window(&args.processing, args.source(false)?, record)
+        let source = args.source(false)?;
+        if record.is_some() && matches!(source, SourceSpec::Replay(_)) {
+            anyhow::bail!(
+                "--record with --source replay:FILE is for --headless runs: \
+                 a replay in the window can be paused, stepped and sought"
+            );
+        }
+        view.window(&args.processing, source, record)
     }
 }
 

@@ -828,3 +828,16 @@ pub fn run(options: AppOptions) -> Result<()> {
     )
     .map_err(|e| anyhow::anyhow!("the window failed: {e}"))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_recording_line_says_time_size_rate_and_drops() {
+        assert_eq!(
+            recording_text(Duration::from_millis(125_900), 2_345_600_000, 98.74, 3),
+            "REC 02:05 · 2345.6 MB · 98.7 MB/s · dropped 3"
+        );
+    }
+}
