@@ -513,6 +513,10 @@ fn record_at_start_up_records_every_set() {
     );
     let mut h = harness(app);
     assert!(h.state().recorder().is_some(), "{:?}", h.state().messages());
+    h.step();
+    // The Record button's file is the one recorded into, and it says so.
+    assert!(h.query_by_label_contains("recording into").is_some());
+    assert!(h.query_by_label("Stop recording").is_some());
     step_until(&mut h, 120.0, "the source ends", |a| {
         a.session().unwrap().pipeline.is_stopped()
     });

@@ -213,7 +213,9 @@ impl RigviewApp {
             dialog: None,
             open_path: String::new(),
             recording_path: String::new(),
-            record_path: default_record_path(),
+            record_path: recording.as_ref().map_or_else(default_record_path, |r| {
+                r.recorder.file().display().to_string()
+            }),
             recording,
             finishing: Vec::new(),
             pipeline_options: options.pipeline,
@@ -231,6 +233,10 @@ impl RigviewApp {
             screenshot_done: None,
             cpu: crate::report::CpuMeter::start(),
         };
+        if let Some(r) = &app.recording {
+            let text = format!("recording into {}", r.recorder.file().display());
+            app.note(text, false);
+        }
         app.read_log();
         app
     }
@@ -745,16 +751,15 @@ impl RigviewApp {
     /// run (sets, drops, latency, CPU).
     pub fn finish(&mut self) -> String {
         self.save_settings();
-        let recorded = self.recording.take().map(|rec| {
-            if let Some(s) = &self.session {
-                s.stop_recording();
-            }
-            crate::recording::describe(rec.recorder.file(), &rec.recorder.finish())
-        });
         let Some(s) = self.session.as_mut() else {
             return "no source ran".into();
         };
+        // The pipeline first, so that every set it processed is recorded.
         s.pipeline.stop();
+        let recorded = self.recording.take().map(|rec| {
+            s.stop_recording();
+            crate::recording::describe(rec.recorder.file(), &rec.recorder.finish())
+        });
         let status = s.pipeline.status();
         let mut summary = format!(
             "source: {}\n{}",
