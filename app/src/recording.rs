@@ -346,8 +346,14 @@ struct ControlState {
     current_speed: Option<f64>,
     /// The number of the last set given.
     shown: Option<usize>,
+    /// The last sets given: their triggers and numbers.
+    given: std::collections::VecDeque<(u64, usize)>,
     at_end: bool,
 }
+
+/// Sets given that a [`ReplayControl`] can still number by their trigger
+/// (more than the pipeline holds between the source and the window).
+const GIVEN_KEPT: usize = 64;
 
 /// The window's hold on a replay: play and pause, steps, seeks, speed,
 /// and where the replay is. Requests take effect when the capture thread
@@ -438,6 +444,13 @@ impl ReplayControl {
     /// The number of the last set given to processing.
     pub fn shown(&self) -> Option<usize> {
         self.lock().shown
+    }
+
+    /// The number of the set with `trigger` among the last sets given
+    /// (the set the window shows lags the last one given while playing).
+    pub fn number_of(&self, trigger: u64) -> Option<usize> {
+        let s = self.lock();
+        s.given.iter().rev().find(|g| g.0 == trigger).map(|g| g.1)
     }
 
     /// Whether the replay has given its last set.
@@ -547,11 +560,18 @@ impl FrameSource for Controlled {
             return Ok(None);
         }
         let k = self.inner.position();
-        let got = self.inner.next_set(timeout);
+        // A paced wait is cut short, so that a pause takes effect within
+        // 20 ms.
+        let got = self.inner.next_set(timeout.min(Duration::from_millis(20)));
         let mut s = self.control.lock();
         match &got {
-            Ok(Some(_)) => {
-                s.shown = k.or_else(|| Some(s.shown.map_or(0, |n| n + 1)));
+            Ok(Some(set)) => {
+                let n = k.unwrap_or_else(|| s.shown.map_or(0, |n| n + 1));
+                s.shown = Some(n);
+                s.given.push_back((set.trigger, n));
+                if s.given.len() > GIVEN_KEPT {
+                    s.given.pop_front();
+                }
                 s.at_end = false;
             }
             Ok(None) if self.inner.is_finished() => {

@@ -439,6 +439,17 @@ fn step_until_shown(h: &mut Harness<'_, RigviewApp>, secs: f64, what: &str, trig
     }
 }
 
+/// After a pause: lets a set the replay was already waiting for arrive
+/// (its wait is cut at 20 ms), then returns the number of the set the
+/// replay stopped at.
+fn settle(h: &mut Harness<'_, RigviewApp>) -> usize {
+    for _ in 0..10 {
+        h.step();
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    h.state().replay().and_then(|r| r.shown()).unwrap()
+}
+
 #[test]
 fn the_record_button_writes_a_recording_of_the_sets_that_follow() {
     const SETS: u64 = 40;
@@ -618,7 +629,7 @@ fn a_recording_opened_in_the_window_pauses_steps_and_seeks() {
     assert!(control.is_paused());
     h.step();
     assert!(h.query_by_label("Play").is_some());
-    let k = control.shown().unwrap();
+    let k = settle(&mut h);
     step_until_shown(&mut h, 30.0, "the set paused at", triggers[k]);
     // Paused: the set stays.
     for _ in 0..20 {
@@ -669,7 +680,9 @@ fn a_recording_opened_in_the_window_pauses_steps_and_seeks() {
     let control = h.state().replay().expect("not replaying").clone();
     assert!(control.times().is_none());
     control.set_speed(Some(0.25));
-    h.step();
+    step_until(&mut h, 30.0, "a set of the cut file shown", |a| {
+        a.latest().is_some()
+    });
     h.get_by_label("Pause").click();
     h.step();
     h.step();
@@ -677,10 +690,7 @@ fn a_recording_opened_in_the_window_pauses_steps_and_seeks() {
         .query_by_label_contains("recording repair IN OUT")
         .is_some());
     assert!(h.get_by_label("Step back").accesskit_node().is_disabled());
-    step_until(&mut h, 30.0, "a set of the cut file shown", |a| {
-        a.latest().is_some()
-    });
-    let k = control.shown().unwrap();
+    let k = settle(&mut h);
     step_until_shown(&mut h, 30.0, "the set paused at", triggers[k]);
     h.get_by_label("Step forward").click();
     step_until_shown(

@@ -270,7 +270,12 @@ pub(super) fn replay_bar(app: &mut RigviewApp, ui: &mut Ui) {
                 .response
                 .labelled_by(l.id);
             ui.separator();
-            let shown = control.shown();
+            // The set the window shows (the source may be a few sets on).
+            let shown = app
+                .latest
+                .as_ref()
+                .and_then(|o| control.number_of(o.trigger))
+                .or_else(|| control.shown());
             match control.times() {
                 Some(times) if !times.is_empty() => {
                     let t0 = times[0];
