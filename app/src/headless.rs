@@ -131,8 +131,7 @@ pub fn run(
     session.pipeline.stop();
     bar.finish_and_clear();
     let recorded = session
-        .recorder
-        .as_ref()
+        .recorder()
         .map(|r| crate::recording::describe(r.file(), &r.finish()));
     if let Some(o) = &last {
         if o.trigger % every != 0 {
@@ -153,10 +152,10 @@ pub fn run(
         let f =
             std::fs::File::create(&csv).with_context(|| format!("creating {}", csv.display()))?;
         let mut w = std::io::BufWriter::new(f);
-        telemetry.write_csv_header(&mut w)?;
-        for r in telemetry.rows() {
-            telemetry.write_csv_row(&mut w, r)?;
-        }
+        session
+            .record
+            .write_csv(&telemetry, &mut w)
+            .with_context(|| format!("writing {}", csv.display()))?;
         w.flush()
             .with_context(|| format!("writing {}", csv.display()))?;
     }

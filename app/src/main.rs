@@ -31,6 +31,7 @@ fn run() -> Result<()> {
         None => cli.view.window(
             &ProcessingArgs::default(),
             SourceSpec::Sim(SimSpec::default()),
+            None,
         ),
         Some(Command::Run(args)) => cli::run::run(args, &cli.view),
         Some(Command::Demo(args)) => cli::demo::run(args, out),

@@ -17,7 +17,8 @@ use rigview_core::source::{Budget, CameraInfo, FrameSource};
 use rigview_core::surround::{CanvasSpec, SurroundOptions, SurroundView};
 
 use crate::live::LiveSpec;
-use crate::recording::{start_session, Origin, RecordSpec};
+use crate::recording::{start_session, Origin, RecordSlot, RecordSpec, ReplayControl};
+use rigview_record::Recorder;
 
 /// The simulated rig to run.
 #[derive(Clone, Debug, PartialEq)]
@@ -66,8 +67,13 @@ pub struct Session {
     pub calibration: String,
     /// Whether the cameras have their own auto-exposure.
     pub camera_auto: bool,
-    /// The recording in progress (`--record`).
-    pub recorder: Option<Arc<rigview_record::Recorder>>,
+    /// The recording the pipeline hands its sets to (`--record`, the
+    /// window's Record button).
+    pub record: Arc<RecordSlot>,
+    /// What a recording of this session says about its source.
+    pub record_setup: rigview_record::RecordingSetup,
+    /// The window's hold on a replay (a replay session only).
+    pub replay: Option<ReplayControl>,
 }
 
 impl Session {
@@ -78,6 +84,31 @@ impl Session {
             .iter()
             .map(|c| c.name.clone())
             .collect()
+    }
+
+    /// The recording in progress.
+    pub fn recorder(&self) -> Option<Arc<Recorder>> {
+        self.record.recorder()
+    }
+
+    /// Starts recording the sets from now on into `spec`'s file; an error
+    /// if a recording is in progress or the file cannot be created.
+    pub fn start_recording(&self, spec: &RecordSpec) -> Result<Arc<Recorder>> {
+        if let Some(r) = self.record.recorder() {
+            anyhow::bail!(
+                "already recording into {}: stop that recording first",
+                r.file().display()
+            );
+        }
+        let recorder = Arc::new(spec.create_for(&self.record_setup)?);
+        self.record.replace(Some(recorder.clone()));
+        Ok(recorder)
+    }
+
+    /// Takes the recording in progress out of the pipeline's way (no set
+    /// is offered to it after this); the caller finishes it.
+    pub fn stop_recording(&self) -> Option<Arc<Recorder>> {
+        self.record.replace(None)
     }
 }
 

@@ -2,6 +2,10 @@
 //! quarter resolution, in lock step), rendered through wgpu on Mesa's
 //! software rasteriser: no display needed.
 //!
+//! Also record and replay in the window: the Record button writes a
+//! recording that reads back whole, and a recording opened in the window
+//! pauses, steps and seeks.
+//!
 //! Snapshots live in `app/tests/snapshots/`; `UPDATE_SNAPSHOTS=1 cargo test
 //! -p rigview --test gui` rewrites them after a deliberate change.
 
@@ -11,10 +15,12 @@ use std::path::Path;
 use std::sync::Arc;
 use std::time::Duration;
 
-use egui_kittest::kittest::Queryable;
+use egui_kittest::kittest::{NodeT, Queryable};
 use egui_kittest::{Harness, SnapshotOptions, SnapshotResults};
 use rigview::gui::{panels, plots, AppOptions, RigviewApp};
+use rigview::headless::{self, HeadlessRun};
 use rigview::logging::{self, LogBuffer};
+use rigview::recording::RecordSpec;
 use rigview::session::{self, SimSpec, SourceSpec};
 use rigview_core::exposure::{LawKind, NeighbourGraph};
 use rigview_core::pipeline::{
@@ -23,6 +29,7 @@ use rigview_core::pipeline::{
 };
 use rigview_core::sim::{SimConfig, SimRender, SimRig, SimRigOptions};
 use rigview_core::source::FrameSource;
+use rigview_record::IndexedRecording;
 
 fn sim(frames: Option<u64>) -> SourceSpec {
     SourceSpec::Sim(SimSpec {
@@ -36,6 +43,16 @@ fn sim(frames: Option<u64>) -> SourceSpec {
 /// The app on the quarter-resolution simulated rig; its Messages panel
 /// shows the events of this thread (the window's own, the session's).
 fn app(dir: &Path, frames: Option<u64>, log: &LogBuffer) -> RigviewApp {
+    app_recording(dir, frames, log, None)
+}
+
+/// [`app`], recording from the start into `record` (`--record`).
+fn app_recording(
+    dir: &Path,
+    frames: Option<u64>,
+    log: &LogBuffer,
+    record: Option<RecordSpec>,
+) -> RigviewApp {
     let ctx = egui::Context::default();
     RigviewApp::new(
         &ctx,
@@ -49,6 +66,7 @@ fn app(dir: &Path, frames: Option<u64>, log: &LogBuffer) -> RigviewApp {
                 ..Default::default()
             },
             log: log.clone(),
+            record,
         },
     )
 }
@@ -387,4 +405,336 @@ fn snapshots_of_the_cameras_and_plots() {
     h.snapshot_options("curve", &opts);
     results.extend_harness(&mut h);
     results.unwrap();
+}
+
+/// The trigger numbers of a recording's sets, in order, read by its index.
+fn recorded_triggers(file: &Path) -> Vec<u64> {
+    let mut r = IndexedRecording::open(file).unwrap();
+    (0..r.len())
+        .map(|k| r.set(k).unwrap().unwrap().set.trigger)
+        .collect()
+}
+
+/// Whether the window shows set `trigger`: the newest output is that set,
+/// and the big view's caption names it.
+fn shows(h: &Harness<'_, RigviewApp>, trigger: u64) -> bool {
+    h.state().latest().is_some_and(|o| o.trigger == trigger)
+        && h.query_by_label_contains(&format!("set {trigger} · "))
+            .is_some()
+}
+
+/// Steps the window until it shows `trigger` (or panics after `secs`).
+fn step_until_shown(h: &mut Harness<'_, RigviewApp>, secs: f64, what: &str, trigger: u64) {
+    let t = std::time::Instant::now();
+    while !shows(h, trigger) {
+        assert!(
+            t.elapsed().as_secs_f64() < secs,
+            "{what}: set {trigger} not shown within {secs} s (shown: {:?}, replay at {:?}); messages: {:?}",
+            h.state().latest().map(|o| o.trigger),
+            h.state().replay().and_then(|r| r.shown()),
+            h.state().messages()
+        );
+        h.step();
+        std::thread::sleep(Duration::from_millis(10));
+    }
+}
+
+/// After a pause: lets a set the replay was already waiting for arrive
+/// (its wait is cut at 20 ms), then returns the number of the set the
+/// replay stopped at.
+fn settle(h: &mut Harness<'_, RigviewApp>) -> usize {
+    for _ in 0..10 {
+        h.step();
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    h.state().replay().and_then(|r| r.shown()).unwrap()
+}
+
+#[test]
+fn the_record_button_writes_a_recording_of_the_sets_that_follow() {
+    const SETS: u64 = 40;
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("button.mcap");
+    let log = LogBuffer::new();
+    let _events = logging::capture(&log);
+    let mut h = harness(app(dir.path(), Some(SETS), &log));
+    step_until(&mut h, 120.0, "first sets", |a| a.shown() >= 2);
+    assert!(h.state().recorder().is_none());
+    h.state_mut().set_record_path(&file);
+    h.step();
+    h.get_by_label("Record").click();
+    step_until(&mut h, 30.0, "the recording starts", |a| {
+        a.recorder().is_some()
+    });
+    let recorder = h.state().recorder().unwrap().clone();
+    h.step();
+    assert!(
+        h.query_by_label_contains("REC 00:").is_some(),
+        "no recording line under the Record button"
+    );
+    // The source ends after SETS sets; every set processed from the press
+    // on is offered to the recorder.
+    step_until(&mut h, 120.0, "the source ends", |a| {
+        a.session().unwrap().pipeline.is_stopped()
+    });
+    h.get_by_label("Stop recording").click();
+    step_until(&mut h, 30.0, "the recording closed", |a| {
+        a.recorder().is_none() && !a.is_finishing_recording()
+    });
+    let stats = recorder.stats();
+    assert!(stats.finished, "{stats:?}");
+    assert_eq!(stats.stopped, None);
+    let summary = h
+        .state()
+        .messages()
+        .iter()
+        .rfind(|m| m.text.contains("button.mcap:"))
+        .unwrap()
+        .text
+        .clone();
+    assert!(
+        summary.contains(&format!("{} sets", stats.sets)),
+        "{summary}"
+    );
+    // The file reads back by its index, with every set the recorder wrote:
+    // consecutive triggers up to the source's last.
+    let triggers = recorded_triggers(&file);
+    assert_eq!(triggers.len() as u64, stats.sets);
+    assert!(stats.sets >= 5, "{stats:?}");
+    let first = triggers[0];
+    assert!(first >= 1, "sets before the press were recorded: {first}");
+    assert_eq!(stats.sets + stats.dropped, SETS - first, "{stats:?}");
+    if stats.dropped == 0 {
+        assert_eq!(triggers, (first..SETS).collect::<Vec<_>>());
+    }
+}
+
+#[test]
+fn record_at_start_up_records_every_set() {
+    const SETS: u64 = 12;
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("start.mcap");
+    let log = LogBuffer::new();
+    let _events = logging::capture(&log);
+    let app = app_recording(
+        dir.path(),
+        Some(SETS),
+        &log,
+        Some(RecordSpec::new(file.clone())),
+    );
+    let mut h = harness(app);
+    assert!(h.state().recorder().is_some(), "{:?}", h.state().messages());
+    h.step();
+    // The Record button's file is the one recorded into, and it says so.
+    assert!(h.query_by_label_contains("recording into").is_some());
+    assert!(h.query_by_label("Stop recording").is_some());
+    step_until(&mut h, 120.0, "the source ends", |a| {
+        a.session().unwrap().pipeline.is_stopped()
+    });
+    let summary = h.state_mut().finish();
+    assert!(
+        summary.contains(&format!("start.mcap: {SETS} sets")),
+        "{summary}"
+    );
+    assert_eq!(recorded_triggers(&file), (0..SETS).collect::<Vec<_>>());
+    // A file that exists is never written over: the view goes on without
+    // the recording, and the operator is told why.
+    let again = app_recording(
+        dir.path(),
+        Some(3),
+        &log,
+        Some(RecordSpec::new(file.clone())),
+    );
+    assert!(again.recorder().is_none());
+    assert!(again.session().is_some());
+    assert!(
+        again
+            .messages()
+            .iter()
+            .any(|m| m.error && m.text.contains("start.mcap")),
+        "{:?}",
+        again.messages()
+    );
+}
+
+#[test]
+fn a_recording_opened_in_the_window_pauses_steps_and_seeks() {
+    const SETS: u64 = 40;
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("drive.mcap");
+    let run = HeadlessRun {
+        source: SourceSpec::Sim(SimSpec {
+            scenario: "steps".into(),
+            scale: 0.25,
+            realtime: false,
+            frames: Some(SETS),
+        }),
+        frames: SETS,
+        out: dir.path().join("live"),
+        every: 1000,
+        record: Some(RecordSpec::new(file.clone())),
+    };
+    headless::run(
+        &run,
+        &ProcessingSettings::default(),
+        &LogBuffer::default(),
+        false,
+    )
+    .unwrap();
+    let triggers = recorded_triggers(&file);
+    assert_eq!(triggers.len() as u64, SETS);
+    let times = IndexedRecording::open(&file).unwrap().times().to_vec();
+
+    let log = LogBuffer::new();
+    let _events = logging::capture(&log);
+    let mut h = harness(app(dir.path(), None, &log));
+    step_until(&mut h, 120.0, "first set", |a| a.shown() >= 1);
+    // A file that is not a recording is refused; the source goes on.
+    let not_mcap = dir.path().join("settings.yaml");
+    h.state_mut().open_recording(&not_mcap);
+    assert!(h.state().replay().is_none());
+    assert!(
+        h.state()
+            .messages()
+            .iter()
+            .any(|m| m.error && m.text.contains("settings.yaml")),
+        "{:?}",
+        h.state().messages()
+    );
+    h.state_mut().open_recording(&file);
+    let control = h.state().replay().expect("not replaying").clone();
+    assert_eq!(
+        h.state().calibration(),
+        format!("{} (attachment rig.yaml)", file.display())
+    );
+    assert!(
+        control.times().is_some(),
+        "a closed recording has its index"
+    );
+    // At a quarter of the recorded rate (5 sets/s), then paused.
+    h.step();
+    h.get_by_role_and_label(egui::accesskit::Role::ComboBox, "Speed")
+        .click();
+    for _ in 0..3 {
+        h.step();
+    }
+    h.get_by_label("0.25×").click();
+    h.step();
+    assert_eq!(control.speed(), Some(0.25));
+    step_until(&mut h, 60.0, "a replayed set", |a| {
+        a.latest().is_some_and(|o| triggers.contains(&o.trigger))
+    });
+    h.get_by_label("Pause").click();
+    h.step();
+    assert!(control.is_paused());
+    h.step();
+    assert!(h.query_by_label("Play").is_some());
+    let k = settle(&mut h);
+    step_until_shown(&mut h, 30.0, "the set paused at", triggers[k]);
+    // Paused: the set stays.
+    for _ in 0..20 {
+        h.step();
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    assert_eq!(control.shown(), Some(k));
+    assert!(shows(&h, triggers[k]));
+    // The slider seeks by time to set 20; then steps.
+    h.get_by_role_and_label(egui::accesskit::Role::Slider, "time (s)")
+        .set_value_accesskit((times[20] - times[0]) as f64 * 1e-9);
+    step_until_shown(&mut h, 30.0, "seek to set 20", triggers[20]);
+    assert!(h.query_by_label("21 / 40 sets").is_some());
+    h.get_by_label("Step forward").click();
+    step_until_shown(&mut h, 30.0, "one step forward", triggers[21]);
+    h.get_by_label("Step back").click();
+    h.step();
+    h.get_by_label("Step back").click();
+    step_until_shown(&mut h, 30.0, "two steps back", triggers[19]);
+    assert_eq!(control.shown(), Some(19));
+    // A time between two sets seeks to the nearer one.
+    control.seek(control.set_at(times[32] - 1).unwrap());
+    step_until_shown(&mut h, 30.0, "seek to set 32", triggers[32]);
+    // Played to the end: held there, paused, with the last set shown.
+    control.set_speed(None);
+    h.get_by_label("Play").click();
+    step_until_shown(&mut h, 60.0, "the last set", triggers[39]);
+    step_until(&mut h, 30.0, "held at the end", |_| {
+        control.at_end() && control.is_paused()
+    });
+    assert!(h
+        .state()
+        .session()
+        .is_some_and(|s| !s.pipeline.is_stopped()));
+    h.step();
+    assert!(h.query_by_label("end of the recording").is_some());
+    // The open-loop commands are plotted beside the recorded exposure.
+    assert!(h
+        .query_by_label("log2 E the strategy would command (not applied)")
+        .is_some());
+
+    // A file cut before its summary (killed while recording) has no
+    // index: it plays and steps forward, and says to repair it to seek.
+    let bytes = std::fs::read(&file).unwrap();
+    let cut = dir.path().join("cut.mcap");
+    std::fs::write(&cut, &bytes[..bytes.len() * 97 / 100]).unwrap();
+    h.state_mut().open_recording(&cut);
+    let control = h.state().replay().expect("not replaying").clone();
+    assert!(control.times().is_none());
+    control.set_speed(Some(0.25));
+    step_until(&mut h, 30.0, "a set of the cut file shown", |a| {
+        a.latest().is_some()
+    });
+    h.get_by_label("Pause").click();
+    h.step();
+    h.step();
+    assert!(h
+        .query_by_label_contains("recording repair IN OUT")
+        .is_some());
+    assert!(h.get_by_label("Step back").accesskit_node().is_disabled());
+    let k = settle(&mut h);
+    step_until_shown(&mut h, 30.0, "the set paused at", triggers[k]);
+    h.get_by_label("Step forward").click();
+    step_until_shown(
+        &mut h,
+        30.0,
+        "a step forward without the index",
+        triggers[k + 1],
+    );
+}
+
+#[test]
+fn a_recording_that_stops_on_its_own_is_told_and_the_view_goes_on() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("full.mcap");
+    let log = LogBuffer::new();
+    let _events = logging::capture(&log);
+    let mut h = harness(app(dir.path(), None, &log));
+    step_until(&mut h, 120.0, "first sets", |a| a.shown() >= 2);
+    // A reserve no disk has: the recorder stops at its first check.
+    let spec = RecordSpec {
+        reserve_bytes: u64::MAX,
+        ..RecordSpec::new(file.clone())
+    };
+    h.state_mut().start_recording(&spec);
+    step_until(&mut h, 60.0, "the stop told", |a| {
+        a.messages()
+            .iter()
+            .any(|m| m.error && m.text.contains("full.mcap") && m.text.contains("reserve"))
+    });
+    h.step();
+    // Under the Record button and in the status bar.
+    assert_eq!(
+        h.query_all_by_label_contains("STOPPED: stopped:").count(),
+        2,
+        "the stop is not in the window"
+    );
+    let before = h.state().shown();
+    step_until(&mut h, 60.0, "more sets after the stop", |a| {
+        a.shown() >= before + 3
+    });
+    // The file is still a recording: its start, readable, with no set.
+    h.get_by_label("Stop recording").click();
+    step_until(&mut h, 30.0, "the recording closed", |a| {
+        !a.is_finishing_recording() && a.recorder().is_none()
+    });
+    assert!(recorded_triggers(&file).is_empty());
 }

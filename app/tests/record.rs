@@ -60,6 +60,7 @@ fn a_replayed_recording_measures_what_the_run_measured() {
         source: SourceSpec::Replay(ReplaySpec {
             file: file.clone(),
             rig: None,
+            interactive: false,
         }),
         frames: u64::MAX,
         out: dir.path().join("replay"),
@@ -82,6 +83,12 @@ fn a_replayed_recording_measures_what_the_run_measured() {
         }
     }
     assert!(gammas > 100, "estimates were compared ({gammas})");
+    // The recorder's drops, per set: none in the recorded run, and the
+    // replay recorded nothing.
+    let d = h1.iter().position(|h| h == "recorder_dropped").unwrap();
+    assert_eq!(d, h1.len() - 1);
+    assert!(live_rows.iter().all(|r| r[d] == "0"), "{live_rows:?}");
+    assert!(replay_rows.iter().all(|r| r[d].is_empty()));
 
     // The telemetry in the file is the run's.
     let stream = rigview_record::SetStream::open(&file, true).unwrap();
@@ -136,6 +143,7 @@ fn a_replayed_recording_measures_what_the_run_measured() {
         source: SourceSpec::Replay(ReplaySpec {
             file: file.clone(),
             rig: Some(other.clone()),
+            interactive: false,
         }),
         frames: 5,
         out: dir.path().join("bad"),

@@ -105,8 +105,8 @@ pub struct LiveArgs {
     /// Processing overrides.
     #[command(flatten)]
     pub processing: ProcessingArgs,
-    /// Record every processed set into this MCAP file (headless; the
-    /// window's Record button is to come).
+    /// Record every processed set into this MCAP file (in the window: as
+    /// if its Record button were pressed at start-up).
     #[arg(long, value_name = "FILE")]
     pub record: Option<PathBuf>,
     /// How the recording is written.
@@ -198,12 +198,8 @@ pub fn run(args: &LiveArgs, view: &ViewArgs, out: &mut dyn Write) -> Result<()> 
         let settings = view.settings(&args.processing);
         headless(args, &settings.processing, LogBuffer::global(), out)
     } else {
-        if args.record.is_some() {
-            anyhow::bail!(
-                "--record is for --headless runs (the window's Record button is to come)"
-            );
-        }
-        view.window(&args.processing, SourceSpec::Live(args.spec()?))
+        let record = args.record.clone().map(|f| args.recording.spec(f));
+        view.window(&args.processing, SourceSpec::Live(args.spec()?), record)
     }
 }
 

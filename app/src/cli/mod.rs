@@ -114,7 +114,12 @@ impl ViewArgs {
 
     /// The window on `source`, with `overrides` saved into the settings it
     /// opens with.
-    pub fn window(&self, overrides: &ProcessingArgs, source: SourceSpec) -> Result<()> {
+    pub fn window(
+        &self,
+        overrides: &ProcessingArgs,
+        source: SourceSpec,
+        record: Option<crate::recording::RecordSpec>,
+    ) -> Result<()> {
         let mut store = SettingsStore::new(self.settings.clone());
         let (mut settings, err) = store.load();
         if let Some(e) = err {
@@ -130,6 +135,7 @@ impl ViewArgs {
             screenshot: self.screenshot()?,
             pipeline: PipelineOptions::default(),
             log: LogBuffer::global().clone(),
+            record,
         })
     }
 }

@@ -102,6 +102,7 @@ impl RunArgs {
                 Ok(SourceSpec::Replay(crate::recording::ReplaySpec {
                     file: file.clone(),
                     rig: self.rig.clone(),
+                    interactive: !headless,
                 }))
             }
             SourceKind::Sim => {
@@ -160,10 +161,15 @@ pub fn run(args: &RunArgs, view: &ViewArgs) -> Result<()> {
         if args.out.is_some() {
             anyhow::bail!("--out is for --headless runs");
         }
-        if args.record.is_some() {
-            anyhow::bail!("--record is for --headless runs and rigview live (the window's Record button is to come)");
+        let record = args.record.clone().map(|f| args.recording.spec(f));
+        let source = args.source(false)?;
+        if record.is_some() && matches!(source, SourceSpec::Replay(_)) {
+            anyhow::bail!(
+                "--record with --source replay:FILE is for --headless runs: \
+                 a replay in the window can be paused, stepped and sought"
+            );
         }
-        view.window(&args.processing, args.source(false)?)
+        view.window(&args.processing, source, record)
     }
 }
 

@@ -20,11 +20,13 @@ use anyhow::Result;
 use egui::{Color32, ColorImage, TextureHandle, TextureOptions};
 use rigview_core::exposure::NeighbourGraph;
 use rigview_core::pipeline::{
-    Control, Output, PipelineOptions, PipelineStatus, ProcessingSettings,
+    Control, Notify, Output, PipelineOptions, PipelineStatus, ProcessingSettings,
 };
 use rigview_core::surround::SurroundView;
+use rigview_record::Recorder;
 
 use crate::logging::{self, LogBuffer, StatusLog};
+use crate::recording::{RecordSpec, ReplayControl, ReplaySpec};
 use crate::session::{self, Session, SourceSpec};
 use crate::settings::{Settings, SettingsStore};
 
@@ -43,6 +45,50 @@ const MESSAGES: usize = 20;
 
 type Loaded = Result<(SurroundView, NeighbourGraph)>;
 
+/// What a file dialog is picking.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Pick {
+    Calibration,
+    Recording,
+}
+
+/// The recording in progress, as the window shows it.
+#[derive(Debug)]
+struct Recording {
+    recorder: Arc<Recorder>,
+    started: Instant,
+    /// A moment and the bytes written by then, for the rate.
+    mark: (Instant, u64),
+    /// MB/s over the last second or so.
+    rate_mb_s: f64,
+    /// Whether its stop has been told to the operator.
+    stop_told: bool,
+}
+
+impl Recording {
+    fn new(recorder: Arc<Recorder>) -> Self {
+        let now = Instant::now();
+        Self {
+            recorder,
+            started: now,
+            mark: (now, 0),
+            rate_mb_s: 0.0,
+            stop_told: false,
+        }
+    }
+}
+
+/// The Record button's line: elapsed time, size, rate and drops.
+pub fn recording_text(elapsed: Duration, bytes: u64, rate_mb_s: f64, dropped: u64) -> String {
+    let s = elapsed.as_secs();
+    format!(
+        "REC {:02}:{:02} · {:.1} MB · {rate_mb_s:.1} MB/s · dropped {dropped}",
+        s / 60,
+        s % 60,
+        bytes as f64 / 1e6
+    )
+}
+
 /// The app's state.
 pub struct RigviewApp {
     session: Option<Session>,
@@ -56,8 +102,15 @@ pub struct RigviewApp {
     thumb_tex: Vec<Option<TextureHandle>>,
     messages: Vec<Message>,
     loading: Option<(PathBuf, Receiver<Loaded>)>,
-    dialog: Option<Receiver<Option<PathBuf>>>,
+    dialog: Option<(Pick, Receiver<Option<PathBuf>>)>,
     open_path: String,
+    recording_path: String,
+    record_path: String,
+    recording: Option<Recording>,
+    /// Recordings being finished in the background, with their summaries.
+    finishing: Vec<Receiver<(String, bool)>>,
+    pipeline_options: PipelineOptions,
+    notify: Notify,
     manual: Vec<(bool, f64)>,
     calibration: String,
     shown: u64,
@@ -97,6 +150,8 @@ pub struct AppOptions {
     /// The events the Messages panel shows (those from the app's start on):
     /// [`LogBuffer::global`] when [`logging::init`] has set up the process.
     pub log: LogBuffer,
+    /// Record from the start, as the Record button does (`--record`).
+    pub record: Option<RecordSpec>,
 }
 
 impl RigviewApp {
@@ -110,19 +165,35 @@ impl RigviewApp {
             tracing::warn!("{e:#}");
         }
         let repaint = ctx.clone();
-        let notify = Arc::new(move || repaint.request_repaint());
-        let session = match session::start(
-            &options.source,
-            &settings.processing,
-            options.pipeline,
-            notify,
-        ) {
+        let notify: Notify = Arc::new(move || repaint.request_repaint());
+        let start = |record| {
+            session::start_recording(
+                &options.source,
+                &settings.processing,
+                options.pipeline,
+                notify.clone(),
+                record,
+            )
+        };
+        let started = match start(options.record.as_ref()) {
+            Err(e) if options.record.is_some() => {
+                // The view goes on without the recording if that is what failed.
+                tracing::error!("{e:#}");
+                start(None)
+            }
+            other => other,
+        };
+        let session = match started {
             Ok(s) => Some(s),
             Err(e) => {
                 tracing::error!("cannot start the source: {e:#}");
                 None
             }
         };
+        let recording = session
+            .as_ref()
+            .and_then(Session::recorder)
+            .map(Recording::new);
         let n = session.as_ref().map_or(0, |s| s.pipeline.cameras().len());
         let start_level = settings.processing.controller.fixed_exposure;
         let calibration = session
@@ -141,6 +212,14 @@ impl RigviewApp {
             loading: None,
             dialog: None,
             open_path: String::new(),
+            recording_path: String::new(),
+            record_path: recording.as_ref().map_or_else(default_record_path, |r| {
+                r.recorder.file().display().to_string()
+            }),
+            recording,
+            finishing: Vec::new(),
+            pipeline_options: options.pipeline,
+            notify,
             manual: vec![(false, start_level); n],
             calibration,
             shown: 0,
@@ -154,6 +233,10 @@ impl RigviewApp {
             screenshot_done: None,
             cpu: crate::report::CpuMeter::start(),
         };
+        if let Some(r) = &app.recording {
+            let text = format!("recording into {}", r.recorder.file().display());
+            app.note(text, false);
+        }
         app.read_log();
         app
     }
@@ -196,6 +279,162 @@ impl RigviewApp {
     /// Whether the app asked to close (its time is up).
     pub fn wants_close(&self) -> bool {
         self.want_close
+    }
+
+    /// The replay's controls, when the source is a recording.
+    pub fn replay(&self) -> Option<&ReplayControl> {
+        self.session.as_ref().and_then(|s| s.replay.as_ref())
+    }
+
+    /// The recording in progress.
+    pub fn recorder(&self) -> Option<&Arc<Recorder>> {
+        self.recording.as_ref().map(|r| &r.recorder)
+    }
+
+    /// Whether recordings stopped by the operator are still being closed.
+    pub fn is_finishing_recording(&self) -> bool {
+        !self.finishing.is_empty()
+    }
+
+    /// The file the Record button records into.
+    pub fn set_record_path(&mut self, path: &Path) {
+        self.record_path = path.display().to_string();
+    }
+
+    /// Starts recording the session's sets into `spec`'s file (the Record
+    /// button, `--record`); a failure is shown and the view goes on.
+    pub fn start_recording(&mut self, spec: &RecordSpec) {
+        let Some(s) = &self.session else {
+            self.note("no source is running: nothing to record".into(), true);
+            return;
+        };
+        if s.replay.is_some() {
+            self.note(
+                "a replay is not recorded again: its recording is the file".into(),
+                true,
+            );
+            return;
+        }
+        match s.start_recording(spec) {
+            Ok(r) => {
+                self.note(format!("recording into {}", spec.file.display()), false);
+                self.recording = Some(Recording::new(r));
+            }
+            Err(e) => self.note(format!("{e:#}"), true),
+        }
+    }
+
+    /// Stops the recording in progress: no set is offered to it after
+    /// this, and its file is closed in the background (its summary then
+    /// goes to the Messages panel).
+    pub fn stop_recording(&mut self) {
+        let Some(rec) = self.recording.take() else {
+            return;
+        };
+        if let Some(s) = &self.session {
+            s.stop_recording();
+        }
+        let (tx, rx) = mpsc::channel();
+        let r = rec.recorder;
+        let spawned = std::thread::Builder::new()
+            .name("rigview-recording-end".into())
+            .spawn(move || {
+                let stats = r.finish();
+                let _ = tx.send((
+                    crate::recording::describe(r.file(), &stats),
+                    stats.stopped.is_some() || !stats.finished,
+                ));
+            });
+        match spawned {
+            Ok(_) => self.finishing.push(rx),
+            Err(e) => self.note(format!("cannot close the recording: {e}"), true),
+        }
+    }
+
+    /// Follows the recording in progress: its rate, and a stop of its own
+    /// (disk full, reserve reached, write error) told to the operator once.
+    fn poll_recording(&mut self) {
+        let mut told = None;
+        if let Some(rec) = &mut self.recording {
+            let stats = rec.recorder.stats();
+            let (t0, b0) = rec.mark;
+            let dt = t0.elapsed().as_secs_f64();
+            if dt >= 1.0 {
+                rec.rate_mb_s = stats.bytes.saturating_sub(b0) as f64 / 1e6 / dt;
+                rec.mark = (Instant::now(), stats.bytes);
+            }
+            if let (Some(why), false) = (&stats.stopped, rec.stop_told) {
+                rec.stop_told = true;
+                rec.rate_mb_s = 0.0;
+                told = Some(format!(
+                    "the recording {} stopped ({why}); it is readable up to its last set, and the view goes on",
+                    rec.recorder.file().display()
+                ));
+            }
+        }
+        if let Some(t) = told {
+            self.note(t, true);
+        }
+        let mut done = Vec::new();
+        self.finishing.retain(|rx| match rx.try_recv() {
+            Ok(d) => {
+                done.push(d);
+                false
+            }
+            Err(mpsc::TryRecvError::Empty) => true,
+            Err(mpsc::TryRecvError::Disconnected) => false,
+        });
+        for (text, problem) in done {
+            self.note(text, problem);
+        }
+    }
+
+    /// Switches the window's source to a replay of `path`, with the
+    /// recording's own calibration. The running source stops (and its
+    /// recording, if any); a recording that cannot be opened is reported
+    /// and nothing else changes.
+    pub fn open_recording(&mut self, path: &Path) {
+        let spec = session::SourceSpec::Replay(ReplaySpec {
+            file: path.to_path_buf(),
+            rig: None,
+            interactive: true,
+        });
+        // The file is checked before the running source is stopped.
+        if let Err(e) = rigview_record::ReplaySource::open(path) {
+            self.note(format!("cannot open the recording: {e}"), true);
+            return;
+        }
+        self.stop_recording();
+        if let Some(mut old) = self.session.take() {
+            old.pipeline.stop();
+        }
+        let started = session::start(
+            &spec,
+            &self.settings.processing,
+            self.pipeline_options,
+            self.notify.clone(),
+        );
+        let n = match started {
+            Ok(s) => {
+                let n = s.pipeline.cameras().len();
+                self.calibration = s.calibration.clone();
+                self.note(format!("replaying {}", path.display()), false);
+                self.session = Some(s);
+                n
+            }
+            Err(e) => {
+                self.calibration = "none".into();
+                self.note(format!("cannot replay {}: {e:#}", path.display()), true);
+                0
+            }
+        };
+        self.latest = None;
+        self.status = None;
+        self.canvas_tex = None;
+        self.thumb_tex = vec![None; n];
+        let level = self.settings.processing.controller.fixed_exposure;
+        self.manual = vec![(false, level); n];
+        self.displayed_trigger = None;
     }
 
     /// Reports a problem (`error`) or a note as an event, and shows it.
@@ -272,29 +511,38 @@ impl RigviewApp {
     }
 
     /// Opens the native file dialog in the background.
-    fn open_dialog(&mut self) {
+    fn open_dialog(&mut self, pick: Pick) {
         let (tx, rx) = mpsc::channel();
         let spawned = std::thread::Builder::new()
             .name("rigview-dialog".into())
             .spawn(move || {
-                let picked = rfd::FileDialog::new()
-                    .set_title("Open a rig or calibration file")
-                    .add_filter("calibration", &["yaml", "yml", "xml", "json"])
-                    .pick_file();
+                let picked = match pick {
+                    Pick::Calibration => rfd::FileDialog::new()
+                        .set_title("Open a rig or calibration file")
+                        .add_filter("calibration", &["yaml", "yml", "xml", "json"]),
+                    Pick::Recording => rfd::FileDialog::new()
+                        .set_title("Open a recording")
+                        .add_filter("recording (MCAP)", &["mcap"]),
+                }
+                .pick_file();
                 let _ = tx.send(picked);
             });
         match spawned {
-            Ok(_) => self.dialog = Some(rx),
+            Ok(_) => self.dialog = Some((pick, rx)),
             Err(e) => self.note(format!("cannot open the file dialog: {e}"), true),
         }
     }
 
     fn poll_background(&mut self) {
-        if let Some(rx) = &self.dialog {
+        if let Some((pick, rx)) = &self.dialog {
+            let pick = *pick;
             match rx.try_recv() {
                 Ok(Some(path)) => {
                     self.dialog = None;
-                    self.open_calibration(&path);
+                    match pick {
+                        Pick::Calibration => self.open_calibration(&path),
+                        Pick::Recording => self.open_recording(&path),
+                    }
                 }
                 Ok(None) => self.dialog = None,
                 Err(mpsc::TryRecvError::Empty) => {}
@@ -396,10 +644,12 @@ impl RigviewApp {
     pub fn show(&mut self, ui: &mut egui::Ui) {
         let ctx = ui.ctx().clone();
         self.poll_background();
+        self.poll_recording();
         self.status = self.session.as_ref().map(|s| s.pipeline.status());
         self.take_messages();
         self.take_output(&ctx);
         panels::menu_bar(self, ui);
+        panels::replay_bar(self, ui);
         panels::status_bar(self, ui);
         panels::controls(self, ui);
         plots::plot_panel(self, ui);
@@ -424,7 +674,12 @@ impl RigviewApp {
             self.want_close = true;
         }
         self.poll_screenshot(&ctx);
-        if self.loading.is_some() || self.dialog.is_some() {
+        if self.loading.is_some()
+            || self.dialog.is_some()
+            || self.recording.is_some()
+            || !self.finishing.is_empty()
+            || self.replay().is_some()
+        {
             ctx.request_repaint_after(Duration::from_millis(50));
         }
     }
@@ -499,7 +754,12 @@ impl RigviewApp {
         let Some(s) = self.session.as_mut() else {
             return "no source ran".into();
         };
+        // The pipeline first, so that every set it processed is recorded.
         s.pipeline.stop();
+        let recorded = self.recording.take().map(|rec| {
+            s.stop_recording();
+            crate::recording::describe(rec.recorder.file(), &rec.recorder.finish())
+        });
         let status = s.pipeline.status();
         let mut summary = format!(
             "source: {}\n{}",
@@ -508,6 +768,9 @@ impl RigviewApp {
         );
         if let Some(c) = self.cpu.cores() {
             summary += &format!("\nCPU use of the whole app: {c:.2} cores");
+        }
+        if let Some(r) = recorded {
+            summary += &format!("\n{r}");
         }
         summary
     }
@@ -540,6 +803,13 @@ pub fn camera_colour(k: usize) -> Color32 {
     C[k % C.len()]
 }
 
+/// Where the Record button records unless the operator says: a new file
+/// in the working folder, named by the time.
+fn default_record_path() -> String {
+    let secs = rigview_record::writer::unix_now_ns() / 1_000_000_000;
+    format!("rigview-{secs}.mcap")
+}
+
 /// Runs the window until it is closed.
 pub fn run(options: AppOptions) -> Result<()> {
     if std::env::var_os("DISPLAY").is_none() && std::env::var_os("WAYLAND_DISPLAY").is_none() {
@@ -562,4 +832,17 @@ pub fn run(options: AppOptions) -> Result<()> {
         Box::new(move |cc| Ok(Box::new(RigviewApp::new(&cc.egui_ctx, options)))),
     )
     .map_err(|e| anyhow::anyhow!("the window failed: {e}"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_recording_line_says_time_size_rate_and_drops() {
+        assert_eq!(
+            recording_text(Duration::from_millis(125_900), 2_345_600_000, 98.74, 3),
+            "REC 02:05 · 2345.6 MB · 98.7 MB/s · dropped 3"
+        );
+    }
 }

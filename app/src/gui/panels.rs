@@ -6,7 +6,7 @@ use rigview_core::pipeline::{CameraOutput, MeterRoi, Strategy};
 use rigview_core::source::StreamState;
 use rigview_core::surround::BlendMode;
 
-use super::{camera_colour, RigviewApp};
+use super::{camera_colour, recording_text, Pick, RigviewApp};
 use crate::session::Session;
 use crate::settings::ViewMode;
 
@@ -35,28 +35,53 @@ pub fn thumbnail_image(cam: &CameraOutput, show_roi: bool) -> ColorImage {
     ColorImage::from_rgb([w, h], &rgb)
 }
 
+/// A path typed into `text` and its button; the path when the button is
+/// pressed with one.
+fn path_entry(
+    ui: &mut Ui,
+    text: &mut String,
+    hint: &str,
+    button: &str,
+) -> Option<std::path::PathBuf> {
+    ui.horizontal(|ui| {
+        ui.add(
+            egui::TextEdit::singleline(text)
+                .hint_text(hint)
+                .desired_width(280.0),
+        );
+        let pressed = ui.button(button).clicked();
+        (pressed && !text.trim().is_empty()).then(|| std::path::PathBuf::from(text.trim()))
+    })
+    .inner
+}
+
 pub(super) fn menu_bar(app: &mut RigviewApp, ui: &mut Ui) {
     egui::Panel::top("menu").show(ui, |ui| {
         egui::MenuBar::new().ui(ui, |ui| {
             ui.menu_button("File", |ui| {
                 if ui.button("Open calibration…").clicked() {
-                    app.open_dialog();
+                    app.open_dialog(Pick::Calibration);
+                    ui.close();
+                }
+                if ui.button("Open recording…").clicked() {
+                    app.open_dialog(Pick::Recording);
                     ui.close();
                 }
                 ui.separator();
                 ui.label("Open a calibration by path:");
-                ui.horizontal(|ui| {
-                    ui.add(
-                        egui::TextEdit::singleline(&mut app.open_path)
-                            .hint_text("rig or calibration file")
-                            .desired_width(280.0),
-                    );
-                    if ui.button("Open").clicked() && !app.open_path.trim().is_empty() {
-                        let p = std::path::PathBuf::from(app.open_path.trim());
-                        app.open_calibration(&p);
-                        ui.close();
-                    }
-                });
+                if let Some(p) =
+                    path_entry(ui, &mut app.open_path, "rig or calibration file", "Open")
+                {
+                    app.open_calibration(&p);
+                    ui.close();
+                }
+                ui.label("Open a recording by path:");
+                if let Some(p) =
+                    path_entry(ui, &mut app.recording_path, "recording (.mcap)", "Replay")
+                {
+                    app.open_recording(&p);
+                    ui.close();
+                }
                 if !app.settings.window.recent.is_empty() {
                     ui.separator();
                     ui.label("Recent:");
@@ -168,8 +193,184 @@ pub(super) fn status_bar(app: &mut RigviewApp, ui: &mut Ui) {
                 ui.separator();
                 ui.colored_label(Color32::from_rgb(240, 180, 60), "source ended");
             }
+            if let Some(rec) = &app.recording {
+                let stats = rec.recorder.stats();
+                ui.separator();
+                let text = format!(
+                    "recording: {} sets · recorder dropped {}",
+                    stats.sets, stats.dropped
+                );
+                match &stats.stopped {
+                    Some(why) => {
+                        ui.colored_label(WARN, format!("{text} · STOPPED: {why}"));
+                    }
+                    None if stats.dropped > 0 => {
+                        ui.colored_label(WARN, text);
+                    }
+                    None => {
+                        ui.label(text);
+                    }
+                }
+            }
         });
     });
+}
+
+const WARN: Color32 = Color32::from_rgb(240, 180, 60);
+
+/// The replay's speeds: multiples of the recorded rate, and as fast as
+/// possible.
+const SPEEDS: [(Option<f64>, &str); 6] = [
+    (Some(0.25), "0.25×"),
+    (Some(0.5), "0.5×"),
+    (Some(1.0), "1×"),
+    (Some(2.0), "2×"),
+    (Some(4.0), "4×"),
+    (None, "as fast as possible"),
+];
+
+fn speed_name(speed: Option<f64>) -> String {
+    SPEEDS.iter().find(|(s, _)| *s == speed).map_or_else(
+        || format!("{:.2}×", speed.unwrap_or(0.0)),
+        |(_, n)| (*n).to_owned(),
+    )
+}
+
+/// The replay's controls under the menu: play and pause, steps, speed, and
+/// a seek slider over the recording's time.
+pub(super) fn replay_bar(app: &mut RigviewApp, ui: &mut Ui) {
+    let Some(control) = app.replay().cloned() else {
+        return;
+    };
+    egui::Panel::top("replay").show(ui, |ui| {
+        ui.horizontal_wrapped(|ui| {
+            let paused = control.is_paused();
+            if ui.button(if paused { "Play" } else { "Pause" }).clicked() {
+                control.set_paused(!paused);
+            }
+            let indexed = control.times().is_some();
+            let back = ui.add_enabled(indexed, egui::Button::new("Step back"));
+            if back.on_disabled_hover_text(NO_INDEX).clicked() {
+                control.step(-1);
+            }
+            if ui.button("Step forward").clicked() {
+                control.step(1);
+            }
+            let l = ui.label("Speed");
+            let mut speed = control.speed();
+            egui::ComboBox::from_id_salt("replay_speed")
+                .selected_text(speed_name(speed))
+                .show_ui(ui, |ui| {
+                    for (s, name) in SPEEDS {
+                        if ui.selectable_value(&mut speed, s, name).changed() {
+                            control.set_speed(s);
+                        }
+                    }
+                })
+                .response
+                .labelled_by(l.id);
+            ui.separator();
+            // The set the window shows (the source may be a few sets on).
+            let shown = app
+                .latest
+                .as_ref()
+                .and_then(|o| control.number_of(o.trigger))
+                .or_else(|| control.shown());
+            match control.times() {
+                Some(times) if !times.is_empty() => {
+                    let t0 = times[0];
+                    let secs = |t: u64| t.saturating_sub(t0) as f64 * 1e-9;
+                    let end = secs(times[times.len() - 1]);
+                    let mut at = shown.and_then(|k| times.get(k)).map_or(0.0, |&t| secs(t));
+                    let l = ui.label("time (s)");
+                    let slider = ui
+                        .add(egui::Slider::new(&mut at, 0.0..=end.max(1e-3)).show_value(true))
+                        .labelled_by(l.id);
+                    if slider.changed() {
+                        // Whole nanoseconds from the recording's start.
+                        let t = t0.saturating_add((at.max(0.0) * 1e9).round() as u64);
+                        // Only a move to another set seeks (not the slider
+                        // following the replay).
+                        if let Some(k) = control.set_at(t).filter(|k| Some(*k) != shown) {
+                            control.seek(k);
+                        }
+                    }
+                    ui.label(format!(
+                        "{} / {} sets",
+                        shown.map_or(0, |k| k + 1),
+                        times.len()
+                    ));
+                }
+                _ => {
+                    ui.add_enabled(false, egui::Slider::new(&mut 0.0, 0.0..=1.0))
+                        .on_disabled_hover_text(NO_INDEX);
+                    ui.colored_label(WARN, NO_INDEX);
+                }
+            }
+            if control.at_end() {
+                ui.separator();
+                ui.colored_label(WARN, "end of the recording");
+            }
+        });
+    });
+}
+
+/// Why a replay cannot seek.
+const NO_INDEX: &str = "no index (the recording was not closed): it plays forward only; \
+                        `rigview recording repair IN OUT` rewrites it with one to seek";
+
+/// The Record button, its file, and the recording's progress.
+fn record_controls(app: &mut RigviewApp, ui: &mut Ui) {
+    ui.heading("Recording");
+    if app.replay().is_some() {
+        ui.label("replaying a recording");
+        return;
+    }
+    let recording = app.recording.is_some();
+    ui.horizontal(|ui| {
+        let l = ui.label("file");
+        ui.add_enabled(
+            !recording,
+            egui::TextEdit::singleline(&mut app.record_path)
+                .hint_text("a new .mcap file")
+                .desired_width(170.0),
+        )
+        .labelled_by(l.id);
+    });
+    if recording {
+        if ui.button("Stop recording").clicked() {
+            app.stop_recording();
+        }
+    } else {
+        let record = ui.add_enabled(
+            app.session.is_some() && !app.record_path.trim().is_empty(),
+            egui::Button::new("Record"),
+        );
+        if record.clicked() {
+            let spec = crate::recording::RecordSpec::new(app.record_path.trim().into());
+            app.start_recording(&spec);
+        }
+    }
+    if let Some(rec) = &app.recording {
+        let stats = rec.recorder.stats();
+        let text = recording_text(
+            rec.started.elapsed(),
+            stats.bytes,
+            rec.rate_mb_s,
+            stats.dropped,
+        );
+        match &stats.stopped {
+            Some(why) => {
+                ui.colored_label(
+                    Color32::from_rgb(240, 90, 80),
+                    format!("{text}\nSTOPPED: {why}"),
+                );
+            }
+            None => {
+                ui.colored_label(Color32::from_rgb(240, 90, 80), text);
+            }
+        }
+    }
 }
 
 fn law_name(k: LawKind) -> &'static str {
@@ -207,6 +408,8 @@ pub(super) fn controls(app: &mut RigviewApp, ui: &mut Ui) {
 }
 
 fn controls_inner(app: &mut RigviewApp, ui: &mut Ui) {
+    record_controls(app, ui);
+    ui.separator();
     ui.heading("Exposure control");
     let camera_auto = app.session.as_ref().is_some_and(|s| s.camera_auto);
     let mut changed = false;

@@ -186,6 +186,18 @@ pub fn exposure_plots(ui: &mut Ui, t: &Telemetry, secs: f64) {
     plot(ui, "pairs", "log2 r_ij per overlap", &pairs, pair_colour);
 }
 
+/// Per camera, log2 of the exposure commanded after each set (a replay's
+/// open-loop commands).
+pub fn command_series(t: &Telemetry, secs: f64) -> Series {
+    camera_series(t, secs, |r, k| {
+        r.cameras
+            .get(k)
+            .and_then(|c| c.command)
+            .filter(|e| *e > 0.0)
+            .map(f64::log2)
+    })
+}
+
 pub(super) fn plot_panel(app: &mut RigviewApp, ui: &mut Ui) {
     egui::Panel::right("plots")
         .resizable(true)
@@ -217,6 +229,18 @@ fn plots_inner(app: &mut RigviewApp, ui: &mut Ui) {
     let (rate, stages): (Series, Series) = {
         let t = s.pipeline.telemetry();
         exposure_plots(ui, &t, secs);
+        if s.replay.is_some() {
+            // Open loop: the frames keep their recorded exposure (log2 E
+            // above); these are the commands the strategy would have sent.
+            let commands = command_series(&t, secs);
+            plot(
+                ui,
+                "commands",
+                "log2 E the strategy would command (not applied)",
+                &commands,
+                camera_colour,
+            );
+        }
         let rows: Vec<_> = recent(&t, secs).collect();
         let times: Vec<f64> = t.rows().iter().map(|r| r.time_s).collect();
         let t_start = rows.first().map_or(f64::INFINITY, |r| r.time_s);

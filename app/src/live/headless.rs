@@ -126,7 +126,7 @@ pub fn run(
         Arc::new(|| {}),
         record,
     )?;
-    let recorder = session.recorder.clone();
+    let recorder = session.recorder();
     writeln!(
         out,
         "{}; calibration: {}",
