@@ -18,7 +18,7 @@ const SETS: u64 = 220;
 /// The sets judged at the end (5 s).
 const TAIL: usize = 100;
 
-/// The default mode (balanced, γ-mapping, fast law) on the reference
+/// The default mode (balanced, γ-mapping, nonlinear law) on the reference
 /// preset at full resolution holds every camera still once settled: over
 /// the last 5 s each camera's exposure stays within a band of 0.03 EV.
 ///

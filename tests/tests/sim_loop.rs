@@ -424,7 +424,7 @@ fn tail_band(t: &[f64]) -> f64 {
     tail.iter().copied().fold(f64::MIN, f64::max) - tail.iter().copied().fold(f64::MAX, f64::min)
 }
 
-/// The app's default mode (γ-mapping, fast law, balancing over the
+/// The app's default mode (γ-mapping, nonlinear law, balancing over the
 /// rig's overlaps) on the reference preset at `scale`: balancing adds no
 /// cycle of its own. Every camera's last exposures lie in a band at most
 /// 0.15 EV wider than the same camera's alone.

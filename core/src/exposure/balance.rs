@@ -354,10 +354,6 @@ impl DampingParams {
     }
 }
 
-/// The smallest fraction of a balanced step inside the dead band that
-/// [`Damping`] takes.
-pub const SMALL_STEP_KAPPA: f64 = 0.25;
-
 /// The step-size adaptation of the balanced step of one camera (module
 /// documentation).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -431,17 +427,7 @@ impl Damping {
             self.last = Some(step);
             self.travel += (self.kappa * step).abs();
         }
-        // Inside the dead band a camera is within a few hundredths of an EV
-        // of its balanced target: a step too small to adapt `κ` is taken at
-        // least at [`SMALL_STEP_KAPPA`], so that a camera damped while it
-        // circled still arrives (at the floor it crept 0.001 EV a set and
-        // was still 0.09 EV off 10 s later) while a cycle, if any, stays
-        // within a quarter of the band.
-        let kappa = if step.abs() > params.dead_band_ev {
-            self.kappa
-        } else {
-            self.kappa.max(SMALL_STEP_KAPPA)
-        };
+        let kappa = self.kappa;
         (current * (kappa * step).exp2(), kappa)
     }
 }

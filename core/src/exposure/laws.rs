@@ -50,12 +50,12 @@ use crate::error::{check_range, Result};
 pub enum LawKind {
     /// Eq. 3.
     Linear,
-    /// Eq. 4 (the paper's best).
-    Nonlinear,
-    /// rigview's ratio-predicting law (see the module documentation), the
-    /// default: the fastest under changing light, with or without
-    /// balancing, and as good at rest (`docs/exposure-results.md`).
+    /// Eq. 4 (the paper's best), the default.
     #[default]
+    Nonlinear,
+    /// rigview's ratio-predicting law (see the module documentation): the
+    /// fastest under changing light in lock step, but it rings at start-up
+    /// in the app's threads (`docs/exposure-results.md`).
     Fast,
 }
 
