@@ -58,7 +58,7 @@ use std::sync::OnceLock;
 use nalgebra::{Point2, Vector3};
 use serde::{Deserialize, Serialize};
 
-use rigview_calib::rig::Rig;
+use rigview_calib::rig::{CameraProjector, Rig};
 
 pub use compose::{Canvas, Composer};
 pub use seams::{SeamBands, SeamStep};
@@ -381,8 +381,10 @@ impl SurroundView {
         let n = rig.cameras.len();
         // Pass 1: where each camera sees, within its side.
         let mut sides = Vec::with_capacity(n);
+        // Each camera's model with its valid region found once, not per pixel.
+        let mut projectors = Vec::with_capacity(n);
         for cam in &rig.cameras {
-            let Some(pose) = cam.pose.as_ref() else {
+            let (Some(pose), Some(projector)) = (cam.pose.as_ref(), cam.projector()) else {
                 return Err(Error::InvalidConfig(format!(
                     "surround view: camera `{}` has no pose: expected every camera's pose in the vehicle frame",
                     cam.name
@@ -400,6 +402,7 @@ impl SurroundView {
             }
             let axis = pose.optical_axis();
             sides.push(Side::of_yaw(axis.y.atan2(axis.x)));
+            projectors.push(projector);
         }
         let mut source: Vec<Vec<[f32; 2]>> = vec![vec![[-1.0, -1.0]; w * h]; n];
         let mut count = vec![0u8; w * h];
@@ -414,7 +417,7 @@ impl SurroundView {
                     if !sides[k].beyond(&spec.vehicle_m, x, y) {
                         continue;
                     }
-                    let Some(px) = cam.project_rig(&p) else {
+                    let Some(px) = projectors[k].project_rig(&p) else {
                         continue;
                     };
                     let (iw, ih) = (
@@ -482,11 +485,10 @@ impl SurroundView {
                 weights,
             });
         }
-        let masks = rig
-            .cameras
+        let masks = projectors
             .iter()
             .zip(&layers)
-            .map(|(cam, layer)| ground_mask(cam, layer, spec, options.mask_step))
+            .map(|(projector, layer)| ground_mask(projector, layer, spec, options.mask_step))
             .collect::<Result<Vec<_>>>()?;
         let overlaps = rig
             .neighbours
@@ -744,7 +746,7 @@ fn bounding_box(w: usize, h: usize, covered: impl Fn(usize) -> bool) -> Option<[
 /// The source pixels of camera `cam` whose ground point lands on a canvas
 /// pixel the camera contributes to, sampled every `step` pixels.
 fn ground_mask(
-    cam: &rigview_calib::rig::Camera,
+    projector: &CameraProjector,
     layer: &CameraLayer,
     spec: &CanvasSpec,
     step: usize,
@@ -758,7 +760,7 @@ fn ground_mask(
                 x as f64 + 0.5 * (step as f64 - 1.0),
                 y as f64 + 0.5 * (step as f64 - 1.0),
             );
-            let Some(g) = cam.ground_point(&centre) else {
+            let Some(g) = projector.ground_point(&centre) else {
                 continue;
             };
             let (c, r) = spec.canvas(g.x, g.y);
