@@ -26,6 +26,6 @@ pub mod rig;
 pub mod tools;
 
 pub use error::{CalibError, FieldError, Result};
-pub use model::{Distortion, FieldOfView, Intrinsics, ModelKind};
+pub use model::{Distortion, FieldOfView, Intrinsics, ModelKind, Projector};
 pub use pose::Pose;
-pub use rig::{Camera, DeviceId, Frame, Rig};
+pub use rig::{Camera, CameraProjector, DeviceId, Frame, Rig};

@@ -7,7 +7,7 @@ use std::net::IpAddr;
 use nalgebra::{Point2, Vector3};
 
 use crate::error::FieldError;
-use crate::model::Intrinsics;
+use crate::model::{Intrinsics, Projector};
 use crate::pose::Pose;
 
 /// How to reach a camera.
@@ -66,19 +66,56 @@ impl Camera {
     /// Projects a rig-frame point to a pixel (`None` without a pose or
     /// outside the model's valid region; the pixel may lie off the image).
     pub fn project_rig(&self, p: &Vector3<f64>) -> Option<Point2<f64>> {
-        let pose = self.pose.as_ref()?;
-        self.intrinsics.project(&pose.to_camera(p))
+        self.projector()?.project_rig(p)
     }
 
     /// The ray a pixel sees, in the rig frame: origin and unit direction.
     pub fn ray_rig(&self, px: &Point2<f64>) -> Option<(Vector3<f64>, Vector3<f64>)> {
-        let pose = self.pose.as_ref()?;
-        let d = self.intrinsics.unproject(px)?;
-        Some((*pose.translation(), pose.rotation_matrix() * d.into_inner()))
+        self.projector()?.ray_rig(px)
     }
 
     /// Where a pixel's ray meets the ground plane z = 0 (only meaningful in a
     /// vehicle-frame rig); `None` if it looks at or above the horizon.
+    pub fn ground_point(&self, px: &Point2<f64>) -> Option<Vector3<f64>> {
+        self.projector()?.ground_point(px)
+    }
+
+    /// The camera's pose and its model's [`Projector`] (the valid region
+    /// found once), for projecting many points; `None` without a pose.
+    pub fn projector(&self) -> Option<CameraProjector> {
+        Some(CameraProjector {
+            pose: self.pose?,
+            model: self.intrinsics.projector(),
+        })
+    }
+}
+
+/// A posed camera ready to project many points: [`Camera::project_rig`],
+/// [`Camera::ray_rig`] and [`Camera::ground_point`] with the model's valid
+/// region found once (the same answers, to the bit). Built by
+/// [`Camera::projector`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CameraProjector {
+    pose: Pose,
+    model: Projector,
+}
+
+impl CameraProjector {
+    /// As [`Camera::project_rig`].
+    pub fn project_rig(&self, p: &Vector3<f64>) -> Option<Point2<f64>> {
+        self.model.project(&self.pose.to_camera(p))
+    }
+
+    /// As [`Camera::ray_rig`].
+    pub fn ray_rig(&self, px: &Point2<f64>) -> Option<(Vector3<f64>, Vector3<f64>)> {
+        let d = self.model.unproject(px)?;
+        Some((
+            *self.pose.translation(),
+            self.pose.rotation_matrix() * d.into_inner(),
+        ))
+    }
+
+    /// As [`Camera::ground_point`].
     pub fn ground_point(&self, px: &Point2<f64>) -> Option<Vector3<f64>> {
         let (o, d) = self.ray_rig(px)?;
         if d.z >= -1e-9 || o.z <= 0.0 {

@@ -7,6 +7,8 @@
 //!   2018): metering, the gradient-information metric, the γ̂ estimator, the
 //!   update laws, multi-camera balancing, the shutter/gain split, baselines and
 //!   the per-camera and per-rig controllers.
+//! - [`features`]: BRIEF binary descriptors and their mutual matching, for
+//!   the panorama's feature matches.
 //! - [`image`]: camera frames as the crate reads them: pixel formats,
 //!   borrowed frames, region-of-interest masks and luminance; 8-bit colour
 //!   conversion and the Euclidean distance transform.
@@ -28,6 +30,7 @@ pub mod cpu;
 pub mod error;
 pub mod eval;
 pub mod exposure;
+pub mod features;
 pub mod image;
 pub mod pipeline;
 pub mod sim;

@@ -58,7 +58,7 @@ use std::sync::OnceLock;
 use nalgebra::{Point2, Vector3};
 use serde::{Deserialize, Serialize};
 
-use rigview_calib::rig::Rig;
+use rigview_calib::rig::{CameraProjector, Rig};
 
 pub use compose::{Canvas, Composer};
 pub use seams::{SeamBands, SeamStep};
@@ -381,8 +381,10 @@ impl SurroundView {
         let n = rig.cameras.len();
         // Pass 1: where each camera sees, within its side.
         let mut sides = Vec::with_capacity(n);
+        // Each camera's model with its valid region found once, not per pixel.
+        let mut projectors = Vec::with_capacity(n);
         for cam in &rig.cameras {
-            let Some(pose) = cam.pose.as_ref() else {
+            let (Some(pose), Some(projector)) = (cam.pose.as_ref(), cam.projector()) else {
                 return Err(Error::InvalidConfig(format!(
                     "surround view: camera `{}` has no pose: expected every camera's pose in the vehicle frame",
                     cam.name
@@ -400,36 +402,57 @@ impl SurroundView {
             }
             let axis = pose.optical_axis();
             sides.push(Side::of_yaw(axis.y.atan2(axis.x)));
+            projectors.push(projector);
         }
         let mut source: Vec<Vec<[f32; 2]>> = vec![vec![[-1.0, -1.0]; w * h]; n];
         let mut count = vec![0u8; w * h];
-        for r in 0..h {
-            for c in 0..w {
-                let (x, y) = spec.ground(c as f64 + 0.5, r as f64 + 0.5);
-                if spec.on_vehicle(x, y) {
-                    continue;
+        // Bands of rows, one per core: every pixel is computed alone, so the
+        // maps do not depend on the number of threads.
+        let threads = std::thread::available_parallelism().map_or(1, |t| t.get());
+        let band = h.div_ceil(threads.min(h).max(1)) * w;
+        let mut bands: Vec<Vec<&mut [[f32; 2]]>> = Vec::new();
+        for map in &mut source {
+            for (b, chunk) in map.chunks_mut(band).enumerate() {
+                if bands.len() <= b {
+                    bands.push(Vec::with_capacity(n));
                 }
-                let p = Vector3::new(x, y, 0.0);
-                for (k, cam) in rig.cameras.iter().enumerate() {
-                    if !sides[k].beyond(&spec.vehicle_m, x, y) {
-                        continue;
-                    }
-                    let Some(px) = cam.project_rig(&p) else {
-                        continue;
-                    };
-                    let (iw, ih) = (
-                        f64::from(cam.intrinsics.width),
-                        f64::from(cam.intrinsics.height),
-                    );
-                    // Bilinear sampling needs the pixel and its right and
-                    // lower neighbours.
-                    if px.x >= 0.0 && px.y >= 0.0 && px.x <= iw - 1.0 && px.y <= ih - 1.0 {
-                        source[k][r * w + c] = [px.x as f32, px.y as f32];
-                        count[r * w + c] += 1;
-                    }
-                }
+                bands[b].push(chunk);
             }
         }
+        let (sides, projectors) = (&sides, &projectors);
+        std::thread::scope(|scope| {
+            for (b, (mut maps, counts)) in bands.into_iter().zip(count.chunks_mut(band)).enumerate()
+            {
+                scope.spawn(move || {
+                    for (i, count) in counts.iter_mut().enumerate() {
+                        let (c, r) = (i % w, b * band / w + i / w);
+                        let (x, y) = spec.ground(c as f64 + 0.5, r as f64 + 0.5);
+                        if spec.on_vehicle(x, y) {
+                            continue;
+                        }
+                        let p = Vector3::new(x, y, 0.0);
+                        for (k, cam) in rig.cameras.iter().enumerate() {
+                            if !sides[k].beyond(&spec.vehicle_m, x, y) {
+                                continue;
+                            }
+                            let Some(px) = projectors[k].project_rig(&p) else {
+                                continue;
+                            };
+                            let (iw, ih) = (
+                                f64::from(cam.intrinsics.width),
+                                f64::from(cam.intrinsics.height),
+                            );
+                            // Bilinear sampling needs the pixel and its right
+                            // and lower neighbours.
+                            if px.x >= 0.0 && px.y >= 0.0 && px.x <= iw - 1.0 && px.y <= ih - 1.0 {
+                                maps[k][i] = [px.x as f32, px.y as f32];
+                                *count += 1;
+                            }
+                        }
+                    }
+                });
+            }
+        });
         // Pass 2: the distance of every canvas pixel from each camera's
         // exclusive region, and the weights.
         let mut distance = Vec::with_capacity(n);
@@ -482,12 +505,19 @@ impl SurroundView {
                 weights,
             });
         }
-        let masks = rig
-            .cameras
-            .iter()
-            .zip(&layers)
-            .map(|(cam, layer)| ground_mask(cam, layer, spec, options.mask_step))
-            .collect::<Result<Vec<_>>>()?;
+        // One thread per camera.
+        let masks = std::thread::scope(|scope| {
+            let jobs: Vec<_> = projectors
+                .iter()
+                .zip(&layers)
+                .map(|(projector, layer)| {
+                    scope.spawn(move || ground_mask(projector, layer, spec, options.mask_step))
+                })
+                .collect();
+            jobs.into_iter()
+                .map(|job| job.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
+                .collect::<Result<Vec<_>>>()
+        })?;
         let overlaps = rig
             .neighbours
             .iter()
@@ -744,7 +774,7 @@ fn bounding_box(w: usize, h: usize, covered: impl Fn(usize) -> bool) -> Option<[
 /// The source pixels of camera `cam` whose ground point lands on a canvas
 /// pixel the camera contributes to, sampled every `step` pixels.
 fn ground_mask(
-    cam: &rigview_calib::rig::Camera,
+    projector: &CameraProjector,
     layer: &CameraLayer,
     spec: &CanvasSpec,
     step: usize,
@@ -758,7 +788,7 @@ fn ground_mask(
                 x as f64 + 0.5 * (step as f64 - 1.0),
                 y as f64 + 0.5 * (step as f64 - 1.0),
             );
-            let Some(g) = cam.ground_point(&centre) else {
+            let Some(g) = projector.ground_point(&centre) else {
                 continue;
             };
             let (c, r) = spec.canvas(g.x, g.y);

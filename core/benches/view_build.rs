@@ -1,0 +1,42 @@
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+//! Building a view: `SurroundView::build` of the real four-fisheye rig in
+//! `tests/data/surround-nz` (960×640 fisheyes, OpenCV fisheye model) on the
+//! source project's canvas at 1 cm/px: 16 m × 12 m around a 5 m × 2 m car,
+//! 1200×1600 pixels. A build maps every canvas pixel into every camera whose
+//! side it lies beyond, computes the distance transforms and blend weights,
+//! the ground masks and the overlap patches; the panorama's refinement
+//! rebuilds its view, so this has to be fast. Results: `BENCHMARKS.md`.
+
+use std::hint::black_box;
+use std::path::Path;
+use std::time::Duration;
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use rigview_calib::formats;
+use rigview_core::surround::{CanvasSpec, SurroundOptions, SurroundView};
+
+fn build(c: &mut Criterion) {
+    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/data/surround-nz");
+    let rig = formats::load(&data, None, None).unwrap().rig;
+    let spec = CanvasSpec {
+        x_min_m: -8.0,
+        x_max_m: 8.0,
+        y_min_m: -6.0,
+        y_max_m: 6.0,
+        px_per_m: 100.0,
+        vehicle_m: [-2.5, 2.5, -1.0, 1.0],
+    };
+    assert_eq!(spec.size(), (1200, 1600));
+    let options = SurroundOptions::default();
+    let mut g = c.benchmark_group("view_build");
+    g.sample_size(10)
+        .warm_up_time(Duration::from_secs(1))
+        .measurement_time(Duration::from_secs(10));
+    g.bench_function("surround_nz_1200x1600", |b| {
+        b.iter(|| black_box(SurroundView::build(&rig, &spec, &options).unwrap()));
+    });
+    g.finish();
+}
+
+criterion_group!(benches, build);
+criterion_main!(benches);
