@@ -144,8 +144,7 @@ pub fn pair_ratio(patches: &[PatchPair], params: &BalanceParams) -> Option<f64> 
     let mut ratios: Vec<f64> = patches
         .iter()
         .filter(|p| {
-            f64::from(p.saturated_i) <= params.max_saturated
-                && f64::from(p.saturated_j) <= params.max_saturated
+            !clips(p, params)
                 && f64::from(p.mean_i) >= params.min_mean
                 && f64::from(p.mean_j) >= params.min_mean
         })
@@ -161,14 +160,14 @@ pub fn pair_ratio(patches: &[PatchPair], params: &BalanceParams) -> Option<f64> 
 /// Whether most of a pair's patches are left out because either camera
 /// saturates them (rather than because they are dark).
 pub fn clipped(patches: &[PatchPair], params: &BalanceParams) -> bool {
-    let clips = patches
-        .iter()
-        .filter(|p| {
-            f64::from(p.saturated_i) > params.max_saturated
-                || f64::from(p.saturated_j) > params.max_saturated
-        })
-        .count();
-    2 * clips > patches.len()
+    2 * patches.iter().filter(|p| clips(p, params)).count() > patches.len()
+}
+
+/// Whether either camera saturates patch `p` beyond what Eq. 5 uses (a
+/// saturated fraction that is not a number counts as saturated).
+fn clips(p: &PatchPair, params: &BalanceParams) -> bool {
+    !(f64::from(p.saturated_i) <= params.max_saturated
+        && f64::from(p.saturated_j) <= params.max_saturated)
 }
 
 /// The last usable ratio of each ordered pair, as a ratio of the scene
