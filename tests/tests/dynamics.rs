@@ -248,11 +248,18 @@ fn no_limit_cycle_on_any_preset() {
 }
 
 /// The fast law's step responses on the `steps` preset at full resolution,
-/// both simulations, with probes off and on (probe frames left out): every
-/// step settles within the 1.5 s window, and on the γ-mapping with probes
-/// off no camera cycles once it has. (rigview's goals, 4 frames for ±2
-/// stops and 6 for ±4 with at most 0.3 EV of overshoot, are not met on
-/// every camera yet: the table shows where.)
+/// both simulations, with probes off and on (probe frames left out), meet
+/// rigview's goals on every camera: settled within 0.1 EV in at most 4
+/// frames after ±2 stops and 6 after ±4, overshoot at most 0.3 EV, and a
+/// jitter (SD over the window's last 20 frames) of at most 0.02 EV.
+///
+/// One exception, asserted as such: under scale-and-clip the first step
+/// comes 1 s after start-up, while a camera may still be finding its
+/// fixed point (ŝ asks for a few hundredths of an EV at a time near it;
+/// with probes on, the back camera's first probe is under way when the
+/// light steps). The light tracking moves such a camera to where it was
+/// in the old light, which is not yet its fixed point, so that step only
+/// has to settle within the window, its jitter within the no-cycle bound.
 #[test]
 fn the_fast_law_settles_after_every_step_of_light() {
     let spec = ResponseSpec::default();
@@ -270,37 +277,44 @@ fn the_fast_law_settles_after_every_step_of_light() {
         );
         let steps = r.steps();
         assert_eq!(steps, vec![20, 60, 100, 140], "the preset's steps moved");
-        println!(
-            "{}, probes {}: frames to settle / overshoot EV / jitter EV",
+        let what = format!(
+            "{}, probes {}",
             sim.name(),
             if probe { "on" } else { "off" }
         );
+        println!("{what}: frames to settle / overshoot EV / jitter EV");
         for (cam, name) in r.cameras.iter().enumerate() {
             let mut row = Vec::new();
-            for &s in &steps {
+            for (k, &s) in steps.iter().enumerate() {
                 let resp = step_response(&r.log2_e[cam], &r.probe[cam], s, &spec)
                     .expect("the run covers each step's window");
                 row.push(format!(
                     "{:>2}/{:.2}/{:.3}",
                     resp.settle_frames, resp.overshoot_ev, resp.jitter_ev
                 ));
-                if resp.settle_frames > spec.window {
-                    failures.push(format!("{name} step at {s}: never settled"));
+                let stops = (resp.end - resp.start).abs();
+                let frames = if stops > 3.0 { 6 } else { 4 };
+                let start_up = k == 0 && sim == Simulation::ScaleClip;
+                let met = if start_up {
+                    resp.settle_frames <= spec.window && resp.jitter_ev <= CYCLE_SD_EV
+                } else {
+                    resp.settle_frames <= frames
+                        && resp.overshoot_ev <= 0.3
+                        && resp.jitter_ev <= 0.02
+                };
+                if !met {
+                    failures.push(format!(
+                        "{what}: {name} step at {s}: {} frames, overshoot {:.2} EV, jitter {:.3} EV",
+                        resp.settle_frames, resp.overshoot_ev, resp.jitter_ev
+                    ));
                 }
             }
             println!("  {name:>6}: {}", row.join("  "));
         }
-        // With probes on, a probe whose frame is better is taken: the
-        // camera moves to the probe's exposure (a deliberate step to a
-        // better fixed point, not a cycle), so the tail is judged with
-        // probes off. Under scale-and-clip at full resolution the back
-        // camera is still creeping up 1.5 s after +4 stops (its ŝ asks for
-        // 0.03 EV at a time), which is slow, not a cycle: cycles are judged
-        // with the light held longer (`no_limit_cycle_on_any_preset`).
         for (s, c) in r.tail_sd().iter().zip(&r.cameras) {
             println!("  {c:>6}: tail SD {s:.3} EV");
-            if !probe && sim == Simulation::Gamma && *s > CYCLE_SD_EV {
-                failures.push(format!("probes {probe}: {c} cycles, tail SD {s:.3} EV"));
+            if *s > CYCLE_SD_EV {
+                failures.push(format!("{what}: {c} cycles, tail SD {s:.3} EV"));
             }
         }
     }

@@ -20,6 +20,7 @@ use super::estimator::{
     Darker, Estimate, EstimateOptions, Estimator, EstimatorConfig, Simulation, DARKER_MIN_EV,
 };
 use super::laws::{LawKind, LawParams, LawStep};
+use super::light::{LightChange, LightParams, LightTracker};
 use super::metering::Metered;
 use super::probe::{ProbeEvent, ProbeInput, ProbeParams, Prober};
 use super::split::{Clamped, ExposureRange, ExposureSetting, SplitParams, Splitter};
@@ -83,6 +84,14 @@ pub struct ControllerConfig {
     /// The bracket that keeps a camera's own law from circling
     /// ([`super::bracket`]).
     pub bracket: BracketParams,
+    /// Following a uniform change of light measured against a reference
+    /// frame ([`super::light`]), under the fast law (`None`: never).
+    #[serde(default = "default_light")]
+    pub light: Option<LightParams>,
+}
+
+fn default_light() -> Option<LightParams> {
+    Some(LightParams::default())
 }
 
 /// A configuration written before probing existed probes (`null`: never).
@@ -104,6 +113,7 @@ impl Default for ControllerConfig {
             latency_timeout_frames: 4,
             probe: default_probe(),
             bracket: BracketParams::default(),
+            light: default_light(),
         }
     }
 }
@@ -123,6 +133,9 @@ impl ControllerConfig {
             p.validate()?;
         }
         self.bracket.validate()?;
+        if let Some(l) = &self.light {
+            l.validate()?;
+        }
         check_range(
             "fixed_exposure",
             self.fixed_exposure,
@@ -196,6 +209,10 @@ impl InFlight {
     }
 }
 
+/// A frame within this (EV) of where the commands in flight leave the
+/// camera shows it at rest.
+const REST_EV: f64 = 0.03;
+
 /// At most this many commands are remembered in flight (more than any
 /// camera's latency in frames).
 const MAX_IN_FLIGHT: usize = 8;
@@ -222,6 +239,10 @@ pub struct UnaryStep {
     /// shows it at its neighbours' brightness; measures of the loop leave
     /// it out).
     pub probe_frame: bool,
+    /// The uniform change of light followed on this frame
+    /// ([`super::light`]): `desired` is the exposure commanded in the
+    /// reference frame's light, moved by it, and balancing leaves it so.
+    pub light: Option<LightChange>,
 }
 
 /// One camera's controller.
@@ -262,6 +283,14 @@ pub struct CameraController {
     bracket: Bracket,
     /// The fast law's choice between frames that point apart.
     repeller: Repeller,
+    /// The reference frame a change of light is measured against.
+    light: LightTracker,
+    /// The change of light (EV, against the reference) the kept frames'
+    /// exposures have been scaled to.
+    kept_light_ev: f64,
+    /// Whether this frame became the light's reference: the exposure
+    /// commanded on it (after balancing) is the one a change of light moves.
+    fresh_reference: bool,
 }
 
 /// A kept frame as the estimator reads it, when it is at least
@@ -305,6 +334,9 @@ impl CameraController {
             passed: None,
             bracket: Bracket::default(),
             repeller: Repeller::default(),
+            light: LightTracker::default(),
+            kept_light_ev: 0.0,
+            fresh_reference: false,
         })
     }
 
@@ -368,6 +400,8 @@ impl CameraController {
         self.passed = None;
         self.bracket.reset();
         self.repeller.reset();
+        self.light.reset();
+        self.kept_light_ev = 0.0;
     }
 
     /// The setting the camera will have once the commands in flight have
@@ -440,6 +474,47 @@ impl CameraController {
         if !(needs_estimate && config.estimator.simulation == Simulation::ScaleClip) {
             self.passed = None;
         }
+        // A uniform change of light measured against the reference frame
+        // (fast law): the best exposure is the reference's over the change,
+        // until a frame shows the camera there.
+        let light = config.light.filter(|_| {
+            config.mode == ControlMode::Gradient
+                && config.law.kind == LawKind::Fast
+                && self.manual.is_none()
+                && hold != Some(Hold::RepeatedFrame)
+        });
+        let follow = light.and_then(|p| {
+            self.light
+                .change(&p, metered, taken)
+                .filter(|c| c.follow(&p) && (c.best / taken).log2().abs() >= p.min_change_ev / 2.0)
+        });
+        if light.is_none() && hold.is_none() {
+            self.light.reset();
+        }
+        if follow.is_some() {
+            // A probe, or its return, was measuring the old light: give it
+            // up and follow the new one now.
+            if hold == Some(Hold::AwaitingCommand) {
+                hold = None;
+            }
+            for c in &mut self.in_flight {
+                c.must_show = false;
+            }
+        }
+        if let Some(c) = follow {
+            // A kept frame shows the scene as the frame would at its
+            // exposure times the change of light, and so do the frames the
+            // prober remembers; what the bracket learnt was in the old
+            // light.
+            let scale = (self.kept_light_ev - c.ev).exp2();
+            self.kept_light_ev = c.ev;
+            for kept in [&mut self.darker, &mut self.passed].into_iter().flatten() {
+                kept.exposure *= scale;
+            }
+            self.prober.rescale(scale);
+            self.bracket.reset();
+            self.repeller.reset();
+        }
         let from_probe = usable_darker(self.darker.as_ref(), taken);
         let darker = from_probe.or_else(|| usable_darker(self.passed.as_ref(), taken));
         let estimate = if needs_estimate {
@@ -457,7 +532,8 @@ impl CameraController {
             None
         };
         let (read_darker, read_probe) = (darker.is_some(), from_probe.is_some());
-        if read_darker && estimate.as_ref().is_some_and(|e| !e.declipped) {
+        // (Unless the light changed and the kept frames were scaled to it.)
+        if read_darker && follow.is_none() && estimate.as_ref().is_some_and(|e| !e.declipped) {
             // The scene is no longer the kept frame's.
             if read_probe {
                 self.darker = None;
@@ -473,7 +549,10 @@ impl CameraController {
             (ControlMode::MeanIntensity, _) => {
                 LawStep::Relative(config.law.bound(config.mean.ratio(f64::from(stats.mean))))
             }
-            (_, Some(e)) if e.flat || stats.saturated_fraction > SATURATED_FALLBACK => {
+            (_, Some(e))
+                if follow.is_none()
+                    && (e.flat || stats.saturated_fraction > SATURATED_FALLBACK) =>
+            {
                 fallback = true;
                 LawStep::Relative(config.law.bound(config.mean.ratio(f64::from(stats.mean))))
             }
@@ -488,7 +567,7 @@ impl CameraController {
         // Under the camera's own law, between frames that do not ask
         // towards each other.
         let step = match &estimate {
-            Some(e) if own_law && hold.is_none() => {
+            Some(e) if own_law && hold.is_none() && follow.is_none() => {
                 let at = taken.log2();
                 let asked = at + step.frame_ev();
                 let followed = self.repeller.follow(
@@ -507,11 +586,24 @@ impl CameraController {
                 step
             }
         };
-        let mut desired = match self.manual {
-            Some(m) => m,
-            None => config.law.next_exposure(step, taken, base),
+        let mut desired = match (self.manual, follow) {
+            (Some(m), _) => m,
+            // A bound that the commands in flight already go beyond
+            // stands as they are.
+            (None, Some(c)) if c.bound && (base / c.best).ln() * (c.best / taken).ln() > 0.0 => {
+                base
+            }
+            (None, Some(c)) => base * config.law.bound(c.best / base),
+            (None, None) => config.law.next_exposure(step, taken, base),
         };
-        if own_law {
+        // The bracket is the estimator's: under the fast law, whose jumps
+        // can straddle a discontinuity of the estimate, it holds whether or
+        // not balancing moves the camera afterwards.
+        let bracketed = own_law
+            || (config.mode == ControlMode::Gradient
+                && config.law.kind == LawKind::Fast
+                && self.manual.is_none());
+        if bracketed && follow.is_none() {
             if hold.is_none() {
                 self.bracket
                     .observe(&config.bracket, taken.log2(), mean, step.frame_ev());
@@ -525,7 +617,7 @@ impl CameraController {
         let mut probe = None;
         match (probe_params, &estimate) {
             (Some(params), Some(e)) => {
-                if hold.is_none() {
+                if hold.is_none() && follow.is_none() {
                     let (d, event) = self.prober.step(
                         &params,
                         ProbeInput {
@@ -573,7 +665,21 @@ impl CameraController {
             // camera's own from now on.
             self.probe_frame = false;
         }
+        // A frame that shows the camera at rest, in the light the law
+        // worked in, is the next change's reference.
+        if let Some(p) = light.filter(|p| {
+            follow.is_none()
+                && (!self.light.has_reference() || self.light.change(p, metered, taken).is_some())
+                && (base / taken).log2().abs() < REST_EV
+                && probe.is_none()
+                && !probe_frame
+        }) {
+            self.light.set_reference(&p, metered, taken, desired);
+            self.kept_light_ev = 0.0;
+            self.fresh_reference = true;
+        }
         if estimate.is_some()
+            && follow.is_none()
             && config.estimator.simulation == Simulation::ScaleClip
             && hold.is_none()
             && (desired / taken).log2() >= DARKER_MIN_EV
@@ -584,6 +690,7 @@ impl CameraController {
             });
         }
         Ok(UnaryStep {
+            light: follow,
             probe_frame,
             estimate,
             taken,
@@ -603,6 +710,9 @@ impl CameraController {
         target: f64,
         taken: ExposureSetting,
     ) -> (Option<ExposureSetting>, Option<Clamped>) {
+        if std::mem::take(&mut self.fresh_reference) {
+            self.light.set_best(target);
+        }
         let (setting, clamped) = self.splitter.split(target);
         let base = self.base(taken);
         let must_show = std::mem::take(&mut self.must_show);
@@ -903,26 +1013,29 @@ impl RigController {
                     .collect(),
                 None => Vec::new(),
             };
-            let (target, alpha, damping) = match balancing.filter(|_| !neighbour.is_empty()) {
-                Some(params) => {
-                    cam.damping.observe(
-                        input.info.taken.exposure().log2(),
-                        f64::from(input.metered.stats().mean),
-                        config.bracket.light_tolerance,
-                    );
-                    let b = balance::balance(u.desired, bases[i], &neighbour);
-                    let (e, kappa) = if u.hold.is_some() {
-                        (b.exposure, cam.damping.kappa())
-                    } else {
-                        cam.damping.apply(bases[i], b.exposure, &params.damping)
-                    };
-                    (e, Some(b.alpha), Some(kappa))
-                }
-                None => {
-                    cam.damping.reset();
-                    (u.desired, None, None)
-                }
-            };
+            // A camera following a change of light goes where its
+            // balanced command would have gone in the reference's light.
+            let (target, alpha, damping) =
+                match balancing.filter(|_| !neighbour.is_empty() && u.light.is_none()) {
+                    Some(params) => {
+                        cam.damping.observe(
+                            input.info.taken.exposure().log2(),
+                            f64::from(input.metered.stats().mean),
+                            config.bracket.light_tolerance,
+                        );
+                        let b = balance::balance(u.desired, bases[i], &neighbour);
+                        let (e, kappa) = if u.hold.is_some() {
+                            (b.exposure, cam.damping.kappa())
+                        } else {
+                            cam.damping.apply(bases[i], b.exposure, &params.damping)
+                        };
+                        (e, Some(b.alpha), Some(kappa))
+                    }
+                    None => {
+                        cam.damping.reset();
+                        (u.desired, None, None)
+                    }
+                };
             let (command, clamped, hold) = if u.hold.is_some() {
                 (None, None, u.hold)
             } else {

@@ -162,7 +162,8 @@ impl LawParams {
     ///   that already go further that way stand.
     /// - [`LawStep::Predicted`]: the best exposure is `taken · ratio`; the
     ///   command moves `damping` of the way there from `base`, in log
-    ///   exposure, bounded to `max_step` per command.
+    ///   exposure, bounded to `max_step` per command, and stays at `base`
+    ///   when that is within [`FAST_REST_EV`].
     pub fn next_exposure(&self, step: LawStep, taken: f64, base: f64) -> f64 {
         match step {
             LawStep::Relative(r) => taken * r,
@@ -176,6 +177,11 @@ impl LawParams {
             }
             LawStep::Predicted { ratio } => {
                 let best = taken * ratio;
+                if (best / base).log2().abs() < FAST_REST_EV {
+                    // Close enough: the estimate's own noise and plateaus
+                    // would only make the camera creep.
+                    return base;
+                }
                 base * self.bound((best / base).powf(self.damping))
             }
         }
@@ -243,6 +249,10 @@ pub fn nonlinear_r(d: f64, gamma_hat: f64) -> f64 {
 pub fn nonlinear_ratio(kp: f64, d: f64, gamma_hat: f64) -> f64 {
     1.0 + alpha(gamma_hat) * kp * (nonlinear_r(d, gamma_hat) - 1.0)
 }
+
+/// The fast law leaves the camera where its commands put it while the
+/// predicted best exposure is within this (EV).
+pub const FAST_REST_EV: f64 = 0.01;
 
 /// Mean intensity the fast law aims for when the estimate is at a bound.
 pub const FAST_MEAN_TARGET: f64 = 0.45;

@@ -19,6 +19,7 @@ pub mod estimator;
 mod fastmath;
 mod kernel;
 pub mod laws;
+pub mod light;
 pub mod metering;
 pub mod metric;
 pub mod probe;
@@ -39,6 +40,7 @@ pub use estimator::{
     DEFAULT_ANCHORS,
 };
 pub use laws::{LawKind, LawParams, LawStep};
+pub use light::{LightChange, LightParams, LightTracker};
 pub use metering::{CameraMasks, ImageStats, Meter, Metered, MeteringConfig, PreparedMask};
 pub use metric::{GradientMetric, MetricParams};
 pub use probe::{ProbeEvent, ProbeParams};

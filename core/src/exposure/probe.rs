@@ -262,6 +262,38 @@ impl Prober {
         matches!(self.state, State::Resting { .. })
     }
 
+    /// Moves what the prober knows by a uniform change of light: the
+    /// exposures it remembers are multiplied by `scale` (the reciprocal of
+    /// the change), and their `M` stand. A probe in flight measured the old
+    /// light against the new one, so it is given up.
+    pub fn rescale(&mut self, scale: f64) {
+        self.state = match self.state {
+            State::Probing { .. } => State::Watching,
+            State::Settling {
+                home,
+                m_sum,
+                frames,
+            } => State::Settling {
+                home: home * scale,
+                m_sum,
+                frames,
+            },
+            State::Resting {
+                home,
+                home_m,
+                frames,
+            } => State::Resting {
+                home: home * scale,
+                home_m,
+                frames,
+            },
+            State::Watching => State::Watching,
+        };
+        for (e, _) in &mut self.recent {
+            *e *= scale;
+        }
+    }
+
     /// Forgets everything (the camera left its own law's control).
     pub fn reset(&mut self) {
         self.state = State::Watching;

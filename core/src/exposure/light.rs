@@ -1,0 +1,429 @@
+//! Following a change of light seen against a reference frame.
+//!
+//! Under a change of light that scales the whole scene (the sun out of a
+//! cloud, a tunnel's mouth, a street light), every pixel's radiance moves by
+//! one factor `ρ`, and the best exposure moves by `1/ρ`. The gradient
+//! estimators cannot see that from a single frame when the change is large:
+//! after +4 stops most of the image is saturated and the texture the
+//! estimate needs is gone; after −4 stops it sits in the lowest few grey
+//! levels. Each frame then gives a short step in the right direction, and
+//! every step costs the loop's latency.
+//!
+//! The pixels that are well exposed in both the new frame and a frame of the
+//! same scene before the change measure `ρ` directly, however few they are:
+//!
+//! ```text
+//! ρ = median over pixels p of  (I(p) / E) / (I_ref(p) / E_ref)
+//! ```
+//!
+//! with `E` the exposure each frame was taken with. The best exposure the
+//! law predicted on the reference frame, over `ρ`, is the best exposure now.
+//!
+//! When the scene itself changed (the vehicle moved on, something passed
+//! close to the lens) the ratios of co-located pixels disagree. Their spread
+//! (the interquartile range of `log2` ratios) tells the two apart: a change
+//! of light leaves it at the noise's few hundredths of an EV. A change that
+//! is not uniform over the image (a cloud over the sun leaves the shadows
+//! as they were) spreads the ratios too, and is left to the law.
+//!
+//! The reference is a copy of the metered frame's intensities over its
+//! exposure (every `stride`-th pixel along each axis: every second by
+//! default, about 19 000 at the default metering size). The controller
+//! renews it on every frame that shows the camera at rest, in light it
+//! could measure, so under motion it compares frames a frame or two apart.
+
+use serde::{Deserialize, Serialize};
+
+use super::metering::Metered;
+use crate::error::{check_range, Result};
+
+/// Parameters of the light tracking.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct LightParams {
+    /// A uniform change of light of at least this (EV) is followed.
+    pub min_change_ev: f64,
+    /// Ratios spread wider than this (interquartile range, EV) mean the
+    /// scene changed, not only its light.
+    pub max_spread_ev: f64,
+    /// Pixels well exposed in both frames needed for a measurement.
+    pub min_pixels: usize,
+    /// A pixel counts when its intensity lies in `[low, high]` in both
+    /// frames and none of its samples saturated.
+    pub low: f32,
+    /// See `low`.
+    pub high: f32,
+    /// The reference keeps every `stride`-th metered pixel along each axis.
+    pub stride: usize,
+}
+
+impl Default for LightParams {
+    fn default() -> Self {
+        Self {
+            min_change_ev: 0.25,
+            max_spread_ev: 0.25,
+            min_pixels: 100,
+            low: 0.012,
+            high: 0.9,
+            stride: 2,
+        }
+    }
+}
+
+impl LightParams {
+    /// Checks the parameters.
+    pub fn validate(&self) -> Result<()> {
+        check_range(
+            "light.min_change_ev",
+            self.min_change_ev,
+            0.01,
+            10.0,
+            "an EV in [0.01, 10]",
+        )?;
+        check_range(
+            "light.max_spread_ev",
+            self.max_spread_ev,
+            0.001,
+            5.0,
+            "an EV in [0.001, 5]",
+        )?;
+        check_range(
+            "light.min_pixels",
+            self.min_pixels as f64,
+            10.0,
+            1e7,
+            "a pixel count of at least 10",
+        )?;
+        check_range(
+            "light.low",
+            f64::from(self.low),
+            0.0,
+            0.5,
+            "an intensity in [0, 0.5]",
+        )?;
+        check_range(
+            "light.high",
+            f64::from(self.high),
+            f64::from(self.low) + 0.05,
+            1.0,
+            "an intensity in (low + 0.05, 1]",
+        )?;
+        check_range(
+            "light.stride",
+            self.stride as f64,
+            1.0,
+            64.0,
+            "a stride in [1, 64]",
+        )?;
+        Ok(())
+    }
+}
+
+/// The light of a frame against the reference.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LightChange {
+    /// `log2 ρ`: how much brighter the scene is (EV).
+    pub ev: f64,
+    /// Interquartile range of the pixels' `log2` ratios (EV).
+    pub spread_ev: f64,
+    /// Pixels compared.
+    pub pixels: usize,
+    /// The best exposure now: the reference's over `ρ`.
+    pub best: f64,
+    /// Whether too few pixels stayed in range and `ev` is a bound from
+    /// those that left it: the light changed at least this much.
+    pub bound: bool,
+}
+
+impl LightChange {
+    /// Whether this is a uniform change of light large enough to follow.
+    pub fn follow(&self, params: &LightParams) -> bool {
+        self.uniform(params) && self.ev.abs() >= params.min_change_ev
+    }
+
+    /// Whether the pixels agree on one ratio (the scene is the reference's).
+    pub fn uniform(&self, params: &LightParams) -> bool {
+        self.pixels >= params.min_pixels && self.spread_ev <= params.max_spread_ev
+    }
+}
+
+#[derive(Clone, Debug)]
+struct Reference {
+    width: usize,
+    height: usize,
+    stride: usize,
+    /// `I / E` per kept pixel; NaN where the pixel does not count.
+    radiance: Vec<f32>,
+    /// The best exposure the law predicted on the reference frame.
+    best: f64,
+}
+
+/// The reference frame and what it measures.
+#[derive(Clone, Debug, Default)]
+pub struct LightTracker {
+    reference: Option<Reference>,
+}
+
+/// A metered pixel as the tracking sees it.
+enum Pixel {
+    /// Outside the metered region.
+    Out,
+    /// Within `[low, high]` with no saturated sample: its intensity.
+    Usable(f32),
+    /// Below `low`: its intensity is at most this.
+    Dark(f32),
+    /// Above `high` or with a saturated sample: at least this.
+    Bright(f32),
+}
+
+fn classify(params: &LightParams, metered: &Metered, k: usize) -> Pixel {
+    let Some(&v) = metered.luma().get(k) else {
+        return Pixel::Out;
+    };
+    if metered
+        .weight()
+        .is_some_and(|w| w.get(k).is_none_or(|&w| w <= 0.0))
+    {
+        return Pixel::Out;
+    }
+    let clipped = metered
+        .saturated_samples()
+        .is_some_and(|s| s.get(k).is_some_and(|&s| s > 0.0));
+    if clipped || v > params.high {
+        Pixel::Bright(v.max(params.high))
+    } else if v < params.low {
+        Pixel::Dark(params.low)
+    } else {
+        Pixel::Usable(v)
+    }
+}
+
+/// The `q`-quantile (in [0, 1]) of `v`, reordering it.
+fn quantile(v: &mut [f32], q: f64) -> f32 {
+    let k = ((v.len() - 1) as f64 * q).round() as usize;
+    *v.select_nth_unstable_by(k, f32::total_cmp).1
+}
+
+impl LightTracker {
+    /// Forgets the reference.
+    pub fn reset(&mut self) {
+        self.reference = None;
+    }
+
+    /// Whether there is a reference.
+    pub fn has_reference(&self) -> bool {
+        self.reference.is_some()
+    }
+
+    /// Makes `metered`, taken at exposure `taken`, the reference, with
+    /// `best` the best exposure the law predicts on it.
+    pub fn set_reference(
+        &mut self,
+        params: &LightParams,
+        metered: &Metered,
+        taken: f64,
+        best: f64,
+    ) {
+        let stride = params.stride.max(1);
+        let (w, h) = (metered.width(), metered.height());
+        let (width, height) = (w.div_ceil(stride), h.div_ceil(stride));
+        let mut radiance = match self.reference.take() {
+            Some(r) => r.radiance,
+            None => Vec::new(),
+        };
+        radiance.clear();
+        let inv = (1.0 / taken) as f32;
+        for y in (0..h).step_by(stride) {
+            for x in (0..w).step_by(stride) {
+                let v = match classify(params, metered, y * w + x) {
+                    Pixel::Usable(v) => v * inv,
+                    _ => f32::NAN,
+                };
+                radiance.push(v);
+            }
+        }
+        self.reference = (taken.is_finite() && taken > 0.0 && best.is_finite() && best > 0.0)
+            .then_some(Reference {
+                width,
+                height,
+                stride,
+                radiance,
+                best,
+            });
+    }
+
+    /// Replaces the best exposure of the reference (the exposure finally
+    /// commanded on it, when that differs from what the law asked).
+    pub fn set_best(&mut self, best: f64) {
+        if let Some(r) = self
+            .reference
+            .as_mut()
+            .filter(|_| best.is_finite() && best > 0.0)
+        {
+            r.best = best;
+        }
+    }
+
+    /// The light of `metered`, taken at `taken`, against the reference;
+    /// `None` without a reference, or when the frame's size differs from
+    /// the reference's or too few pixels count in both.
+    pub fn change(
+        &self,
+        params: &LightParams,
+        metered: &Metered,
+        taken: f64,
+    ) -> Option<LightChange> {
+        let r = self.reference.as_ref()?;
+        let (w, h) = (metered.width(), metered.height());
+        if w.div_ceil(r.stride) != r.width
+            || h.div_ceil(r.stride) != r.height
+            || taken.is_nan()
+            || taken <= 0.0
+        {
+            return None;
+        }
+        let inv = 1.0 / taken;
+        let mut ratios = Vec::with_capacity(r.radiance.len());
+        // Ratios known only to be at least (pixels now too bright) or at
+        // most (now too dark) this.
+        let (mut above, mut below) = (Vec::new(), Vec::new());
+        let mut k = 0;
+        for y in (0..h).step_by(r.stride) {
+            for x in (0..w).step_by(r.stride) {
+                let before = r.radiance[k];
+                k += 1;
+                if before.is_nan() {
+                    continue;
+                }
+                match classify(params, metered, y * w + x) {
+                    Pixel::Usable(v) => ratios.push(v / before),
+                    Pixel::Bright(v) => above.push(v / before),
+                    Pixel::Dark(v) => below.push(v / before),
+                    Pixel::Out => {}
+                }
+            }
+        }
+        let ev = |r: f32| (f64::from(r) * inv).log2();
+        let change = |ev: f64, spread_ev: f64, pixels: usize, bound: bool| LightChange {
+            ev,
+            spread_ev,
+            pixels,
+            best: r.best / ev.exp2(),
+            bound,
+        };
+        let min = params.min_pixels.max(4);
+        if ratios.len() >= min {
+            // Quantiles of the ratios are the ratios of the quantiles of
+            // their logarithms: one log2 per quantile, not per pixel.
+            let q1 = ev(quantile(&mut ratios, 0.25));
+            let q3 = ev(quantile(&mut ratios, 0.75));
+            let median = ev(quantile(&mut ratios, 0.5));
+            return Some(change(median, q3 - q1, ratios.len(), false));
+        }
+        // Too few pixels left in range: when most of the reference's went
+        // out of it the same way, those nearest the edge of the range
+        // bound the change (a pixel of the reference just below the level
+        // that clips now says the light grew by nearly the whole ratio).
+        let all = ratios.len() + above.len() + below.len();
+        let (out, q) = if above.len() >= below.len() {
+            (&mut above, 1.0 - BOUND_QUANTILE)
+        } else {
+            (&mut below, BOUND_QUANTILE)
+        };
+        (out.len() >= min && 2 * out.len() > all)
+            .then(|| change(ev(quantile(out, q)), 0.0, out.len(), true))
+    }
+}
+
+/// Of the pixels that left the range, the quantile of their ratios that
+/// bounds the change (from the near end): robust to a few that moved.
+const BOUND_QUANTILE: f64 = 0.1;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A textured scene of radiance in (0.01, 1.6), seen at exposure `e`
+    /// under light `l`, with a sensor that clips at 1.
+    fn frame(w: usize, h: usize, e: f64, l: f64, shift: usize) -> Metered {
+        let luma = (0..w * h)
+            .map(|k| {
+                let (x, y) = ((k % w + shift) as f64, (k / w) as f64);
+                let r = 0.01 + 0.8 * (1.0 + (x * 0.37).sin() * (y * 0.23).cos()) + 0.002 * x;
+                ((r * e * l) as f32).min(1.0)
+            })
+            .collect();
+        Metered::from_luma(w, h, luma, None).expect("metered")
+    }
+
+    #[test]
+    fn a_uniform_change_of_light_is_measured_from_the_pixels_left() {
+        let p = LightParams::default();
+        let mut t = LightTracker::default();
+        let before = frame(160, 120, 0.5, 1.0, 0);
+        t.set_reference(&p, &before, 0.5, 0.55);
+        // Unchanged: no change to follow.
+        let same = t
+            .change(&p, &frame(160, 120, 0.5, 1.0, 0), 0.5)
+            .expect("same");
+        assert!(same.ev.abs() < 1e-4 && !same.follow(&p), "{same:?}");
+        // +3 stops at the same exposure: most of the image clips, and the
+        // darker pixels still measure the light.
+        let bright = frame(160, 120, 0.5, 8.0, 0);
+        assert!(bright.stats().saturated_fraction > 0.5);
+        let c = t.change(&p, &bright, 0.5).expect("bright");
+        assert!(
+            (c.ev - 3.0).abs() < 0.01 && !c.bound && c.follow(&p),
+            "{c:?}"
+        );
+        assert!((c.best / (0.55 / 8.0) - 1.0).abs() < 0.01, "{c:?}");
+        // +5 stops: too few pixels stay in range; those that clipped say
+        // the light grew by at least this much.
+        let c = t
+            .change(&p, &frame(160, 120, 0.5, 32.0, 0), 0.5)
+            .expect("bound");
+        assert!(
+            c.bound && c.ev > 1.5 && c.ev <= 5.0 && c.follow(&p),
+            "{c:?}"
+        );
+        // −2 stops, measured on a frame taken at twice the exposure.
+        let c = t
+            .change(&p, &frame(160, 120, 1.0, 0.25, 0), 1.0)
+            .expect("dark");
+        assert!((c.ev + 2.0).abs() < 0.01 && c.follow(&p), "{c:?}");
+    }
+
+    #[test]
+    fn a_changed_scene_is_not_taken_for_a_change_of_light() {
+        let p = LightParams::default();
+        let mut t = LightTracker::default();
+        t.set_reference(&p, &frame(160, 120, 0.5, 1.0, 0), 0.5, 0.5);
+        let moved = t
+            .change(&p, &frame(160, 120, 0.5, 2.0, 7), 0.5)
+            .expect("moved");
+        assert!(!moved.uniform(&p) && !moved.follow(&p), "{moved:?}");
+        // A frame of another size has nothing to compare with.
+        assert!(t.change(&p, &frame(80, 60, 0.5, 1.0, 0), 0.5).is_none());
+        t.reset();
+        assert!(t.change(&p, &frame(160, 120, 0.5, 1.0, 0), 0.5).is_none());
+    }
+
+    #[test]
+    fn a_frame_that_left_the_range_gives_a_bound_only_when_most_of_it_did() {
+        let p = LightParams::default();
+        let mut t = LightTracker::default();
+        t.set_reference(&p, &frame(160, 120, 0.5, 1.0, 0), 0.5, 0.5);
+        // +10 stops: every pixel clips; −12 stops: every pixel is black.
+        let up = t
+            .change(&p, &frame(160, 120, 0.5, 1024.0, 0), 0.5)
+            .expect("up");
+        assert!(up.bound && up.ev > 1.0 && up.ev < 10.0, "{up:?}");
+        let down = t
+            .change(&p, &frame(160, 120, 0.5, 1.0 / 4096.0, 0), 0.5)
+            .expect("down");
+        assert!(down.bound && down.ev < -1.0 && down.ev > -12.0, "{down:?}");
+        // A reference with too few pixels in range measures nothing.
+        t.set_reference(&p, &frame(160, 120, 0.5, 1024.0, 0), 0.5, 0.5);
+        assert!(t.change(&p, &frame(160, 120, 0.5, 1.0, 0), 0.5).is_none());
+    }
+}
