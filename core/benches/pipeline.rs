@@ -8,6 +8,8 @@
 //!
 //! - `processor`: rigview's processing thread as it runs (masks prepared
 //!   once per calibration).
+//! - `processor_fast_law`: the same under rigview's fast law (its root
+//!   search, and every frame's light measured against a reference frame).
 //! - `closed_loop_and_compose`: the peer in the same run: the same steps
 //!   with metering that derives each ground mask's coverage on every frame
 //!   (`Meter::meter` with the raw mask), plus the composition.
@@ -19,7 +21,7 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use rigview_core::exposure::{Meter, MeteringConfig, NeighbourGraph, RigController};
+use rigview_core::exposure::{LawKind, Meter, MeteringConfig, NeighbourGraph, RigController};
 use rigview_core::pipeline::{ProcessingSettings, Processor, StageTimes};
 use rigview_core::sim::{SimConfig, SimRender, SimRig, SimRigOptions};
 use rigview_core::source::FrameSource;
@@ -53,6 +55,20 @@ fn bench(c: &mut Criterion) {
     )
     .unwrap();
     g.bench_function("processor", |b| {
+        b.iter(|| {
+            black_box(
+                p.process(&set, Instant::now(), StageTimes::default())
+                    .unwrap(),
+            )
+        });
+    });
+
+    // The same with rigview's fast law, which also measures every frame's
+    // light against a reference frame.
+    let mut fast = ProcessingSettings::default();
+    fast.controller.law.kind = LawKind::Fast;
+    let mut p = Processor::new(cams.clone(), Some(build()), graph(), fast).unwrap();
+    g.bench_function("processor_fast_law", |b| {
         b.iter(|| {
             black_box(
                 p.process(&set, Instant::now(), StageTimes::default())

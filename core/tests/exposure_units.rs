@@ -903,6 +903,40 @@ fn the_controller_commands_every_frame_and_never_reacts_twice() {
 }
 
 #[test]
+fn a_frame_still_at_the_old_setting_shows_no_command_that_leads_back_towards_it() {
+    // Two frames of latency: a command down, then one back up towards
+    // where the camera was. A frame still taken at the old setting lies
+    // nearer the second command than the first command does, and must not
+    // be taken for it.
+    let config = ControllerConfig {
+        balancing: None,
+        probe: None,
+        ..Default::default()
+    };
+    let scene = metered_scene(2000.0);
+    let at = |id: u64, us: f64| FrameInfo {
+        frame_id: id,
+        taken: ExposureSetting {
+            shutter_us: us,
+            gain_db: 0.0,
+        },
+    };
+    let mut cam = CameraController::new(&config, ExposureRange::default()).unwrap();
+    cam.unary(&config, &at(0, 2000.0), &scene).unwrap();
+    assert!(cam.command(1000.0, at(0, 2000.0).taken).0.is_some());
+    cam.unary(&config, &at(1, 2000.0), &scene).unwrap();
+    assert!(cam.command(1800.0, at(1, 2000.0).taken).0.is_some());
+    assert_eq!(cam.in_flight(), 2);
+    cam.unary(&config, &at(2, 2000.0), &scene).unwrap();
+    assert_eq!(cam.in_flight(), 2, "a frame at the old setting shows nothing");
+    assert_eq!(cam.base(at(2, 2000.0).taken).exposure(), 1800.0);
+    cam.unary(&config, &at(3, 1000.0), &scene).unwrap();
+    assert_eq!(cam.in_flight(), 1);
+    cam.unary(&config, &at(4, 1800.0), &scene).unwrap();
+    assert_eq!(cam.in_flight(), 0);
+}
+
+#[test]
 fn a_frame_that_shows_a_change_of_light_is_answered_before_the_last_command_shows() {
     let config = ControllerConfig {
         balancing: None,

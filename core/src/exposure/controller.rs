@@ -192,21 +192,26 @@ struct InFlight {
     probe: bool,
 }
 
-impl InFlight {
-    /// Whether a frame taken with `taken` shows this command: its exposure
-    /// equals the command's to 0.2 %, or it has moved from the setting
-    /// before and lies nearer the command than that setting (in log
-    /// exposure). Cameras quantise exposure time (whole microseconds,
-    /// sensor rows), so what they apply may differ slightly from what was
-    /// commanded.
-    fn shown_by(&self, taken: &ExposureSetting) -> bool {
-        let (e, to, from) = (
-            taken.exposure(),
-            self.setting.exposure(),
-            self.from.exposure(),
-        );
-        (e / to - 1.0).abs() <= SETTLED_TOLERANCE || (e / to).ln().abs() < (e / from).ln().abs()
-    }
+/// The newest of `in_flight` that a frame taken at exposure `e` shows: the
+/// command whose setting lies nearest the frame's (in log exposure), when
+/// it equals it to 0.2 % or lies nearer than the setting the camera had
+/// before the oldest of them. Cameras quantise exposure time (whole
+/// microseconds, sensor rows), so what they apply may differ slightly
+/// from what was commanded; and with more than one command in flight a
+/// later one may lead back towards where the camera was, so a frame still
+/// at the old setting must not be taken for it.
+fn shown(in_flight: &VecDeque<InFlight>, e: f64) -> Option<usize> {
+    let before = in_flight.front()?.from.exposure();
+    let dist = |to: f64| (e / to).ln().abs();
+    let (k, d) = in_flight
+        .iter()
+        .enumerate()
+        .map(|(k, c)| (k, dist(c.setting.exposure())))
+        .fold(None, |best: Option<(usize, f64)>, (k, d)| match best {
+            Some((_, b)) if b < d => best,
+            _ => Some((k, d)),
+        })?;
+    (d <= SETTLED_TOLERANCE || d < dist(before)).then_some(k)
 }
 
 /// A frame within this (EV) of where the commands in flight leave the
@@ -422,7 +427,7 @@ impl CameraController {
     fn track(&mut self, taken: &ExposureSetting, timeout: u32) {
         self.frames += 1;
         // A probe's exposure lasts until the next command shows.
-        if let Some(k) = self.in_flight.iter().rposition(|c| c.shown_by(taken)) {
+        if let Some(k) = shown(&self.in_flight, taken.exposure()) {
             self.probe_frame = self.in_flight[k].probe;
             self.in_flight.drain(..=k);
         }
@@ -1018,11 +1023,18 @@ impl RigController {
             let (target, alpha, damping) =
                 match balancing.filter(|_| !neighbour.is_empty() && u.light.is_none()) {
                     Some(params) => {
-                        cam.damping.observe(
-                            input.info.taken.exposure().log2(),
-                            f64::from(input.metered.stats().mean),
-                            config.bracket.light_tolerance,
-                        );
+                        // Under the fast law a change of light is measured
+                        // (the camera follows it, and the damping starts
+                        // again); the frames' means guess at it otherwise,
+                        // and frames that commands in flight leave at
+                        // several exposures would read as changes.
+                        if config.law.kind != LawKind::Fast {
+                            cam.damping.observe(
+                                input.info.taken.exposure().log2(),
+                                f64::from(input.metered.stats().mean),
+                                config.bracket.light_tolerance,
+                            );
+                        }
                         let b = balance::balance(u.desired, bases[i], &neighbour);
                         let (e, kappa) = if u.hold.is_some() {
                             (b.exposure, cam.damping.kappa())
