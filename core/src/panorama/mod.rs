@@ -41,6 +41,10 @@
 //! meets the cylinder on a canvas pixel the camera contributes to: the
 //! whole image that reaches the panorama is metered.
 
+mod matching;
+
+use std::sync::OnceLock;
+
 use nalgebra::{Point2, Vector3};
 use serde::{Deserialize, Serialize};
 
@@ -50,7 +54,9 @@ use crate::error::{check_range, Error, Result};
 use crate::exposure::controller::PairObservation;
 use crate::image::{FrameView, RoiMask};
 use crate::surround::mosaic;
-use crate::surround::{Mosaic, Overlap};
+use crate::surround::{Mosaic, Overlap, Plan};
+
+pub use matching::{Detector, FeatureMatch, MatchOptions, MatchTimes, OverlapBand, PairMatches};
 
 /// The cylinder a panorama shows, and its canvas.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -217,10 +223,17 @@ impl PanoramaOptions {
 pub struct Panorama {
     spec: CylinderSpec,
     centre: Vector3<f64>,
+    /// Per camera, its centre (vehicle frame).
+    origins: Vec<Vector3<f64>>,
     headings: Vec<f64>,
     mosaic: Mosaic,
     masks: Vec<RoiMask>,
     overlaps: Vec<Overlap>,
+    /// Per overlap, its band of the canvas.
+    bands: Vec<OverlapBand>,
+    /// Per band, the plans warping each of its cameras into it, built on
+    /// first use.
+    band_plans: Vec<OnceLock<[Option<Plan>; 2]>>,
 }
 
 impl std::ops::Deref for Panorama {
@@ -322,13 +335,21 @@ impl Panorama {
             overlaps.push(o);
         }
         check_overlaps(&mosaic, &overlaps)?;
+        let bands: Vec<OverlapBand> =
+            matching::bands((w, h), |k, p| maps.sees(k, p), &rig.neighbours)
+                .into_iter()
+                .flatten()
+                .collect();
         Ok(Self {
             spec: spec.clone(),
             centre,
+            origins: projectors.iter().map(|p| *p.pose().translation()).collect(),
             headings,
             mosaic,
             masks,
             overlaps,
+            band_plans: bands.iter().map(|_| OnceLock::new()).collect(),
+            bands,
         })
     }
 

@@ -61,6 +61,7 @@ use rigview_calib::rig::Rig;
 
 pub use compose::{Canvas, Composer};
 pub use mosaic::{CameraLayer, Mosaic};
+pub(crate) use remap::Plan;
 pub use seams::{SeamBands, SeamStep};
 
 use crate::error::{Error, Result};
