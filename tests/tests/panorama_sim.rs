@@ -18,7 +18,6 @@
 mod surround_common;
 
 use nalgebra::{Rotation3, Vector3};
-use rigview_calib::tools::corners::{harris_corners, HarrisParams};
 use rigview_calib::{Pose, Rig};
 use rigview_core::exposure::balance::pair_ratio;
 use rigview_core::exposure::{BalanceParams, FrameView, PixelFormat};
@@ -41,11 +40,6 @@ fn spec() -> CylinderSpec {
     }
 }
 
-fn detect(gray: &[u8], w: usize, h: usize, mask: &[u8]) -> rigview_core::Result<Vec<[f32; 2]>> {
-    harris_corners(gray, w, h, Some(mask), &HarrisParams::default())
-        .map_err(|e| rigview_core::Error::InvalidConfig(e.to_string()))
-}
-
 fn stills(r: &SimRender, shutter_us: &[f64]) -> Vec<Vec<u8>> {
     (0..r.cameras().len())
         .map(|k| surround_common::still(r, k, shutter_us[k]))
@@ -60,7 +54,7 @@ fn matches(rig: &Rig, r: &SimRender, buffers: &[Vec<u8>]) -> Vec<PairMatches> {
         .map(|(b, c)| FrameView::new(PixelFormat::Mono8, c.width, c.height, b).unwrap())
         .collect();
     let (pairs, times) = pano
-        .match_pairs(&frames, &detect, &MatchOptions::default())
+        .match_pairs(&frames, &rigview_tests::harris, &MatchOptions::default())
         .unwrap();
     println!("{times:?}");
     for p in &pairs {
