@@ -54,8 +54,10 @@ use rigview_calib::pose::Pose;
 use rigview_calib::rig::{Camera, Frame, Rig};
 use rigview_core::exposure::{FrameView, PixelFormat};
 use rigview_core::image::{distance_to_zero, rgb8_to_mono8};
+use rigview_core::panorama::{CylinderSpec, MatchOptions, Panorama, PanoramaOptions};
+use rigview_core::sim::{SimConfig, SimRender};
 use rigview_core::surround::{
-    BlendMode, Canvas, CanvasSpec, Composer, SurroundOptions, SurroundView,
+    BlendMode, Canvas, CanvasSpec, Composer, Mosaic, SurroundOptions, SurroundView,
 };
 
 const W: usize = 1288;
@@ -124,7 +126,7 @@ struct OpencvRemap {
 }
 
 impl OpencvRemap {
-    fn new(view: &SurroundView) -> Self {
+    fn new(view: &Mosaic) -> Self {
         let (w, h) = view.size();
         let mut blended = vec![false; w * h];
         let cameras = view
@@ -201,7 +203,7 @@ impl OpencvRemap {
 
     /// Composes RGB `frames` with linear blending into `out` (RGB, the
     /// canvas size).
-    fn compose(&mut self, view: &SurroundView, frames: &[Vec<u8>], out: &mut [u8]) {
+    fn compose(&mut self, view: &Mosaic, frames: &[Vec<u8>], out: &mut [u8]) {
         let w = view.size().0;
         out.fill(0);
         for &(start, len) in &self.blended {
@@ -641,5 +643,99 @@ fn distance_transform(c: &mut Criterion) {
     core::set_num_threads(threads).unwrap();
 }
 
-criterion_group!(benches, compose, rgb_to_mono, distance_transform);
+/// The panorama of the same rig and frames on a 4096×1024 cylinder
+/// (radius 10 m, 25° below to 35° above the horizon) with linear blending:
+/// `Composer::compose` against the OpenCV-remap composition of the same
+/// mosaic, one core each. Then the feature matching of its four overlaps
+/// on a noise-free frame set of the simulated rig (Harris corners through
+/// OpenCV, BRIEF, gated mutual matching, RANSAC, patches), whose split is
+/// printed.
+fn panorama(c: &mut Criterion) {
+    let threads = core::get_num_threads().unwrap();
+    core::set_num_threads(1).unwrap();
+    let rig = rig();
+    let spec = CylinderSpec {
+        width: 4096,
+        height: 1024,
+        ..CylinderSpec::default()
+    };
+    let pano = Panorama::build(&rig, &spec, &PanoramaOptions::default()).unwrap();
+    let data = frames();
+    let views: Vec<FrameView<'_>> = data
+        .iter()
+        .map(|d| FrameView::new(PixelFormat::Rgb8, W, H, d).unwrap())
+        .collect();
+    let mut composer = Composer::new();
+    let mut canvas = Canvas::new(0, 0, 3);
+    composer
+        .compose(&pano, &views, BlendMode::Linear, &mut canvas)
+        .unwrap();
+    let mut opencv_remap = OpencvRemap::new(&pano);
+    let mut opencv_canvas = vec![0u8; canvas.data.len()];
+    opencv_remap.compose(&pano, &data, &mut opencv_canvas);
+    let differ = canvas
+        .data
+        .iter()
+        .zip(&opencv_canvas)
+        .filter(|(a, b)| a.abs_diff(**b) > 10)
+        .count();
+    assert!(
+        differ < canvas.data.len() / 100,
+        "the OpenCV-remap composition differs: {differ} values"
+    );
+    let mut compose_group = group(c, "panorama_4x1288x964_to_4096x1024", 6);
+    compose_group.bench_function("rigview_linear_rgb", |b| {
+        b.iter(|| {
+            composer
+                .compose(&pano, black_box(&views), BlendMode::Linear, &mut canvas)
+                .unwrap();
+        });
+    });
+    compose_group.bench_function("opencv_remap_linear_rgb", |b| {
+        b.iter(|| opencv_remap.compose(&pano, black_box(&data), &mut opencv_canvas));
+    });
+    compose_group.finish();
+
+    let render = SimRender::new(&SimConfig::preset("overcast").unwrap()).unwrap();
+    let sim = Panorama::build(render.rig(), &spec, &PanoramaOptions::default()).unwrap();
+    let stills: Vec<Vec<u8>> = (0..4)
+        .map(|k| {
+            let setting = rigview_core::exposure::ExposureSetting {
+                shutter_us: 4000.0,
+                gain_db: 0.0,
+            };
+            let frame = render.render(k, 0, setting, false).unwrap();
+            frame.view().unwrap().packed().unwrap().to_vec()
+        })
+        .collect();
+    let sim_views: Vec<FrameView<'_>> = stills
+        .iter()
+        .zip(render.cameras())
+        .map(|(d, c)| FrameView::new(c.format, c.width, c.height, d).unwrap())
+        .collect();
+    let detect = |gray: &[u8], w: usize, h: usize, mask: &[u8]| {
+        use rigview_calib::tools::corners::{harris_corners, HarrisParams};
+        harris_corners(gray, w, h, Some(mask), &HarrisParams::default())
+            .map_err(|e| rigview_core::Error::InvalidConfig(e.to_string()))
+    };
+    let options = MatchOptions::default();
+    // The first call builds the bands' plans; the second gives the split.
+    sim.match_pairs(&sim_views, &detect, &options).unwrap();
+    let (pairs, times) = sim.match_pairs(&sim_views, &detect, &options).unwrap();
+    eprintln!(
+        "matching, simulated rig at 4096x1024: {times:?}; inliers per pair {:?}",
+        pairs.iter().map(|p| p.inliers).collect::<Vec<_>>()
+    );
+    let mut group = group(c, "panorama_matching_sim_4096x1024", 10);
+    group.bench_function("four_pairs", |b| {
+        b.iter(|| {
+            sim.match_pairs(black_box(&sim_views), &detect, &options)
+                .unwrap()
+        });
+    });
+    group.finish();
+    core::set_num_threads(threads).unwrap();
+}
+
+criterion_group!(benches, compose, rgb_to_mono, distance_transform, panorama);
 criterion_main!(benches);
