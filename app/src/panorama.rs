@@ -5,11 +5,14 @@
 use std::io::Write;
 
 use anyhow::{Context, Result};
+use rigview_calib::formats;
 use rigview_calib::rig::Rig;
 use rigview_calib::tools::corners::{harris_corners, HarrisParams};
 use rigview_core::exposure::balance::pair_ratio;
 use rigview_core::exposure::BalanceParams;
-use rigview_core::panorama::{MatchOptions, MatchTimes, PairMatches, Panorama, PanoramaOptions};
+use rigview_core::panorama::{
+    MatchOptions, MatchTimes, PairMatches, Panorama, PanoramaOptions, RefineOptions,
+};
 use rigview_core::surround::{Canvas, Composer};
 
 use crate::cli::panorama::PanoramaArgs;
@@ -110,10 +113,60 @@ pub fn draw_matches(canvas: &mut Canvas, pairs: &[PairMatches]) {
 /// `rigview panorama`: composes the images, writes the panorama, and
 /// reports each pair's matches and brightness ratio.
 pub fn run_stills(args: &PanoramaArgs, out: &mut dyn Write) -> Result<()> {
-    let (rig, images) = stills::load(&args.input.rig, &args.input.images)?;
-    let pano = Panorama::build(&rig, &args.spec(), &PanoramaOptions::default())
+    let (mut rig, images) = stills::load(&args.input.rig, &args.input.images)?;
+    let mut pano = Panorama::build(&rig, &args.spec(), &PanoramaOptions::default())
         .context("building the panorama")?;
     let frames = stills::frames(&images)?;
+    let (mut pairs, times) = pano
+        .match_pairs(&frames, &detect, &MatchOptions::default())
+        .context("matching features in the overlaps")?;
+    for line in pair_lines(&rig, &pairs, &BalanceParams::default()) {
+        writeln!(out, "{line}")?;
+    }
+    writeln!(out, "{}", times_line(&times))?;
+    if args.refine {
+        let options = RefineOptions {
+            bound_deg: args.refine_bound_deg,
+            ..RefineOptions::default()
+        };
+        let refined = pano
+            .refine(&pairs, &options)
+            .context("refining the cameras' rotations")?;
+        for p in &refined.pairs {
+            let px = |v: Option<f64>| v.map_or("-".into(), |v| format!("{v:.2} px"));
+            writeln!(
+                out,
+                "refined pair {}–{}: {} inliers, median reprojection error {} before, {} after",
+                rig.cameras[p.i].name,
+                rig.cameras[p.j].name,
+                p.inliers,
+                px(p.error_before_px),
+                px(p.error_after_px)
+            )?;
+        }
+        for (cam, q) in rig.cameras.iter().zip(&refined.rotations) {
+            writeln!(
+                out,
+                "refined {}: turned by {:.3}°",
+                cam.name,
+                q.angle().to_degrees()
+            )?;
+        }
+        rig = refined.apply(&rig)?;
+        pano = Panorama::build(&rig, &args.spec(), &PanoramaOptions::default())
+            .context("building the refined panorama")?;
+        pairs = pano
+            .match_pairs(&frames, &detect, &MatchOptions::default())
+            .context("matching features with the refined rotations")?
+            .0;
+        if let Some(path) = &args.save_rig {
+            let written = formats::save(&rig, path, None)
+                .with_context(|| format!("saving the refined rig to {}", path.display()))?;
+            for p in written {
+                writeln!(out, "wrote the refined rig to {}", p.display())?;
+            }
+        }
+    }
     let mut canvas = Canvas::new(0, 0, 3);
     Composer::new().compose(&pano, &frames, args.input.blend, &mut canvas)?;
     stills::save(&canvas, &args.out)?;
@@ -137,13 +190,6 @@ pub fn run_stills(args: &PanoramaArgs, out: &mut dyn Write) -> Result<()> {
             100.0 * mask.coverage()
         )?;
     }
-    let (pairs, times) = pano
-        .match_pairs(&frames, &detect, &MatchOptions::default())
-        .context("matching features in the overlaps")?;
-    for line in pair_lines(&rig, &pairs, &BalanceParams::default()) {
-        writeln!(out, "{line}")?;
-    }
-    writeln!(out, "{}", times_line(&times))?;
     if let Some(path) = &args.matches_out {
         draw_matches(&mut canvas, &pairs);
         stills::save(&canvas, path)?;
@@ -189,6 +235,7 @@ mod tests {
         let dir = std::env::temp_dir().join(format!("rigview-panorama-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let (png, overlay) = (dir.join("pano.png"), dir.join("matches.png"));
+        let rig_out = dir.join("refined.rig.yaml");
         let a = args(&[
             "--out",
             png.to_str().unwrap(),
@@ -202,6 +249,9 @@ mod tests {
             "seams",
             "--radius-m",
             "8",
+            "--refine",
+            "--save-rig",
+            rig_out.to_str().unwrap(),
         ]);
         let mut report = Vec::new();
         run_stills(&a, &mut report).unwrap();
@@ -217,6 +267,19 @@ mod tests {
             );
         }
         assert!(report.contains("radius 8 m"), "{report}");
+        assert!(report.contains("refined pair front–left"), "{report}");
+        // The refined rig reads back, with the first camera untouched.
+        let refined = formats::load(&rig_out, None, None).unwrap().rig;
+        let original = formats::load(&data(), None, None).unwrap().rig;
+        let turn = |k: usize| {
+            original.cameras[k]
+                .pose
+                .unwrap()
+                .rotation_angle_to(&refined.cameras[k].pose.unwrap())
+                .to_degrees()
+        };
+        assert!(turn(0) < 1e-6, "{}", turn(0));
+        assert!((1..4).all(|k| turn(k) <= 3.0 + 1e-6));
         for p in [&png, &overlay] {
             let img = image::open(p).unwrap();
             assert_eq!((img.width(), img.height()), (2048, 380));

@@ -448,12 +448,12 @@ impl Panorama {
 
     /// Camera `k`'s ray (unit, vehicle frame) through the cylinder's point
     /// at a canvas position.
-    fn ray(&self, k: usize, at: [f64; 2]) -> Vector3<f64> {
+    pub(super) fn ray(&self, k: usize, at: [f64; 2]) -> Vector3<f64> {
         (self.point(at[0], at[1]) - self.origins[k]).normalize()
     }
 
     /// What the reprojection error of a pair's matches needs.
-    fn pair_geometry(&self, i: usize, j: usize) -> PairGeometry {
+    pub(super) fn pair_geometry(&self, i: usize, j: usize) -> PairGeometry {
         PairGeometry {
             o_i: self.origins[i],
             o_j: self.origins[j],
@@ -464,11 +464,11 @@ impl Panorama {
 
 /// A match as two rays: camera `i`'s and camera `j`'s (unit, vehicle
 /// frame).
-type RayPair = (Vector3<f64>, Vector3<f64>);
+pub(super) type RayPair = (Vector3<f64>, Vector3<f64>);
 
 /// Two cameras' centres, for the epipolar error of their matches.
 #[derive(Clone, Copy, Debug)]
-struct PairGeometry {
+pub(super) struct PairGeometry {
     o_i: Vector3<f64>,
     o_j: Vector3<f64>,
     /// Canvas pixels per radian of azimuth.
@@ -487,12 +487,18 @@ impl PairGeometry {
     /// The reprojection error of rays `f_i` and `f_j`: the angle of `f_j`
     /// from the epipolar plane of `f_i`, canvas pixels; `None` when the
     /// rays meet behind a camera.
-    fn error_px(&self, f_i: &Vector3<f64>, f_j: &Vector3<f64>) -> Option<f64> {
-        let n = self.normal(f_i)?;
+    pub(super) fn error_px(&self, f_i: &Vector3<f64>, f_j: &Vector3<f64>) -> Option<f64> {
         if !self.in_front(f_i, f_j) {
             return None;
         }
-        Some(n.dot(f_j).clamp(-1.0, 1.0).asin().abs() * self.px_per_rad)
+        self.signed_error_px(f_i, f_j).map(f64::abs)
+    }
+
+    /// The same with its sign (which side of the plane), whether or not
+    /// the rays meet in front of the cameras.
+    pub(super) fn signed_error_px(&self, f_i: &Vector3<f64>, f_j: &Vector3<f64>) -> Option<f64> {
+        let n = self.normal(f_i)?;
+        Some(n.dot(f_j).clamp(-1.0, 1.0).asin() * self.px_per_rad)
     }
 
     /// Whether the rays' closest points lie ahead of both cameras (rays

@@ -42,6 +42,7 @@
 //! whole image that reaches the panorama is metered.
 
 mod matching;
+mod refine;
 
 use std::sync::OnceLock;
 
@@ -57,6 +58,7 @@ use crate::surround::mosaic;
 use crate::surround::{Mosaic, Overlap, Plan};
 
 pub use matching::{Detector, FeatureMatch, MatchOptions, MatchTimes, OverlapBand, PairMatches};
+pub use refine::{PairRefinement, RefineOptions, Refinement};
 
 /// The cylinder a panorama shows, and its canvas.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
