@@ -353,19 +353,7 @@ impl Reference {
         let dsize = Size::new(size.0 as i32, size.1 as i32);
         self.acc = Mat::new_size_with_default(dsize, CV_32FC3, Scalar::all(0.0)).unwrap();
         for (k, f) in frames.iter().enumerate() {
-            let src = Mat::new_rows_cols_with_data(H as i32, (W * 3) as i32, f).unwrap();
-            let src = src.reshape(3, H as i32).unwrap();
-            let (m1, m2) = &self.undistort[k];
-            imgproc::remap(
-                &src,
-                &mut self.undistorted,
-                m1,
-                m2,
-                imgproc::INTER_LINEAR,
-                core::BORDER_CONSTANT,
-                Scalar::all(0.0),
-            )
-            .unwrap();
+            undistort(f, &self.undistort[k], &mut self.undistorted);
             imgproc::warp_perspective(
                 &self.undistorted,
                 &mut self.warped,
@@ -523,19 +511,7 @@ impl OpencvStitching {
         let mut blender = Detail_FeatherBlender::new(0.02).unwrap();
         Detail_FeatherBlenderTrait::prepare(&mut blender, self.roi).unwrap();
         for (k, f) in frames.iter().enumerate() {
-            let src = Mat::new_rows_cols_with_data(H as i32, (W * 3) as i32, f).unwrap();
-            let src = src.reshape(3, H as i32).unwrap();
-            let (m1, m2) = &self.undistort[k];
-            imgproc::remap(
-                &src,
-                &mut self.undistorted,
-                m1,
-                m2,
-                imgproc::INTER_LINEAR,
-                core::BORDER_CONSTANT,
-                Scalar::all(0.0),
-            )
-            .unwrap();
+            undistort(f, &self.undistort[k], &mut self.undistorted);
             let tl = Detail_CylindricalWarperTrait::warp(
                 &mut self.warper,
                 &self.undistorted,
@@ -555,6 +531,23 @@ impl OpencvStitching {
         Detail_FeatherBlenderTrait::blend(&mut blender, &mut self.out, &mut self.out_mask).unwrap();
         (self.out.cols(), self.out.rows())
     }
+}
+
+/// An RGB fisheye frame remapped through fixed-point maps `(m1, m2)` (the
+/// undistortion of both OpenCV pipelines) into `out`.
+fn undistort(frame: &[u8], (m1, m2): &(Mat, Mat), out: &mut Mat) {
+    let src = Mat::new_rows_cols_with_data(H as i32, (W * 3) as i32, frame).unwrap();
+    let src = src.reshape(3, H as i32).unwrap();
+    imgproc::remap(
+        &src,
+        out,
+        m1,
+        m2,
+        imgproc::INTER_LINEAR,
+        core::BORDER_CONSTANT,
+        Scalar::all(0.0),
+    )
+    .unwrap();
 }
 
 /// A benchmarked composition: its name, frames, canvas channels and gains.
