@@ -14,6 +14,8 @@
 //!   `rigview live --headless`.
 //! - [`logging`]: rigview's messages as `tracing` events, on stderr and in
 //!   the buffer the window and the headless modes show.
+//! - [`panorama`]: the panorama's Harris corners (OpenCV), its per-pair
+//!   report, and `rigview panorama`.
 //! - [`plot_png`]: a PNG plot of the exposure state (plotters).
 //! - [`report`]: the summary of a run (drops, latency, CPU use).
 //! - [`session`]: a source, its calibration and the processing pipeline.
@@ -28,6 +30,7 @@ pub mod gui;
 pub mod headless;
 pub mod live;
 pub mod logging;
+pub mod panorama;
 pub mod plot_png;
 pub mod recording;
 pub mod report;

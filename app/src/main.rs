@@ -37,6 +37,7 @@ fn run() -> Result<()> {
         Some(Command::Demo(args)) => cli::demo::run(args, out),
         Some(Command::Calib(args)) => cli::calib::run(args, out),
         Some(Command::Surround(args)) => cli::surround::run(args, out),
+        Some(Command::Panorama(args)) => cli::panorama::run(args, out),
         Some(Command::Live(args)) => cli::live::run(args, &cli.view, out),
         Some(Command::Record(args)) => cli::record::run(args, out),
         Some(Command::Recording(args)) => cli::record::run_recording(args, out),

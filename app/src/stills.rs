@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 use rigview_calib::formats;
+use rigview_calib::rig::Rig;
 use rigview_core::exposure::balance::pair_ratio;
 use rigview_core::exposure::{BalanceParams, FrameView, PixelFormat};
 use rigview_core::surround::{
@@ -33,57 +34,17 @@ pub struct Stills {
 /// Composes `stills`, reporting to `out`: the file written, each camera's
 /// ground mask, and each overlap's brightness ratio.
 pub fn run(stills: &Stills, out: &mut dyn Write) -> Result<()> {
-    let loaded = formats::load(&stills.rig, None, None)
-        .with_context(|| format!("loading the rig {}", stills.rig.display()))?;
-    let rig = loaded.rig;
+    let (rig, images) = load(&stills.rig, &stills.images)?;
     let spec = &stills.canvas;
-    let paths = image_paths(&stills.images, &rig)?;
-    let images = paths
-        .iter()
-        .map(|p| {
-            image::open(p)
-                .map(|i| i.to_rgb8())
-                .with_context(|| format!("reading the image {}", p.display()))
-        })
-        .collect::<Result<Vec<_>>>()?;
-    for ((cam, img), path) in rig.cameras.iter().zip(&images).zip(&paths) {
-        let (w, h) = (cam.intrinsics.width, cam.intrinsics.height);
-        if (img.width(), img.height()) != (w, h) {
-            bail!(
-                "{}: the image is {}×{}, but camera `{}` is calibrated for {w}×{h}",
-                path.display(),
-                img.width(),
-                img.height(),
-                cam.name
-            );
-        }
-    }
     let view = SurroundView::build(&rig, spec, &SurroundOptions::default())
         .context("building the surround view")?;
-    let frames = images
-        .iter()
-        .map(|i| {
-            FrameView::new(
-                PixelFormat::Rgb8,
-                i.width() as usize,
-                i.height() as usize,
-                i.as_raw(),
-            )
-        })
-        .collect::<rigview_core::Result<Vec<_>>>()?;
+    let frames = frames(&images)?;
     let mut canvas = Canvas::new(0, 0, 3);
     Composer::new().compose(&view, &frames, stills.blend, &mut canvas)?;
     if let Some(path) = &stills.vehicle_image {
         paste_vehicle(&mut canvas, spec, path)?;
     }
-    image::save_buffer(
-        &stills.out,
-        &canvas.data,
-        canvas.width as u32,
-        canvas.height as u32,
-        image::ColorType::Rgb8,
-    )
-    .with_context(|| format!("writing {}", stills.out.display()))?;
+    save(&canvas, &stills.out)?;
     writeln!(
         out,
         "wrote {} ({}×{} px, {} px/m, {} blending)",
@@ -122,8 +83,66 @@ pub fn run(stills: &Stills, out: &mut dyn Write) -> Result<()> {
     Ok(())
 }
 
+/// Loads the rig at `rig` and one RGB image per camera (`images`: in rig
+/// order, or `NAME=PATH`); an image of another size than its camera's
+/// calibration is an error naming the file and the camera.
+pub fn load(rig: &Path, images: &[String]) -> Result<(Rig, Vec<image::RgbImage>)> {
+    let loaded = formats::load(rig, None, None)
+        .with_context(|| format!("loading the rig {}", rig.display()))?;
+    let rig = loaded.rig;
+    let paths = image_paths(images, &rig)?;
+    let images = paths
+        .iter()
+        .map(|p| {
+            image::open(p)
+                .map(|i| i.to_rgb8())
+                .with_context(|| format!("reading the image {}", p.display()))
+        })
+        .collect::<Result<Vec<_>>>()?;
+    for ((cam, img), path) in rig.cameras.iter().zip(&images).zip(&paths) {
+        let (w, h) = (cam.intrinsics.width, cam.intrinsics.height);
+        if (img.width(), img.height()) != (w, h) {
+            bail!(
+                "{}: the image is {}×{}, but camera `{}` is calibrated for {w}×{h}",
+                path.display(),
+                img.width(),
+                img.height(),
+                cam.name
+            );
+        }
+    }
+    Ok((rig, images))
+}
+
+/// The images as RGB8 frames.
+pub fn frames(images: &[image::RgbImage]) -> Result<Vec<FrameView<'_>>> {
+    Ok(images
+        .iter()
+        .map(|i| {
+            FrameView::new(
+                PixelFormat::Rgb8,
+                i.width() as usize,
+                i.height() as usize,
+                i.as_raw(),
+            )
+        })
+        .collect::<rigview_core::Result<Vec<_>>>()?)
+}
+
+/// Writes an RGB canvas as PNG.
+pub fn save(canvas: &Canvas, path: &Path) -> Result<()> {
+    image::save_buffer(
+        path,
+        &canvas.data,
+        canvas.width as u32,
+        canvas.height as u32,
+        image::ColorType::Rgb8,
+    )
+    .with_context(|| format!("writing {}", path.display()))
+}
+
 /// The image of each camera, in rig order.
-fn image_paths(images: &[String], rig: &rigview_calib::rig::Rig) -> Result<Vec<PathBuf>> {
+fn image_paths(images: &[String], rig: &Rig) -> Result<Vec<PathBuf>> {
     let n = rig.cameras.len();
     let named: Vec<Option<(&str, &str)>> = images.iter().map(|a| a.split_once('=')).collect();
     if named.iter().all(Option::is_some) {
@@ -157,7 +176,7 @@ fn image_paths(images: &[String], rig: &rigview_calib::rig::Rig) -> Result<Vec<P
     Ok(images.iter().map(PathBuf::from).collect())
 }
 
-fn names(rig: &rigview_calib::rig::Rig) -> String {
+fn names(rig: &Rig) -> String {
     rig.cameras
         .iter()
         .map(|c| c.name.as_str())

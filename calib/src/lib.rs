@@ -15,9 +15,7 @@
 mod cvutil;
 pub mod error;
 pub mod formats;
-// (Its users, the pose refinements, need OpenCV for their first guess.)
-#[cfg(feature = "opencv")]
-mod lm;
+pub mod lm;
 pub mod model;
 pub mod pose;
 pub mod report;

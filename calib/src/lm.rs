@@ -1,11 +1,13 @@
 //! A small Levenberg–Marquardt least-squares solver with a numerical
-//! Jacobian, for refining poses (six parameters, a few dozen residuals).
+//! Jacobian, for refining poses: one camera's (six parameters, a few dozen
+//! residuals) and a panorama's small rotations of every camera but one (a
+//! few parameters a camera, some hundred residuals).
 
 use nalgebra::{DMatrix, DVector};
 
 /// Minimises `Σ r(x)²` from `x0`; `r` returns `None` where the model is not
 /// defined (the step is then rejected). Returns the best `x` and its cost.
-pub(crate) fn minimise<F>(x0: &[f64], mut r: F, iterations: usize) -> (Vec<f64>, f64)
+pub fn minimise<F>(x0: &[f64], mut r: F, iterations: usize) -> (Vec<f64>, f64)
 where
     F: FnMut(&[f64]) -> Option<Vec<f64>>,
 {

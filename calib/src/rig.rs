@@ -101,6 +101,11 @@ pub struct CameraProjector {
 }
 
 impl CameraProjector {
+    /// The camera's pose in the rig frame.
+    pub fn pose(&self) -> &Pose {
+        &self.pose
+    }
+
     /// As [`Camera::project_rig`].
     pub fn project_rig(&self, p: &Vector3<f64>) -> Option<Point2<f64>> {
         self.model.project(&self.pose.to_camera(p))

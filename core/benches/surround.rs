@@ -54,8 +54,10 @@ use rigview_calib::pose::Pose;
 use rigview_calib::rig::{Camera, Frame, Rig};
 use rigview_core::exposure::{FrameView, PixelFormat};
 use rigview_core::image::{distance_to_zero, rgb8_to_mono8};
+use rigview_core::panorama::{CylinderSpec, MatchOptions, Panorama, PanoramaOptions};
+use rigview_core::sim::{SimConfig, SimRender};
 use rigview_core::surround::{
-    BlendMode, Canvas, CanvasSpec, Composer, SurroundOptions, SurroundView,
+    BlendMode, Canvas, CanvasSpec, Composer, Mosaic, SurroundOptions, SurroundView,
 };
 
 const W: usize = 1288;
@@ -124,7 +126,7 @@ struct OpencvRemap {
 }
 
 impl OpencvRemap {
-    fn new(view: &SurroundView) -> Self {
+    fn new(view: &Mosaic) -> Self {
         let (w, h) = view.size();
         let mut blended = vec![false; w * h];
         let cameras = view
@@ -201,7 +203,7 @@ impl OpencvRemap {
 
     /// Composes RGB `frames` with linear blending into `out` (RGB, the
     /// canvas size).
-    fn compose(&mut self, view: &SurroundView, frames: &[Vec<u8>], out: &mut [u8]) {
+    fn compose(&mut self, view: &Mosaic, frames: &[Vec<u8>], out: &mut [u8]) {
         let w = view.size().0;
         out.fill(0);
         for &(start, len) in &self.blended {
@@ -351,19 +353,7 @@ impl Reference {
         let dsize = Size::new(size.0 as i32, size.1 as i32);
         self.acc = Mat::new_size_with_default(dsize, CV_32FC3, Scalar::all(0.0)).unwrap();
         for (k, f) in frames.iter().enumerate() {
-            let src = Mat::new_rows_cols_with_data(H as i32, (W * 3) as i32, f).unwrap();
-            let src = src.reshape(3, H as i32).unwrap();
-            let (m1, m2) = &self.undistort[k];
-            imgproc::remap(
-                &src,
-                &mut self.undistorted,
-                m1,
-                m2,
-                imgproc::INTER_LINEAR,
-                core::BORDER_CONSTANT,
-                Scalar::all(0.0),
-            )
-            .unwrap();
+            undistort(f, &self.undistort[k], &mut self.undistorted);
             imgproc::warp_perspective(
                 &self.undistorted,
                 &mut self.warped,
@@ -393,6 +383,171 @@ impl Reference {
             .convert_to(&mut self.out, core::CV_8U, 1.0, 0.0)
             .unwrap();
     }
+}
+
+/// OpenCV's own route to a cylindrical panorama: per camera, the fisheye
+/// image undistorted to a pinhole view (`fisheye::initUndistortRectifyMap`
+/// once, `remap` per frame), warped onto the cylinder by
+/// `detail::CylindricalWarper` (its maps built in each call, as the
+/// stitching pipeline does), converted to 16 bits and fed to a
+/// `detail::FeatherBlender` with its warped mask (warped once). Its
+/// cylinder is at infinity (OpenCV's warper has no radius) and its scale
+/// gives 4096 pixels for 360°.
+struct OpencvStitching {
+    undistort: Vec<(Mat, Mat)>,
+    k: Mat,
+    rotations: Vec<Mat>,
+    masks: Vec<Mat>,
+    warper: opencv::stitching::Detail_CylindricalWarper,
+    roi: core::Rect,
+    undistorted: Mat,
+    warped: Mat,
+    warped16: Mat,
+    out: Mat,
+    out_mask: Mat,
+}
+
+impl OpencvStitching {
+    fn new(rig: &Rig) -> Self {
+        use opencv::stitching::{Detail_CylindricalWarper, Detail_CylindricalWarperTrait};
+        let cam = &rig.cameras[0].intrinsics;
+        let k_fish = Mat::from_slice_2d(&[
+            [cam.fx, 0.0, cam.cx],
+            [0.0, cam.fy, cam.cy],
+            [0.0, 0.0, 1.0],
+        ])
+        .unwrap();
+        let d = Mat::from_slice(&[0.0f64; 4]).unwrap();
+        // A level pinhole of 120° across and ±30° up and down, turned to
+        // each camera's heading (the rectification undoes its tilt): about
+        // the panorama's band.
+        let f = (W as f64 / 2.0) / 60f64.to_radians().tan();
+        let hp = (2.0 * f * 30f64.to_radians().tan()).round();
+        let pinhole = Size::new(W as i32, hp as i32);
+        let (cx, cy) = (W as f64 / 2.0 - 0.5, hp / 2.0 - 0.5);
+        let k_pin = Mat::from_slice_2d(&[[f, 0.0, cx], [0.0, f, cy], [0.0, 0.0, 1.0]]).unwrap();
+        let k = Mat::from_slice_2d(&[
+            [f as f32, 0.0, cx as f32],
+            [0.0, f as f32, cy as f32],
+            [0.0, 0.0, 1.0],
+        ])
+        .unwrap();
+        // The warper's world: x right (−y of the vehicle), y down (−z), z
+        // forward (x); its cylinder's axis is its y.
+        let w = Matrix3::new(0.0, -1.0, 0.0, 0.0, 0.0, -1.0, 1.0, 0.0, 0.0);
+        let mat3 = |r: &Matrix3<f64>| {
+            let rows: Vec<[f64; 3]> = (0..3).map(|i| [r[(i, 0)], r[(i, 1)], r[(i, 2)]]).collect();
+            Mat::from_slice_2d(&rows).unwrap()
+        };
+        let mut undistort = Vec::new();
+        let mut rotations = Vec::new();
+        for c in &rig.cameras {
+            let pose = c.pose.unwrap();
+            let level =
+                Pose::from_ypr_deg([pose.ypr_deg()[0], 0.0, 0.0], Vector3::zeros()).unwrap();
+            let rect = level.rotation_matrix().transpose() * pose.rotation_matrix();
+            let (mut m1, mut m2) = (Mat::default(), Mat::default());
+            calib3d::fisheye_init_undistort_rectify_map(
+                &k_fish,
+                &d,
+                &mat3(&rect),
+                &k_pin,
+                pinhole,
+                core::CV_16SC2,
+                &mut m1,
+                &mut m2,
+            )
+            .unwrap();
+            undistort.push((m1, m2));
+            let mut r32 = Mat::default();
+            mat3(&(w * level.rotation_matrix()))
+                .convert_to(&mut r32, CV_32F, 1.0, 0.0)
+                .unwrap();
+            rotations.push(r32);
+        }
+        let mut warper =
+            Detail_CylindricalWarper::new((4096.0 / std::f64::consts::TAU) as f32).unwrap();
+        let full =
+            Mat::new_rows_cols_with_default(H as i32, W as i32, core::CV_8U, Scalar::all(255.0))
+                .unwrap();
+        let mut masks = Vec::new();
+        let mut roi: Option<core::Rect> = None;
+        for r in &rotations {
+            let mut m = Mat::default();
+            let tl = Detail_CylindricalWarperTrait::warp(
+                &mut warper,
+                &full,
+                &k,
+                r,
+                imgproc::INTER_NEAREST,
+                core::BORDER_CONSTANT,
+                &mut m,
+            )
+            .unwrap();
+            let rect = core::Rect::new(tl.x, tl.y, m.cols(), m.rows());
+            roi = Some(roi.map_or(rect, |a| a | rect));
+            masks.push(m);
+        }
+        Self {
+            undistort,
+            k,
+            rotations,
+            masks,
+            warper,
+            roi: roi.unwrap(),
+            undistorted: Mat::default(),
+            warped: Mat::default(),
+            warped16: Mat::default(),
+            out: Mat::default(),
+            out_mask: Mat::default(),
+        }
+    }
+
+    /// Composes RGB `frames`; the blended panorama's size.
+    fn compose(&mut self, frames: &[Vec<u8>]) -> (i32, i32) {
+        use opencv::stitching::{
+            Detail_CylindricalWarperTrait, Detail_FeatherBlender, Detail_FeatherBlenderTrait,
+        };
+        let mut blender = Detail_FeatherBlender::new(0.02).unwrap();
+        Detail_FeatherBlenderTrait::prepare(&mut blender, self.roi).unwrap();
+        for (k, f) in frames.iter().enumerate() {
+            undistort(f, &self.undistort[k], &mut self.undistorted);
+            let tl = Detail_CylindricalWarperTrait::warp(
+                &mut self.warper,
+                &self.undistorted,
+                &self.k,
+                &self.rotations[k],
+                imgproc::INTER_LINEAR,
+                core::BORDER_CONSTANT,
+                &mut self.warped,
+            )
+            .unwrap();
+            self.warped
+                .convert_to(&mut self.warped16, core::CV_16SC3, 1.0, 0.0)
+                .unwrap();
+            Detail_FeatherBlenderTrait::feed(&mut blender, &self.warped16, &self.masks[k], tl)
+                .unwrap();
+        }
+        Detail_FeatherBlenderTrait::blend(&mut blender, &mut self.out, &mut self.out_mask).unwrap();
+        (self.out.cols(), self.out.rows())
+    }
+}
+
+/// An RGB fisheye frame remapped through fixed-point maps `(m1, m2)` (the
+/// undistortion of both OpenCV pipelines) into `out`.
+fn undistort(frame: &[u8], (m1, m2): &(Mat, Mat), out: &mut Mat) {
+    let src = Mat::new_rows_cols_with_data(H as i32, (W * 3) as i32, frame).unwrap();
+    let src = src.reshape(3, H as i32).unwrap();
+    imgproc::remap(
+        &src,
+        out,
+        m1,
+        m2,
+        imgproc::INTER_LINEAR,
+        core::BORDER_CONSTANT,
+        Scalar::all(0.0),
+    )
+    .unwrap();
 }
 
 /// A benchmarked composition: its name, frames, canvas channels and gains.
@@ -641,5 +796,108 @@ fn distance_transform(c: &mut Criterion) {
     core::set_num_threads(threads).unwrap();
 }
 
-criterion_group!(benches, compose, rgb_to_mono, distance_transform);
+/// The panorama of the same rig and frames on a 4096×1024 cylinder
+/// (radius 10 m, 25° below to 35° above the horizon) with linear blending:
+/// `Composer::compose` against the OpenCV-remap composition of the same
+/// mosaic and against OpenCV's stitching route ([`OpencvStitching`]), one
+/// core each. Then the feature matching of its four overlaps
+/// on a noise-free frame set of the simulated rig (Harris corners through
+/// OpenCV, BRIEF, gated mutual matching, RANSAC, patches), whose split is
+/// printed.
+fn panorama(c: &mut Criterion) {
+    let threads = core::get_num_threads().unwrap();
+    core::set_num_threads(1).unwrap();
+    let rig = rig();
+    let spec = CylinderSpec {
+        width: 4096,
+        height: 1024,
+        ..CylinderSpec::default()
+    };
+    let pano = Panorama::build(&rig, &spec, &PanoramaOptions::default()).unwrap();
+    let data = frames();
+    let views: Vec<FrameView<'_>> = data
+        .iter()
+        .map(|d| FrameView::new(PixelFormat::Rgb8, W, H, d).unwrap())
+        .collect();
+    let mut composer = Composer::new();
+    let mut canvas = Canvas::new(0, 0, 3);
+    composer
+        .compose(&pano, &views, BlendMode::Linear, &mut canvas)
+        .unwrap();
+    let mut opencv_remap = OpencvRemap::new(&pano);
+    let mut opencv_canvas = vec![0u8; canvas.data.len()];
+    opencv_remap.compose(&pano, &data, &mut opencv_canvas);
+    let differ = canvas
+        .data
+        .iter()
+        .zip(&opencv_canvas)
+        .filter(|(a, b)| a.abs_diff(**b) > 10)
+        .count();
+    assert!(
+        differ < canvas.data.len() / 100,
+        "the OpenCV-remap composition differs: {differ} values"
+    );
+    let mut compose_group = group(c, "panorama_4x1288x964_to_4096x1024", 6);
+    compose_group.bench_function("rigview_linear_rgb", |b| {
+        b.iter(|| {
+            composer
+                .compose(&pano, black_box(&views), BlendMode::Linear, &mut canvas)
+                .unwrap();
+        });
+    });
+    compose_group.bench_function("opencv_remap_linear_rgb", |b| {
+        b.iter(|| opencv_remap.compose(&pano, black_box(&data), &mut opencv_canvas));
+    });
+    let mut stitching = OpencvStitching::new(&rig);
+    eprintln!(
+        "OpenCV stitching route: panorama {:?} px",
+        stitching.compose(&data)
+    );
+    compose_group.bench_function("opencv_undistort_cylindrical_warper_feather", |b| {
+        b.iter(|| stitching.compose(black_box(&data)));
+    });
+    compose_group.finish();
+
+    let render = SimRender::new(&SimConfig::preset("overcast").unwrap()).unwrap();
+    let sim = Panorama::build(render.rig(), &spec, &PanoramaOptions::default()).unwrap();
+    let stills: Vec<Vec<u8>> = (0..4)
+        .map(|k| {
+            let setting = rigview_core::exposure::ExposureSetting {
+                shutter_us: 4000.0,
+                gain_db: 0.0,
+            };
+            let frame = render.render(k, 0, setting, false).unwrap();
+            frame.view().unwrap().packed().unwrap().to_vec()
+        })
+        .collect();
+    let sim_views: Vec<FrameView<'_>> = stills
+        .iter()
+        .zip(render.cameras())
+        .map(|(d, c)| FrameView::new(c.format, c.width, c.height, d).unwrap())
+        .collect();
+    let detect = |gray: &[u8], w: usize, h: usize, mask: &[u8]| {
+        use rigview_calib::tools::corners::{harris_corners, HarrisParams};
+        harris_corners(gray, w, h, Some(mask), &HarrisParams::default())
+            .map_err(|e| rigview_core::Error::InvalidConfig(e.to_string()))
+    };
+    let options = MatchOptions::default();
+    // The first call builds the bands' plans; the second gives the split.
+    sim.match_pairs(&sim_views, &detect, &options).unwrap();
+    let (pairs, times) = sim.match_pairs(&sim_views, &detect, &options).unwrap();
+    eprintln!(
+        "matching, simulated rig at 4096x1024: {times:?}; inliers per pair {:?}",
+        pairs.iter().map(|p| p.inliers).collect::<Vec<_>>()
+    );
+    let mut group = group(c, "panorama_matching_sim_4096x1024", 10);
+    group.bench_function("four_pairs", |b| {
+        b.iter(|| {
+            sim.match_pairs(black_box(&sim_views), &detect, &options)
+                .unwrap()
+        });
+    });
+    group.finish();
+    core::set_num_threads(threads).unwrap();
+}
+
+criterion_group!(benches, compose, rgb_to_mono, distance_transform, panorama);
 criterion_main!(benches);

@@ -5,7 +5,10 @@
 //! 1200×1600 pixels. A build maps every canvas pixel into every camera whose
 //! side it lies beyond, computes the distance transforms and blend weights,
 //! the ground masks and the overlap patches; the panorama's refinement
-//! rebuilds its view, so this has to be fast. Results: `BENCHMARKS.md`.
+//! rebuilds its view, so this has to be fast. Beside it, in the same run,
+//! `Panorama::build` of the same rig on a 4096×1024 cylinder (radius
+//! 10 m, 25° below to 35° above the horizon): the same machinery on
+//! 4.2 M canvas pixels. Results: `BENCHMARKS.md`.
 
 use std::hint::black_box;
 use std::path::Path;
@@ -13,6 +16,7 @@ use std::time::Duration;
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use rigview_calib::formats;
+use rigview_core::panorama::{CylinderSpec, Panorama, PanoramaOptions};
 use rigview_core::surround::{CanvasSpec, SurroundOptions, SurroundView};
 
 fn build(c: &mut Criterion) {
@@ -34,6 +38,15 @@ fn build(c: &mut Criterion) {
         .measurement_time(Duration::from_secs(10));
     g.bench_function("surround_nz_1200x1600", |b| {
         b.iter(|| black_box(SurroundView::build(&rig, &spec, &options).unwrap()));
+    });
+    let cylinder = CylinderSpec {
+        width: 4096,
+        height: 1024,
+        ..CylinderSpec::default()
+    };
+    let pano_options = PanoramaOptions::default();
+    g.bench_function("panorama_nz_4096x1024", |b| {
+        b.iter(|| black_box(Panorama::build(&rig, &cylinder, &pano_options).unwrap()));
     });
     g.finish();
 }

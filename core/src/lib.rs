@@ -12,6 +12,8 @@
 //! - [`image`]: camera frames as the crate reads them: pixel formats,
 //!   borrowed frames, region-of-interest masks and luminance; 8-bit colour
 //!   conversion and the Euclidean distance transform.
+//! - [`panorama`]: the cylindrical panorama: a cylinder around the vehicle
+//!   mapped into every camera with the surround view's remap machinery.
 //! - [`pipeline`]: the capture and processing threads of the app and its
 //!   headless mode: bounded drop-oldest queues, live control, telemetry and
 //!   stage times.
@@ -32,6 +34,7 @@ pub mod eval;
 pub mod exposure;
 pub mod features;
 pub mod image;
+pub mod panorama;
 pub mod pipeline;
 pub mod sim;
 pub mod source;

@@ -146,3 +146,11 @@ pub fn run_single(
     }
     Ok(out)
 }
+
+/// Harris corners through OpenCV with the default spread, as the
+/// panorama's matching asks for them (the app's detector).
+pub fn harris(gray: &[u8], w: usize, h: usize, mask: &[u8]) -> Result<Vec<[f32; 2]>> {
+    use rigview_calib::tools::corners::{harris_corners, HarrisParams};
+    harris_corners(gray, w, h, Some(mask), &HarrisParams::default())
+        .map_err(|e| rigview_core::Error::InvalidConfig(e.to_string()))
+}

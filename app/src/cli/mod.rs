@@ -5,6 +5,7 @@
 pub mod calib;
 pub mod demo;
 pub mod live;
+pub mod panorama;
 pub mod record;
 pub mod run;
 pub mod surround;
@@ -53,6 +54,9 @@ pub enum Command {
     Calib(calib::CalibArgs),
     /// Compose still images of a calibrated rig into a bird's-eye view.
     Surround(surround::SurroundArgs),
+    /// Compose still images of a calibrated rig into a cylindrical
+    /// panorama, with feature matches and brightness ratios per overlap.
+    Panorama(panorama::PanoramaArgs),
     /// The desktop app on the rig's GenICam cameras (`--headless`: a status
     /// block per second on the terminal instead).
     Live(live::LiveArgs),

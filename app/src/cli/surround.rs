@@ -10,9 +10,10 @@ use rigview_core::surround::{BlendMode, CanvasSpec};
 
 use crate::stills::{self, Stills};
 
-/// Options of `rigview surround`.
+/// A calibrated rig, one still image per camera, and how to blend them:
+/// what `rigview surround` and `rigview panorama` compose.
 #[derive(Debug, Args)]
-pub struct SurroundArgs {
+pub struct RigImages {
     /// The rig: a rig file or calibration in any supported format (a folder
     /// of per-camera files works too). Its poses must be in the vehicle
     /// frame.
@@ -22,12 +23,20 @@ pub struct SurroundArgs {
     /// front=front.png). Any format the `image` crate reads.
     #[arg(long, num_args = 1.., required = true)]
     pub images: Vec<String>,
-    /// Where to write the bird's-eye view (PNG).
-    #[arg(long)]
-    pub out: PathBuf,
     /// How overlapping cameras are mixed.
     #[arg(long, value_enum, default_value = "linear")]
     pub blend: BlendMode,
+}
+
+/// Options of `rigview surround`.
+#[derive(Debug, Args)]
+pub struct SurroundArgs {
+    /// The rig, its images and the blending.
+    #[command(flatten)]
+    pub input: RigImages,
+    /// Where to write the bird's-eye view (PNG).
+    #[arg(long)]
+    pub out: PathBuf,
     /// The ground shown: X_MIN X_MAX Y_MIN Y_MAX in metres (vehicle frame: x
     /// forward, y left).
     #[arg(long, num_args = 4, value_names = ["X_MIN", "X_MAX", "Y_MIN", "Y_MAX"], allow_negative_numbers = true)]
@@ -62,10 +71,10 @@ impl SurroundArgs {
             ],
         );
         Stills {
-            rig: self.rig.clone(),
-            images: self.images.clone(),
+            rig: self.input.rig.clone(),
+            images: self.input.images.clone(),
             out: self.out.clone(),
-            blend: self.blend,
+            blend: self.input.blend,
             canvas: CanvasSpec {
                 x_min_m,
                 x_max_m,

@@ -1,7 +1,9 @@
 //! Calibration tools: intrinsics from chessboard images, extrinsics from a
-//! checkerboard mat on the ground, and the shared pieces (grey images,
-//! chessboard detection, a renderer of a mat seen through a camera model).
+//! checkerboard mat on the ground, Harris corners for the panorama's
+//! feature matches, and the shared pieces (grey images, chessboard
+//! detection, a renderer of a mat seen through a camera model).
 
+pub mod corners;
 pub mod ground;
 pub mod intrinsics;
 pub mod render;

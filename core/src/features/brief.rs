@@ -232,6 +232,19 @@ pub struct Match {
 /// nearest (a query with a single candidate passes). Sorted by `query`.
 /// `ratio` must lie in (0, 1].
 pub fn match_mutual(a: &[Descriptor], b: &[Descriptor], ratio: f32) -> Result<Vec<Match>> {
+    match_mutual_where(a, b, ratio, |_, _| true)
+}
+
+/// [`match_mutual`] among the pairs (i, j) that `allowed` admits (for
+/// example a search radius around the position a pose predicts): the
+/// others are not candidates at all, for the nearest, the second nearest
+/// and the mutual check alike.
+pub fn match_mutual_where(
+    a: &[Descriptor],
+    b: &[Descriptor],
+    ratio: f32,
+    allowed: impl Fn(usize, usize) -> bool,
+) -> Result<Vec<Match>> {
     if !(ratio > 0.0 && ratio <= 1.0) {
         return Err(Error::InvalidParameter {
             name: "ratio",
@@ -249,6 +262,9 @@ pub fn match_mutual(a: &[Descriptor], b: &[Descriptor], ratio: f32) -> Result<Ve
     for (i, da) in a.iter().enumerate() {
         let (mut d1, mut j1, mut d2) = (u32::MAX, usize::MAX, u32::MAX);
         for (j, db) in b.iter().enumerate() {
+            if !allowed(i, j) {
+                continue;
+            }
             let d = da.distance(db);
             if d < d1 {
                 (d2, d1, j1) = (d1, d, j);
@@ -262,6 +278,9 @@ pub fn match_mutual(a: &[Descriptor], b: &[Descriptor], ratio: f32) -> Result<Ve
         nearest.push((j1, d1, d2));
     }
     for (i, &(j, d1, d2)) in nearest.iter().enumerate() {
+        if j == usize::MAX {
+            continue;
+        }
         let passes_ratio = d2 == u32::MAX || (d1 as f32) < ratio * d2 as f32;
         if best_of_b[j].1 == i && passes_ratio {
             out.push(Match {
@@ -411,6 +430,28 @@ mod tests {
         assert_eq!((m[1].query, m[1].train, m[1].distance), (2, 2, 2));
         assert!(match_mutual(&a, &b, 0.0).is_err());
         assert!(match_mutual(&a, &[], 0.8).unwrap().is_empty());
+    }
+
+    #[test]
+    fn a_gate_keeps_candidates_out_of_every_test() {
+        let d = |bits: u64| Descriptor([bits, 0, 0, 0]);
+        let a = [d(0), d(0xFF00)];
+        let b = [d(0), d(0b111), d(0xFF03)];
+        // Without a gate a0 ↔ b0.
+        let all = match_mutual_where(&a, &b, 0.8, |_, _| true).unwrap();
+        assert_eq!((all[0].query, all[0].train), (0, 0));
+        // With b0 out of a0's reach, a0's nearest is b1 (3 bits), whose
+        // second nearest is b2 (far): a0 ↔ b1. a1 ↔ b2 either way.
+        let gated = match_mutual_where(&a, &b, 0.8, |i, j| !(i == 0 && j == 0)).unwrap();
+        let pairs: Vec<_> = gated
+            .iter()
+            .map(|m| (m.query, m.train, m.distance))
+            .collect();
+        assert_eq!(pairs, [(0, 1, 3), (1, 2, 2)]);
+        // Nothing in reach: no match.
+        assert!(match_mutual_where(&a, &b, 0.8, |_, _| false)
+            .unwrap()
+            .is_empty());
     }
 
     #[test]

@@ -5,4 +5,4 @@
 
 pub mod brief;
 
-pub use brief::{match_mutual, Descriptor, Match, Smoothed, PATCH_RADIUS};
+pub use brief::{match_mutual, match_mutual_where, Descriptor, Match, Smoothed, PATCH_RADIUS};

@@ -1,10 +1,10 @@
-//! Per-frame composition of the surround view: each frame as the 8-bit
-//! pixels the plan reads (Mono12 and Mono16 scaled to 8 bits, mono and RGB
-//! converted to the canvas's channels, a Bayer mosaic as it is: the remap
-//! demosaics it), then one pass of the plan.
+//! Per-frame composition of a view (the surround view, the panorama): each
+//! frame as the 8-bit pixels the plan reads (Mono12 and Mono16 scaled to 8
+//! bits, mono and RGB converted to the canvas's channels, a Bayer mosaic as
+//! it is: the remap demosaics it), then one pass of the plan.
 
 use super::remap::{Cfa, Image, Plan, MAX_GAIN, MIN_GAIN, UNIT_GAIN};
-use super::{BlendMode, SurroundView};
+use super::{BlendMode, Mosaic};
 use crate::error::{Error, Result};
 use crate::image::{mono8_to_rgb8, rgb8_to_mono8, FrameView, PixelFormat};
 
@@ -83,7 +83,7 @@ impl Composer {
     /// resized to the view's canvas and every pixel is written.
     pub fn compose(
         &mut self,
-        view: &SurroundView,
+        view: &Mosaic,
         frames: &[FrameView<'_>],
         mode: BlendMode,
         out: &mut Canvas,
@@ -111,7 +111,7 @@ impl Composer {
     /// [`Composer::compose`]: the same bytes, with the same kernels.
     pub fn compose_with_gains(
         &mut self,
-        view: &SurroundView,
+        view: &Mosaic,
         frames: &[FrameView<'_>],
         mode: BlendMode,
         gains: Option<&[f32]>,
@@ -139,26 +139,63 @@ impl Composer {
     }
 
     /// Camera `k`'s warped image alone on a canvas (mono, 1 channel),
-    /// wherever the camera sees its side of the ground (overlaps included);
+    /// wherever the camera sees its part of the view (overlaps included);
     /// elsewhere 0. For checking a calibration camera by camera.
     pub fn warp_camera(
         &mut self,
-        view: &SurroundView,
+        view: &Mosaic,
         k: usize,
         frame: &FrameView<'_>,
     ) -> Result<Canvas> {
+        let (w, h) = view.size();
+        self.warp_region(view, k, [0, 0, w, h], frame)
+    }
+
+    /// [`Composer::warp_camera`] over the canvas rectangle `rect` (column,
+    /// row, width, height) only.
+    pub fn warp_region(
+        &mut self,
+        view: &Mosaic,
+        k: usize,
+        rect: [usize; 4],
+        frame: &FrameView<'_>,
+    ) -> Result<Canvas> {
         let count = view.layers().len();
-        let plan = view
-            .camera_plan(k)
-            .ok_or(Error::CameraIndex { index: k, count })?;
-        view.layers()[k]
+        if k >= count {
+            return Err(Error::CameraIndex { index: k, count });
+        }
+        let plan = view.region_plan(k, rect).ok_or_else(|| {
+            view.camera_error(
+                k,
+                format_args!(
+                    "the rectangle {rect:?} leaves the canvas of {:?}",
+                    view.size()
+                ),
+            )
+        })?;
+        self.warp_with_plan(view, &plan, k, frame, (rect[2], rect[3]))
+    }
+
+    /// Camera `k`'s `frame` through `plan` (one of [`Mosaic::region_plan`])
+    /// onto a mono canvas of `size`.
+    pub(crate) fn warp_with_plan(
+        &mut self,
+        view: &Mosaic,
+        plan: &Plan,
+        k: usize,
+        frame: &FrameView<'_>,
+        (w, h): (usize, usize),
+    ) -> Result<Canvas> {
+        let count = view.layers().len();
+        view.layers()
+            .get(k)
+            .ok_or(Error::CameraIndex { index: k, count })?
             .check_frame(frame)
             .map_err(|e| view.camera_error(k, e))?;
-        let (w, h) = view.size();
         let mut out = Canvas::new(w, h, 1);
         self.buffers.execute(
             view,
-            &plan,
+            plan,
             &[k],
             std::slice::from_ref(frame),
             None,
@@ -170,14 +207,15 @@ impl Composer {
 
     /// Checks `gains` (one per camera of `view`) and keeps them in 1/256;
     /// whether any is other than 1.
-    fn set_gains(&mut self, view: &SurroundView, gains: Option<&[f32]>) -> Result<bool> {
+    fn set_gains(&mut self, view: &Mosaic, gains: Option<&[f32]>) -> Result<bool> {
         let Some(gains) = gains else {
             return Ok(false);
         };
         let n = view.layers().len();
         if gains.len() != n {
             return Err(Error::InvalidConfig(format!(
-                "surround view: {} display gains for a rig of {n} cameras",
+                "{}: {} display gains for a rig of {n} cameras",
+                view.what(),
                 gains.len()
             )));
         }
@@ -204,7 +242,7 @@ impl Buffers {
     #[allow(clippy::too_many_arguments)]
     fn execute(
         &mut self,
-        view: &SurroundView,
+        view: &Mosaic,
         plan: &Plan,
         cameras: &[usize],
         frames: &[FrameView<'_>],
@@ -342,6 +380,7 @@ mod tests {
 
     use super::*;
     use crate::surround::tests::small_view;
+    use crate::surround::SurroundView;
     use PixelFormat::{BayerBg8, BayerGb8, BayerGr8, BayerRg8, Mono12, Mono16, Mono8, Rgb8};
 
     const BAYER: [PixelFormat; 4] = [BayerRg8, BayerGr8, BayerGb8, BayerBg8];

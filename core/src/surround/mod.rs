@@ -50,23 +50,23 @@
 //! balancing its patch means.
 
 mod compose;
+pub(crate) mod mosaic;
 mod remap;
 mod seams;
 
-use std::sync::OnceLock;
-
-use nalgebra::{Point2, Vector3};
+use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 
-use rigview_calib::rig::{CameraProjector, Rig};
+use rigview_calib::rig::Rig;
 
 pub use compose::{Canvas, Composer};
+pub use mosaic::{CameraLayer, Mosaic};
+pub(crate) use remap::Plan;
 pub use seams::{SeamBands, SeamStep};
 
 use crate::error::{Error, Result};
 use crate::exposure::controller::PairObservation;
-use crate::exposure::PatchPair;
-use crate::image::{distance_to_zero, FrameView, RoiMask};
+use crate::image::{FrameView, RoiMask};
 
 /// The ground rectangle a canvas shows, and at what resolution.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -257,42 +257,6 @@ impl Default for SurroundOptions {
     }
 }
 
-/// One camera's part of the canvas.
-#[derive(Debug)]
-pub struct CameraLayer {
-    /// The camera's index in the rig.
-    pub camera: usize,
-    /// The camera's name in the rig.
-    pub name: String,
-    /// The part of the canvas it contributes to: column, row, width, height.
-    pub roi: [usize; 4],
-    /// Source image size (width, height).
-    pub source: (usize, usize),
-    /// Per ROI pixel, the source position (x, y), or (−1, −1) where the
-    /// camera contributes nothing.
-    pub map: Vec<[f32; 2]>,
-    /// Per blend mode ([`BlendMode::ALL`] order), per ROI pixel, the weight
-    /// in 1/256 (the weights of all cameras sum to exactly 256 on a covered
-    /// pixel).
-    pub weights: [Vec<u16>; 3],
-}
-
-impl CameraLayer {
-    /// Checks that `frame` has the camera's calibrated size.
-    pub fn check_frame(&self, frame: &FrameView<'_>) -> Result<()> {
-        if (frame.width(), frame.height()) != self.source {
-            return Err(Error::SizeMismatch {
-                what: "frame against its camera's calibration",
-                expected_width: self.source.0,
-                expected_height: self.source.1,
-                width: frame.width(),
-                height: frame.height(),
-            });
-        }
-        Ok(())
-    }
-}
-
 /// One overlap patch: the source pixels (row-major indices) of one small
 /// square of ground in both cameras.
 #[derive(Clone, Debug, PartialEq)]
@@ -318,17 +282,23 @@ pub struct Overlap {
     pub patches: Vec<OverlapPatch>,
 }
 
-/// The surround view of one rig and canvas, built once per calibration.
+/// The surround view of one rig and canvas, built once per calibration: a
+/// [`Mosaic`] on the ground plane (it derefs to it: sizes, layers, frame
+/// checks), the ground masks and the overlap patches.
 #[derive(Debug)]
 pub struct SurroundView {
     spec: CanvasSpec,
-    width: usize,
-    height: usize,
-    layers: Vec<CameraLayer>,
-    /// Per blend mode, the per-frame plan, built on first use.
-    plans: [OnceLock<remap::Plan>; 3],
+    mosaic: Mosaic,
     masks: Vec<RoiMask>,
     overlaps: Vec<Overlap>,
+}
+
+impl std::ops::Deref for SurroundView {
+    type Target = Mosaic;
+
+    fn deref(&self) -> &Mosaic {
+        &self.mosaic
+    }
 }
 
 /// Which side of the vehicle a camera looks past.
@@ -372,219 +342,72 @@ impl SurroundView {
     pub fn build(rig: &Rig, spec: &CanvasSpec, options: &SurroundOptions) -> Result<Self> {
         spec.validate()?;
         validate_options(options)?;
-        if rig.frame != rigview_calib::rig::Frame::Vehicle {
-            return Err(Error::InvalidConfig(
-                "surround view: the rig's poses are not in the vehicle frame (x forward, y left, z up, ground z = 0); a camera-frame rig (e.g. a Kalibr camchain) needs its ground pose first (`rigview calib ground`)".into(),
-            ));
-        }
+        let what = "surround view";
+        let cameras = mosaic::vehicle_cameras(rig, what)?;
         let (w, h) = spec.size();
-        let n = rig.cameras.len();
-        // Pass 1: where each camera sees, within its side.
-        let mut sides = Vec::with_capacity(n);
-        // Each camera's model with its valid region found once, not per pixel.
-        let mut projectors = Vec::with_capacity(n);
-        for cam in &rig.cameras {
-            let (Some(pose), Some(projector)) = (cam.pose.as_ref(), cam.projector()) else {
-                return Err(Error::InvalidConfig(format!(
-                    "surround view: camera `{}` has no pose: expected every camera's pose in the vehicle frame",
-                    cam.name
-                )));
-            };
-            let (iw, ih) = (
-                cam.intrinsics.width as usize,
-                cam.intrinsics.height as usize,
-            );
-            if iw < 2 || ih < 2 || iw.checked_mul(ih).is_none_or(|p| p > u32::MAX as usize) {
-                return Err(Error::InvalidConfig(format!(
-                    "surround view: camera `{}` has {iw}×{ih} images: expected at least 2×2 and at most 2³² pixels",
-                    cam.name
-                )));
-            }
-            let axis = pose.optical_axis();
-            sides.push(Side::of_yaw(axis.y.atan2(axis.x)));
-            projectors.push(projector);
-        }
-        let mut source: Vec<Vec<[f32; 2]>> = vec![vec![[-1.0, -1.0]; w * h]; n];
-        let mut count = vec![0u8; w * h];
-        // Bands of rows, one per core: every pixel is computed alone, so the
-        // maps do not depend on the number of threads.
-        let threads = std::thread::available_parallelism().map_or(1, |t| t.get());
-        let band = h.div_ceil(threads.min(h).max(1)) * w;
-        let mut bands: Vec<Vec<&mut [[f32; 2]]>> = Vec::new();
-        for map in &mut source {
-            for (b, chunk) in map.chunks_mut(band).enumerate() {
-                if bands.len() <= b {
-                    bands.push(Vec::with_capacity(n));
+        // Where each camera sees: within its side.
+        let sides: Vec<Side> = cameras
+            .projectors
+            .iter()
+            .map(|p| {
+                let axis = p.pose().optical_axis();
+                Side::of_yaw(axis.y.atan2(axis.x))
+            })
+            .collect();
+        let projectors = &cameras.projectors;
+        let (mosaic, maps) = Mosaic::build(
+            what,
+            (w, h),
+            &cameras.sources,
+            |c, r, found| {
+                let (x, y) = spec.ground(c as f64 + 0.5, r as f64 + 0.5);
+                if spec.on_vehicle(x, y) {
+                    return;
                 }
-                bands[b].push(chunk);
-            }
-        }
-        let (sides, projectors) = (&sides, &projectors);
-        std::thread::scope(|scope| {
-            for (b, (mut maps, counts)) in bands.into_iter().zip(count.chunks_mut(band)).enumerate()
-            {
-                scope.spawn(move || {
-                    for (i, count) in counts.iter_mut().enumerate() {
-                        let (c, r) = (i % w, b * band / w + i / w);
-                        let (x, y) = spec.ground(c as f64 + 0.5, r as f64 + 0.5);
-                        if spec.on_vehicle(x, y) {
-                            continue;
-                        }
-                        let p = Vector3::new(x, y, 0.0);
-                        for (k, cam) in rig.cameras.iter().enumerate() {
-                            if !sides[k].beyond(&spec.vehicle_m, x, y) {
-                                continue;
-                            }
-                            let Some(px) = projectors[k].project_rig(&p) else {
-                                continue;
-                            };
-                            let (iw, ih) = (
-                                f64::from(cam.intrinsics.width),
-                                f64::from(cam.intrinsics.height),
-                            );
-                            // Bilinear sampling needs the pixel and its right
-                            // and lower neighbours.
-                            if px.x >= 0.0 && px.y >= 0.0 && px.x <= iw - 1.0 && px.y <= ih - 1.0 {
-                                maps[k][i] = [px.x as f32, px.y as f32];
-                                *count += 1;
-                            }
-                        }
+                let p = Vector3::new(x, y, 0.0);
+                for (k, projector) in projectors.iter().enumerate() {
+                    if !sides[k].beyond(&spec.vehicle_m, x, y) {
+                        continue;
                     }
-                });
-            }
-        });
-        // Pass 2: the distance of every canvas pixel from each camera's
-        // exclusive region, and the weights.
-        let mut distance = Vec::with_capacity(n);
-        for (k, src) in source.iter().enumerate() {
-            let exclusive: Vec<u8> = (0..w * h)
-                .map(|i| u8::from(!(src[i][0] >= 0.0 && count[i] == 1)) * 255)
-                .collect();
-            distance.push(distance_to_zero(&exclusive, w, h).map_err(|e| {
-                Error::InvalidConfig(format!(
-                    "surround view: camera {k}: distance transform: {e}"
-                ))
-            })?);
-        }
-        let mut layers = Vec::with_capacity(n);
-        let mut scratch = BlendScratch::default();
-        for (k, cam) in rig.cameras.iter().enumerate() {
-            let covered = |i: usize| source[k][i][0] >= 0.0;
-            let Some(roi) = bounding_box(w, h, covered) else {
-                return Err(Error::InvalidConfig(format!(
-                    "surround view: camera `{}` sees none of the canvas (x ∈ [{}, {}], y ∈ [{}, {}] m beyond the vehicle's {:?} side): expected a pose looking at the ground",
-                    cam.name, spec.x_min_m, spec.x_max_m, spec.y_min_m, spec.y_max_m, sides[k]
-                )));
-            };
-            let [c0, r0, rw, rh] = roi;
-            let mut map = Vec::with_capacity(rw * rh);
-            let mut weights: [Vec<u16>; 3] = std::array::from_fn(|_| Vec::with_capacity(rw * rh));
-            for r in r0..r0 + rh {
-                for c in c0..c0 + rw {
-                    let i = r * w + c;
-                    map.push(source[k][i]);
-                    let [lin, alpha, seam] = if covered(i) {
-                        blend_weights(k, i, &source, &distance, &mut scratch)
-                    } else {
-                        [0, 0, 0]
-                    };
-                    weights[0].push(lin);
-                    weights[1].push(alpha);
-                    weights[2].push(seam);
+                    if let Some(px) = projector.project_rig(&p) {
+                        found.push((k, px));
+                    }
                 }
-            }
-            layers.push(CameraLayer {
-                camera: k,
-                name: cam.name.clone(),
-                roi,
-                source: (
-                    cam.intrinsics.width as usize,
-                    cam.intrinsics.height as usize,
-                ),
-                map,
-                weights,
-            });
-        }
-        // One thread per camera.
-        let masks = std::thread::scope(|scope| {
-            let jobs: Vec<_> = projectors
-                .iter()
-                .zip(&layers)
-                .map(|(projector, layer)| {
-                    scope.spawn(move || ground_mask(projector, layer, spec, options.mask_step))
-                })
-                .collect();
-            jobs.into_iter()
-                .map(|job| job.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
-                .collect::<Result<Vec<_>>>()
-        })?;
+            },
+            |k| {
+                Error::InvalidConfig(format!(
+                    "surround view: camera `{}` sees none of the canvas (x ∈ [{}, {}], y ∈ [{}, {}] m beyond the vehicle's {:?} side): expected a pose looking at the ground",
+                    cameras.sources[k].0, spec.x_min_m, spec.x_max_m, spec.y_min_m, spec.y_max_m, sides[k]
+                ))
+            },
+        )?;
+        let masks =
+            mosaic::source_masks(projectors, mosaic.layers(), options.mask_step, |p, px| {
+                let g = p.ground_point(px)?;
+                Some(spec.canvas(g.x, g.y))
+            })?;
+        let cell = (options.patch_m * spec.px_per_m).round().max(2.0) as usize;
         let overlaps = rig
             .neighbours
             .iter()
-            .map(|&(i, j)| overlap(spec, w, h, i, j, &source, &layers, options))
+            .map(|&(i, j)| {
+                mosaic::overlap(
+                    &maps,
+                    mosaic.layers(),
+                    (w, h),
+                    (i, j),
+                    cell,
+                    options.patch_coverage,
+                    |c, r| spec.ground(c, r),
+                )
+            })
             .collect();
         Ok(Self {
             spec: spec.clone(),
-            width: w,
-            height: h,
-            layers,
-            plans: Default::default(),
+            mosaic,
             masks,
             overlaps,
         })
-    }
-
-    /// The per-frame plan of `mode` (built on its first use).
-    pub(crate) fn plan(&self, mode: BlendMode) -> &remap::Plan {
-        let m = mode.index();
-        self.plans[m].get_or_init(|| {
-            let (w, layers) = (self.width, &self.layers);
-            let sources = layers.iter().map(|l| l.source).collect();
-            remap::Plan::build(w, w * self.height, sources, |i, list| {
-                let (c, r) = (i % w, i / w);
-                for (k, layer) in layers.iter().enumerate() {
-                    let [c0, r0, rw, rh] = layer.roi;
-                    if c < c0 || r < r0 || c >= c0 + rw || r >= r0 + rh {
-                        continue;
-                    }
-                    let j = (r - r0) * rw + (c - c0);
-                    let weight = layer.weights[m][j];
-                    if weight > 0 {
-                        list.push(remap::Contribution {
-                            camera: k as u32,
-                            at: layer.map[j],
-                            weight: f64::from(weight),
-                        });
-                    }
-                }
-            })
-        })
-    }
-
-    /// The plan of camera `k` alone over the pixels it sees, unweighted.
-    pub(crate) fn camera_plan(&self, k: usize) -> Option<remap::Plan> {
-        let layer = self.layers.get(k)?;
-        let w = self.width;
-        let [c0, r0, rw, rh] = layer.roi;
-        Some(remap::Plan::build(
-            w,
-            w * self.height,
-            vec![layer.source],
-            |i, list| {
-                let (c, r) = (i % w, i / w);
-                if c < c0 || r < r0 || c >= c0 + rw || r >= r0 + rh {
-                    return;
-                }
-                let at = layer.map[(r - r0) * rw + (c - c0)];
-                if at[0] >= 0.0 {
-                    list.push(remap::Contribution {
-                        camera: 0,
-                        at,
-                        weight: 1.0,
-                    });
-                }
-            },
-        ))
     }
 
     /// The canvas spec.
@@ -592,14 +415,9 @@ impl SurroundView {
         &self.spec
     }
 
-    /// Canvas width and height, pixels.
-    pub fn size(&self) -> (usize, usize) {
-        (self.width, self.height)
-    }
-
-    /// Each camera's part of the canvas, in rig order.
-    pub fn layers(&self) -> &[CameraLayer] {
-        &self.layers
+    /// The mosaic: the cameras' maps, weights and plans on the canvas.
+    pub fn mosaic(&self) -> &Mosaic {
+        &self.mosaic
     }
 
     /// Each camera's ground mask (source pixels that reach the canvas), in
@@ -613,58 +431,12 @@ impl SurroundView {
         &self.overlaps
     }
 
-    /// Checks that there is one frame per camera, of its calibrated size;
-    /// an error names the camera.
-    pub fn check_frames(&self, frames: &[FrameView<'_>]) -> Result<()> {
-        if frames.len() != self.layers.len() {
-            return Err(Error::InvalidConfig(format!(
-                "surround view: {} frames for a rig of {} cameras",
-                frames.len(),
-                self.layers.len()
-            )));
-        }
-        self.layers
-            .iter()
-            .zip(frames)
-            .enumerate()
-            .try_for_each(|(k, (layer, f))| {
-                layer.check_frame(f).map_err(|e| self.camera_error(k, e))
-            })
-    }
-
-    /// `cause`, about camera `k`, as an error that names the camera.
-    pub(crate) fn camera_error(&self, k: usize, cause: impl std::fmt::Display) -> Error {
-        let name = self.layers.get(k).map_or("?", |l| l.name.as_str());
-        Error::InvalidConfig(format!("surround view: camera {k} (\"{name}\"): {cause}"))
-    }
-
     /// The patch means of every overlap in the current frames (rig order),
     /// for the balancing (Eq. 5). Frames of another size than the
     /// calibration are an error.
     pub fn pair_observations(&self, frames: &[FrameView<'_>]) -> Result<Vec<PairObservation>> {
         self.check_frames(frames)?;
-        Ok(self
-            .overlaps
-            .iter()
-            .map(|o| PairObservation {
-                i: o.i,
-                j: o.j,
-                patches: o
-                    .patches
-                    .iter()
-                    .map(|p| {
-                        let (mean_i, saturated_i) = patch_stats(&frames[o.i], &p.pixels_i);
-                        let (mean_j, saturated_j) = patch_stats(&frames[o.j], &p.pixels_j);
-                        PatchPair {
-                            mean_i,
-                            saturated_i,
-                            mean_j,
-                            saturated_j,
-                        }
-                    })
-                    .collect(),
-            })
-            .collect())
+        Ok(mosaic::observations(&self.overlaps, frames))
     }
 }
 
@@ -676,218 +448,15 @@ fn validate_options(o: &SurroundOptions) -> Result<()> {
         10.0,
         "a patch side of 0.01 to 10 m",
     )?;
-    crate::error::check_range(
-        "surround.patch_coverage",
-        o.patch_coverage,
-        0.0,
-        1.0,
-        "a fraction in [0, 1]",
-    )?;
-    if o.mask_step == 0 || o.mask_step > 16 {
-        return Err(Error::InvalidParameter {
-            name: "surround.mask_step",
-            value: o.mask_step as f64,
-            expected: "a step of 1 to 16 source pixels",
-        });
-    }
-    Ok(())
-}
-
-/// Buffers of [`blend_weights`], reused from pixel to pixel.
-#[derive(Debug, Default)]
-struct BlendScratch {
-    seeing: Vec<usize>,
-    inv: Vec<f64>,
-    exact: Vec<f64>,
-    rounded: Vec<u32>,
-}
-
-/// The 1/256 weights of camera `k` at canvas pixel `i` for the three blend
-/// modes. The weights of all cameras seeing the pixel are rounded together
-/// ([`mode_weights`]), so that they sum to exactly 256 in every mode.
-fn blend_weights(
-    k: usize,
-    i: usize,
-    source: &[Vec<[f32; 2]>],
-    distance: &[Vec<f32>],
-    scratch: &mut BlendScratch,
-) -> [u16; 3] {
-    let s = scratch;
-    s.seeing.clear();
-    s.seeing
-        .extend((0..source.len()).filter(|&m| source[m][i][0] >= 0.0));
-    let Some(me) = s.seeing.iter().position(|&m| m == k) else {
-        return [0, 0, 0];
-    };
-    if s.seeing.len() == 1 {
-        return [256, 256, 256];
-    }
-    // w ∝ 1/d², with d floored at half a pixel.
-    s.inv.clear();
-    s.inv.extend(
-        s.seeing
-            .iter()
-            .map(|&m| 1.0 / f64::from(distance[m][i].max(0.5)).powi(2)),
-    );
-    // The last camera of the largest weight takes the seam pixel.
-    let best = (0..s.inv.len())
-        .max_by(|&a, &b| s.inv[a].total_cmp(&s.inv[b]))
-        .unwrap_or(me);
-    let [linear, alpha] = mode_weights(&s.inv, me, &mut s.exact, &mut s.rounded);
-    [linear, alpha, if best == me { 256 } else { 0 }]
-}
-
-/// The linear and alpha weights (1/256) of camera `me` among the cameras
-/// seeing a pixel, from their `1/d²` (`inv`): each mode's weights of all
-/// the cameras are rounded together to sum to exactly 256 (rounding each on
-/// its own gives 257 when two fall on a half, 255 for three thirds).
-fn mode_weights(inv: &[f64], me: usize, exact: &mut Vec<f64>, rounded: &mut Vec<u32>) -> [u16; 2] {
-    let total: f64 = inv.iter().sum();
-    let n = inv.len() as f64;
-    rounded.resize(inv.len(), 0);
-    exact.clear();
-    exact.extend(inv.iter().map(|&v| 256.0 * v / total));
-    remap::round_to_total(exact, 256, rounded);
-    let linear = rounded[me] as u16;
-    exact.clear();
-    exact.resize(inv.len(), 256.0 / n);
-    remap::round_to_total(exact, 256, rounded);
-    [linear, rounded[me] as u16]
-}
-
-/// The smallest rectangle holding every pixel where `covered` holds.
-fn bounding_box(w: usize, h: usize, covered: impl Fn(usize) -> bool) -> Option<[usize; 4]> {
-    let (mut c0, mut r0, mut c1, mut r1) = (usize::MAX, usize::MAX, 0, 0);
-    for r in 0..h {
-        for c in 0..w {
-            if covered(r * w + c) {
-                c0 = c0.min(c);
-                c1 = c1.max(c);
-                r0 = r0.min(r);
-                r1 = r1.max(r);
-            }
-        }
-    }
-    (c0 != usize::MAX).then(|| [c0, r0, c1 - c0 + 1, r1 - r0 + 1])
-}
-
-/// The source pixels of camera `cam` whose ground point lands on a canvas
-/// pixel the camera contributes to, sampled every `step` pixels.
-fn ground_mask(
-    projector: &CameraProjector,
-    layer: &CameraLayer,
-    spec: &CanvasSpec,
-    step: usize,
-) -> Result<RoiMask> {
-    let (sw, sh) = layer.source;
-    let [c0, r0, rw, rh] = layer.roi;
-    let mut data = vec![0u8; sw * sh];
-    for y in (0..sh).step_by(step) {
-        for x in (0..sw).step_by(step) {
-            let centre = Point2::new(
-                x as f64 + 0.5 * (step as f64 - 1.0),
-                y as f64 + 0.5 * (step as f64 - 1.0),
-            );
-            let Some(g) = projector.ground_point(&centre) else {
-                continue;
-            };
-            let (c, r) = spec.canvas(g.x, g.y);
-            if c < 0.0 || r < 0.0 {
-                continue;
-            }
-            let (c, r) = (c as usize, r as usize);
-            if c < c0 || r < r0 || c >= c0 + rw || r >= r0 + rh {
-                continue;
-            }
-            if layer.weights[0][(r - r0) * rw + (c - c0)] == 0 {
-                continue;
-            }
-            for yy in y..(y + step).min(sh) {
-                data[yy * sw + x..yy * sw + (x + step).min(sw)].fill(255);
-            }
-        }
-    }
-    RoiMask::new(sw, sh, data)
-}
-
-/// The overlap of cameras `i` and `j` and its patches.
-#[allow(clippy::too_many_arguments)]
-fn overlap(
-    spec: &CanvasSpec,
-    w: usize,
-    h: usize,
-    i: usize,
-    j: usize,
-    source: &[Vec<[f32; 2]>],
-    layers: &[CameraLayer],
-    options: &SurroundOptions,
-) -> Overlap {
-    let both = |p: usize| source[i][p][0] >= 0.0 && source[j][p][0] >= 0.0;
-    let pixels = (0..w * h).filter(|&p| both(p)).count();
-    let cell = (options.patch_m * spec.px_per_m).round().max(2.0) as usize;
-    let need = (options.patch_coverage * (cell * cell) as f64).ceil() as usize;
-    let index = |k: usize, p: usize| {
-        let [x, y] = source[k][p];
-        let (sw, sh) = layers[k].source;
-        let (x, y) = (
-            (x.round() as usize).min(sw - 1),
-            (y.round() as usize).min(sh - 1),
-        );
-        (y * sw + x) as u32
-    };
-    let mut patches = Vec::new();
-    for r0 in (0..h.saturating_sub(cell - 1)).step_by(cell) {
-        for c0 in (0..w.saturating_sub(cell - 1)).step_by(cell) {
-            let cells: Vec<usize> = (r0..r0 + cell)
-                .flat_map(|r| (c0..c0 + cell).map(move |c| r * w + c))
-                .filter(|&p| both(p))
-                .collect();
-            if cells.len() < need.max(1) {
-                continue;
-            }
-            let mut pixels_i: Vec<u32> = cells.iter().map(|&p| index(i, p)).collect();
-            let mut pixels_j: Vec<u32> = cells.iter().map(|&p| index(j, p)).collect();
-            pixels_i.sort_unstable();
-            pixels_i.dedup();
-            pixels_j.sort_unstable();
-            pixels_j.dedup();
-            let centre_m =
-                spec.ground(c0 as f64 + 0.5 * cell as f64, r0 as f64 + 0.5 * cell as f64);
-            patches.push(OverlapPatch {
-                centre_m,
-                pixels_i,
-                pixels_j,
-            });
-        }
-    }
-    Overlap {
-        i,
-        j,
-        pixels,
-        patches,
-    }
-}
-
-/// Mean intensity in [0, 1] and saturated fraction of the pixels `idx` of a
-/// frame (8-bit formats; others are read through their luminance row).
-fn patch_stats(frame: &FrameView<'_>, idx: &[u32]) -> (f32, f32) {
-    if idx.is_empty() {
-        return (0.0, 0.0);
-    }
-    let w = frame.width();
-    let (mut sum, mut sat) = (0.0f64, 0usize);
-    for &p in idx {
-        let p = p as usize;
-        let v = frame.luma_at(p % w, p / w);
-        sum += f64::from(v);
-        sat += usize::from(v >= crate::exposure::metering::SATURATED_LEVEL);
-    }
-    let n = idx.len() as f32;
-    ((sum / idx.len() as f64) as f32, sat as f32 / n)
+    mosaic::check_sampling(
+        ("surround.patch_coverage", o.patch_coverage),
+        ("surround.mask_step", o.mask_step),
+    )
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
+    use super::mosaic::mode_weights;
     use super::*;
 
     #[test]
@@ -968,23 +537,27 @@ mod tests {
         assert_eq!(w.iter().map(|w| w[1]).sum::<u16>(), 256);
     }
 
-    /// A small four-fisheye rig like the benchmark's (185° equidistant
-    /// lenses, 1 m high, past the four sides of a 4.6 m × 1.9 m car), with
-    /// `w×h` images, and a 10 m × 10 m canvas at 10 px/m.
-    pub(super) fn small_view(w: u32, h: u32) -> SurroundView {
-        use rigview_calib::model::{Distortion, Intrinsics};
-        use rigview_calib::pose::Pose;
-        use rigview_calib::rig::{Camera, Frame};
+    /// A 185° equidistant fisheye filling the width of a `w×h` image.
+    pub(crate) fn fisheye_185(w: u32, h: u32) -> rigview_calib::model::Intrinsics {
         let f = (f64::from(w) / 2.0) / 92.5f64.to_radians();
-        let intrinsics = Intrinsics {
+        rigview_calib::model::Intrinsics {
             width: w,
             height: h,
             fx: f,
             fy: f,
             cx: f64::from(w) / 2.0 - 0.5,
             cy: f64::from(h) / 2.0 - 0.5,
-            distortion: Distortion::Fisheye([0.0; 4]),
-        };
+            distortion: rigview_calib::model::Distortion::Fisheye([0.0; 4]),
+        }
+    }
+
+    /// A small four-fisheye rig like the benchmark's (185° equidistant
+    /// lenses, 1 m high, past the four sides of a 4.6 m × 1.9 m car), with
+    /// `w×h` images, and a 10 m × 10 m canvas at 10 px/m.
+    pub(crate) fn small_view(w: u32, h: u32) -> SurroundView {
+        use rigview_calib::pose::Pose;
+        use rigview_calib::rig::{Camera, Frame};
+        let intrinsics = fisheye_185(w, h);
         let cameras = [
             ("front", [0.0, 30.0, 0.0], [2.3, 0.0, 1.0]),
             ("left", [90.0, 45.0, 0.0], [0.0, 0.95, 1.0]),

@@ -1,0 +1,175 @@
+//! Harris corners through OpenCV, spread over the image: the keypoints of
+//! the panorama's feature matches.
+//!
+//! OpenCV's `goodFeaturesToTrack` with the Harris score (3×3 blocks,
+//! k = 0.04) keeps local maxima above a fraction of the best score and
+//! suppresses any corner closer than `min_distance` to a stronger one
+//! (non-maximum suppression). A textured building would then hold most
+//! of the corners; so the image is cut into a grid of cells and each cell
+//! keeps at most its `per_cell` strongest corners (a spatial spread).
+
+use opencv::core::{Mat, MatTraitConst, Point2f, Vector};
+
+use crate::error::{cv, CalibError, Result};
+
+/// Parameters of [`harris_corners`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct HarrisParams {
+    /// Corners OpenCV is asked for before the spread.
+    pub max_corners: usize,
+    /// The weakest Harris score kept, as a fraction of the strongest.
+    pub quality: f64,
+    /// The least distance between two corners, pixels.
+    pub min_distance: f64,
+    /// The grid's cell side, pixels.
+    pub cell: usize,
+    /// The most corners a cell keeps.
+    pub per_cell: usize,
+}
+
+impl Default for HarrisParams {
+    fn default() -> Self {
+        Self {
+            max_corners: 3000,
+            quality: 0.0002,
+            min_distance: 5.0,
+            cell: 64,
+            per_cell: 12,
+        }
+    }
+}
+
+/// The Harris corners of a `width × height` grey image where `mask` (one
+/// byte a pixel, non-zero to search; `None`: everywhere) allows, strongest
+/// first within each cell of the spread, as (x, y) pixel positions.
+pub fn harris_corners(
+    gray: &[u8],
+    width: usize,
+    height: usize,
+    mask: Option<&[u8]>,
+    params: &HarrisParams,
+) -> Result<Vec<[f32; 2]>> {
+    let pixels = width
+        .checked_mul(height)
+        .ok_or_else(|| CalibError::Argument(format!("a {width}×{height} image is too large")))?;
+    if gray.len() != pixels || mask.is_some_and(|m| m.len() != pixels) {
+        return Err(CalibError::Argument(format!(
+            "Harris corners: expected {pixels} bytes for a {width}×{height} image and its mask, got {} and {}",
+            gray.len(),
+            mask.map_or(pixels, <[u8]>::len)
+        )));
+    }
+    if params.cell == 0 || params.max_corners == 0 {
+        return Err(CalibError::Argument(
+            "Harris corners: the cell side and the corner count must be positive".into(),
+        ));
+    }
+    let (rows, cols) = (
+        i32::try_from(height).map_err(|_| CalibError::Argument("image too tall".into()))?,
+        i32::try_from(width).map_err(|_| CalibError::Argument("image too wide".into()))?,
+    );
+    if rows < 3 || cols < 3 {
+        return Ok(Vec::new());
+    }
+    let image = cv(
+        "wrapping an image",
+        Mat::new_rows_cols_with_data(rows, cols, gray),
+    )?;
+    let mask = match mask {
+        Some(m) => cv(
+            "wrapping a mask",
+            Mat::new_rows_cols_with_data(rows, cols, m),
+        )?
+        .try_clone()
+        .map_err(|source| CalibError::OpenCv {
+            context: "copying a mask".into(),
+            source,
+        })?,
+        None => Mat::default(),
+    };
+    let mut found = Vector::<Point2f>::new();
+    cv(
+        "detecting Harris corners",
+        opencv::imgproc::good_features_to_track(
+            &image,
+            &mut found,
+            i32::try_from(params.max_corners).unwrap_or(i32::MAX),
+            params.quality,
+            params.min_distance,
+            &mask,
+            3,
+            true,
+            0.04,
+        ),
+    )?;
+    // OpenCV gives them strongest first.
+    let cells_x = width.div_ceil(params.cell);
+    let mut taken = vec![0usize; cells_x * height.div_ceil(params.cell)];
+    let mut out = Vec::new();
+    for p in found.iter() {
+        if !(p.x >= 0.0 && p.y >= 0.0) {
+            continue;
+        }
+        let (cx, cy) = (p.x as usize / params.cell, p.y as usize / params.cell);
+        let Some(n) = taken.get_mut(cy * cells_x + cx.min(cells_x - 1)) else {
+            continue;
+        };
+        if *n < params.per_cell {
+            *n += 1;
+            out.push([p.x, p.y]);
+        }
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+
+    /// A checkerboard of 8-pixel squares: a corner every 8 pixels.
+    fn board(w: usize, h: usize) -> Vec<u8> {
+        (0..w * h)
+            .map(|i| {
+                if ((i % w) / 8 + (i / w) / 8).is_multiple_of(2) {
+                    40
+                } else {
+                    220
+                }
+            })
+            .collect()
+    }
+
+    #[test]
+    fn corners_are_spread_masked_and_on_the_squares_corners() {
+        let (w, h) = (256, 128);
+        let img = board(w, h);
+        let params = HarrisParams {
+            cell: 64,
+            per_cell: 5,
+            ..HarrisParams::default()
+        };
+        let all = harris_corners(&img, w, h, None, &params).unwrap();
+        // 4 × 2 cells of at most 5 each, every cell full.
+        assert_eq!(all.len(), 40, "{all:?}");
+        for p in &all {
+            // Each near a grid corner (sub-pixel positions are not refined:
+            // within a pixel).
+            let off = |v: f32| {
+                let r = v.rem_euclid(8.0);
+                r.min(8.0 - r)
+            };
+            assert!(off(p[0] + 0.5) <= 1.0 && off(p[1] + 0.5) <= 1.0, "{p:?}");
+        }
+        // A mask of the left half: no corner on the right.
+        let mask: Vec<u8> = (0..w * h).map(|i| u8::from(i % w < w / 2) * 255).collect();
+        let left = harris_corners(&img, w, h, Some(&mask), &params).unwrap();
+        assert_eq!(left.len(), 20);
+        assert!(left.iter().all(|p| p[0] < (w / 2) as f32));
+        // A flat image has none; a wrong size is an error.
+        assert!(harris_corners(&vec![9; w * h], w, h, None, &params)
+            .unwrap()
+            .is_empty());
+        assert!(harris_corners(&img, w + 1, h, None, &params).is_err());
+    }
+}

@@ -1,0 +1,459 @@
+//! The cylindrical panorama: the surroundings of the vehicle on a cylinder
+//! around its vertical axis, composed from every camera of a calibrated rig
+//! with the same machinery as the surround view (a [`Mosaic`]: maps, blend
+//! weights, the fixed-point remap plans and kernels).
+//!
+//! # The cylinder
+//!
+//! The cylinder's axis is the vertical (z) line through the centroid `o` of
+//! the cameras' positions; its radius is `R` ([`CylinderSpec::radius_m`],
+//! 10 m by default). The canvas unrolls it over 360° of azimuth `φ`
+//! (from the x axis, towards y: 0 straight ahead, 90° to the left) and over
+//! a band of elevations seen from the axis at the centroid's height, from
+//! `below_deg` under the horizon to `above_deg` over it. Column `c` and row
+//! `r` (pixel centres at +½) show the point
+//!
+//! ```text
+//! φ = π − 2π·c/W,    t = tan(above) − (r/H)·(tan(above) + tan(below)),
+//! p = o + (R cos φ, R sin φ, R t)
+//! ```
+//!
+//! so that the front is in the middle, the left side left of it, and the
+//! back at both ends; rows are linear in `tan`, as on a cylinder. Each
+//! canvas pixel is that 3-D point projected into the cameras with their
+//! full pose (translation included). The cameras stand metres apart, so a
+//! single cylinder cannot show the whole scene without parallax: what
+//! stands at distance `R` from the axis lines up across a seam, what is
+//! nearer or farther is doubled or cut in the overlaps, the more the nearer
+//! it is and the farther apart the two cameras are.
+//!
+//! # Who shows what
+//!
+//! Fisheye cameras see far more than their share of the cylinder, and the
+//! blend weights need each camera's exclusive region. A camera shows the
+//! azimuths around its optical axis's heading: at azimuth `φ`, camera `k`
+//! with heading `ψ_k` is used where `|φ − ψ_k| − min_m |φ − ψ_m| ≤ overlap`
+//! ([`PanoramaOptions::overlap_deg`]; angles wrapped to ±180°): for four
+//! cameras 90° apart, each shows ±(45° + overlap/2) around its heading, and
+//! neighbours overlap by `overlap` degrees. The blend weights, the three
+//! blend modes, the masks and the overlap patches are the surround view's
+//! (see [`crate::surround`]). The source masks hold the pixels whose ray
+//! meets the cylinder on a canvas pixel the camera contributes to: the
+//! whole image that reaches the panorama is metered.
+
+mod matching;
+mod refine;
+
+use std::sync::OnceLock;
+
+use nalgebra::{Point2, Vector3};
+use serde::{Deserialize, Serialize};
+
+use rigview_calib::rig::{CameraProjector, Rig};
+
+use crate::error::{check_range, Error, Result};
+use crate::exposure::controller::PairObservation;
+use crate::image::{FrameView, RoiMask};
+use crate::surround::mosaic;
+use crate::surround::{Mosaic, Overlap, Plan};
+
+pub use matching::{Detector, FeatureMatch, MatchOptions, MatchTimes, OverlapBand, PairMatches};
+pub use refine::{PairRefinement, RefineOptions, Refinement};
+
+/// The cylinder a panorama shows, and its canvas.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CylinderSpec {
+    /// Canvas width, pixels (360° of azimuth).
+    pub width: usize,
+    /// Canvas height, pixels (the elevation band).
+    pub height: usize,
+    /// The cylinder's radius, metres: what stands this far from the axis
+    /// lines up across the seams.
+    pub radius_m: f64,
+    /// The lowest elevation shown, degrees below the horizon.
+    pub below_deg: f64,
+    /// The highest elevation shown, degrees above the horizon.
+    pub above_deg: f64,
+}
+
+impl Default for CylinderSpec {
+    /// 4096 × 760 pixels (square pixels: 0.088° of azimuth each), radius
+    /// 10 m, from 25° below the horizon to 35° above it.
+    fn default() -> Self {
+        Self {
+            width: 4096,
+            height: 760,
+            radius_m: 10.0,
+            below_deg: 25.0,
+            above_deg: 35.0,
+        }
+    }
+}
+
+/// The largest canvas side, pixels.
+const MAX_SIDE: usize = 16384;
+
+impl CylinderSpec {
+    /// Checks the spec: a canvas of 8 to 16384 pixels a side, a finite
+    /// radius of 0.5 to 10⁴ m, and a band within ±80° that is not empty.
+    pub fn validate(&self) -> Result<()> {
+        for (name, v) in [
+            ("panorama.width", self.width),
+            ("panorama.height", self.height),
+        ] {
+            if !(8..=MAX_SIDE).contains(&v) {
+                return Err(Error::InvalidParameter {
+                    name,
+                    value: v as f64,
+                    expected: "8 to 16384 pixels",
+                });
+            }
+        }
+        check_range(
+            "panorama.radius_m",
+            self.radius_m,
+            0.5,
+            1e4,
+            "a radius of 0.5 to 10000 m",
+        )?;
+        check_range(
+            "panorama.below_deg",
+            self.below_deg,
+            -80.0,
+            80.0,
+            "an angle of −80° to 80° below the horizon",
+        )?;
+        check_range(
+            "panorama.above_deg",
+            self.above_deg,
+            -80.0,
+            80.0,
+            "an angle of −80° to 80° above the horizon",
+        )?;
+        if self.above_deg + self.below_deg < 1.0 {
+            return Err(Error::InvalidConfig(format!(
+                "panorama: the band from {}° below to {}° above the horizon is empty: expected at least 1° of elevation",
+                self.below_deg, self.above_deg
+            )));
+        }
+        Ok(())
+    }
+
+    /// `tan` of the top and of the bottom of the band.
+    fn tan_band(&self) -> (f64, f64) {
+        (
+            self.above_deg.to_radians().tan(),
+            -self.below_deg.to_radians().tan(),
+        )
+    }
+
+    /// The azimuth (radians, in (−π, π]) of canvas column position `col`.
+    pub fn azimuth(&self, col: f64) -> f64 {
+        std::f64::consts::PI - std::f64::consts::TAU * col / self.width as f64
+    }
+
+    /// The height over the horizon per metre from the axis (`tan` of the
+    /// elevation) of canvas row position `row`.
+    pub fn slope(&self, row: f64) -> f64 {
+        let (top, bottom) = self.tan_band();
+        top - row / self.height as f64 * (top - bottom)
+    }
+
+    /// The canvas position (column in `[0, width)`, row) of a direction
+    /// seen from the axis: azimuth `phi` (radians) and slope `t`.
+    pub fn canvas(&self, phi: f64, t: f64) -> (f64, f64) {
+        let (top, bottom) = self.tan_band();
+        let w = self.width as f64;
+        let col = ((std::f64::consts::PI - phi) / std::f64::consts::TAU * w).rem_euclid(w);
+        (col, (top - t) / (top - bottom) * self.height as f64)
+    }
+}
+
+/// Options of [`Panorama::build`].
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PanoramaOptions {
+    /// How far (degrees of azimuth) a camera reaches past the half-way
+    /// heading to its neighbour's: the width of each overlap for cameras
+    /// spread evenly.
+    pub overlap_deg: f64,
+    /// Side of an overlap patch, canvas pixels.
+    pub patch_px: usize,
+    /// The fraction of a patch's canvas pixels that both cameras must show.
+    pub patch_coverage: f64,
+    /// The source masks are computed on every `mask_step`-th source pixel.
+    pub mask_step: usize,
+}
+
+impl Default for PanoramaOptions {
+    fn default() -> Self {
+        Self {
+            overlap_deg: 30.0,
+            patch_px: 16,
+            patch_coverage: 0.9,
+            mask_step: 2,
+        }
+    }
+}
+
+impl PanoramaOptions {
+    fn validate(&self) -> Result<()> {
+        check_range(
+            "panorama.overlap_deg",
+            self.overlap_deg,
+            0.0,
+            180.0,
+            "0° to 180°",
+        )?;
+        if !(2..=256).contains(&self.patch_px) {
+            return Err(Error::InvalidParameter {
+                name: "panorama.patch_px",
+                value: self.patch_px as f64,
+                expected: "a patch side of 2 to 256 canvas pixels",
+            });
+        }
+        mosaic::check_sampling(
+            ("panorama.patch_coverage", self.patch_coverage),
+            ("panorama.mask_step", self.mask_step),
+        )
+    }
+}
+
+/// The panorama of one rig and cylinder, built once per calibration: a
+/// [`Mosaic`] on the cylinder (it derefs to it), the source masks and the
+/// overlaps of the rig's neighbour pairs.
+#[derive(Debug)]
+pub struct Panorama {
+    spec: CylinderSpec,
+    centre: Vector3<f64>,
+    /// Per camera, its centre (vehicle frame).
+    origins: Vec<Vector3<f64>>,
+    headings: Vec<f64>,
+    mosaic: Mosaic,
+    masks: Vec<RoiMask>,
+    overlaps: Vec<Overlap>,
+    /// Per overlap, its band of the canvas.
+    bands: Vec<OverlapBand>,
+    /// Per band, the plans warping each of its cameras into it, built on
+    /// first use.
+    band_plans: Vec<OnceLock<[Option<Plan>; 2]>>,
+}
+
+impl std::ops::Deref for Panorama {
+    type Target = Mosaic;
+
+    fn deref(&self) -> &Mosaic {
+        &self.mosaic
+    }
+}
+
+/// `a − b` wrapped to (−π, π].
+fn wrap(a: f64) -> f64 {
+    let t = (a + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU);
+    t - std::f64::consts::PI
+}
+
+impl Panorama {
+    /// Builds the panorama of `rig` (poses in the vehicle frame) on `spec`.
+    pub fn build(rig: &Rig, spec: &CylinderSpec, options: &PanoramaOptions) -> Result<Self> {
+        spec.validate()?;
+        options.validate()?;
+        let what = "panorama";
+        let cameras = mosaic::vehicle_cameras(rig, what)?;
+        let projectors = &cameras.projectors;
+        let n = projectors.len();
+        let centre = projectors
+            .iter()
+            .map(|p| *p.pose().translation())
+            .sum::<Vector3<f64>>()
+            / n as f64;
+        let headings: Vec<f64> = projectors
+            .iter()
+            .map(|p| {
+                let axis = p.pose().optical_axis();
+                axis.y.atan2(axis.x)
+            })
+            .collect();
+        let (w, h) = (spec.width, spec.height);
+        // Per column, the direction and the cameras that show it; per row,
+        // the slope.
+        let reach = options.overlap_deg.to_radians();
+        let columns: Vec<(f64, f64, Vec<usize>)> = (0..w)
+            .map(|c| {
+                let phi = spec.azimuth(c as f64 + 0.5);
+                let off: Vec<f64> = headings.iter().map(|&psi| wrap(phi - psi).abs()).collect();
+                let nearest = off.iter().copied().fold(f64::INFINITY, f64::min);
+                let shows = (0..n).filter(|&k| off[k] - nearest <= reach + 1e-12);
+                let (s, co) = phi.sin_cos();
+                (co, s, shows.collect())
+            })
+            .collect();
+        let slopes: Vec<f64> = (0..h).map(|r| spec.slope(r as f64 + 0.5)).collect();
+        let radius = spec.radius_m;
+        let (mosaic, maps) = Mosaic::build(
+            what,
+            (w, h),
+            &cameras.sources,
+            |c, r, found| {
+                let (co, s, shows) = &columns[c];
+                let p = centre + radius * Vector3::new(*co, *s, slopes[r]);
+                for &k in shows {
+                    if let Some(px) = projectors[k].project_rig(&p) {
+                        found.push((k, px));
+                    }
+                }
+            },
+            |k| {
+                Error::InvalidConfig(format!(
+                    "panorama: camera `{}` sees none of the cylinder (radius {} m, {}° below to {}° above the horizon, azimuths within {:.0}° of its heading {:.1}°): expected a camera looking outwards",
+                    cameras.sources[k].0,
+                    spec.radius_m,
+                    spec.below_deg,
+                    spec.above_deg,
+                    options.overlap_deg,
+                    headings[k].to_degrees()
+                ))
+            },
+        )?;
+        let masks =
+            mosaic::source_masks(projectors, mosaic.layers(), options.mask_step, |p, px| {
+                let (o, d) = p.ray_rig(px)?;
+                let q = cylinder_hit(&(o - centre), &d, radius)?;
+                Some(spec.canvas(q.y.atan2(q.x), q.z / radius))
+            })?;
+        let mut overlaps = Vec::with_capacity(rig.neighbours.len());
+        for &(i, j) in &rig.neighbours {
+            let o = mosaic::overlap(
+                &maps,
+                mosaic.layers(),
+                (w, h),
+                (i, j),
+                options.patch_px,
+                options.patch_coverage,
+                |c, _| {
+                    let phi = spec.azimuth(c);
+                    (centre.x + radius * phi.cos(), centre.y + radius * phi.sin())
+                },
+            );
+            overlaps.push(o);
+        }
+        check_overlaps(&mosaic, &overlaps)?;
+        let bands: Vec<OverlapBand> =
+            matching::bands((w, h), |k, p| maps.sees(k, p), &rig.neighbours)
+                .into_iter()
+                .flatten()
+                .collect();
+        Ok(Self {
+            spec: spec.clone(),
+            centre,
+            origins: projectors.iter().map(|p| *p.pose().translation()).collect(),
+            headings,
+            mosaic,
+            masks,
+            overlaps,
+            band_plans: bands.iter().map(|_| OnceLock::new()).collect(),
+            bands,
+        })
+    }
+
+    /// The cylinder and canvas.
+    pub fn spec(&self) -> &CylinderSpec {
+        &self.spec
+    }
+
+    /// The point on the cylinder's axis at the horizon (the centroid of the
+    /// cameras), vehicle frame.
+    pub fn centre(&self) -> Vector3<f64> {
+        self.centre
+    }
+
+    /// Each camera's heading (the azimuth of its optical axis), radians.
+    pub fn headings(&self) -> &[f64] {
+        &self.headings
+    }
+
+    /// The mosaic: the cameras' maps, weights and plans on the canvas.
+    pub fn mosaic(&self) -> &Mosaic {
+        &self.mosaic
+    }
+
+    /// The 3-D point (vehicle frame) that canvas position (`col`, `row`)
+    /// shows.
+    pub fn point(&self, col: f64, row: f64) -> Vector3<f64> {
+        let phi = self.spec.azimuth(col);
+        self.centre + self.spec.radius_m * Vector3::new(phi.cos(), phi.sin(), self.spec.slope(row))
+    }
+
+    /// The canvas position of a 3-D point (vehicle frame) as seen from the
+    /// axis, or `None` on the axis.
+    pub fn canvas_of(&self, p: &Vector3<f64>) -> Option<(f64, f64)> {
+        let q = p - self.centre;
+        let rho = q.x.hypot(q.y);
+        (rho > 1e-9).then(|| self.spec.canvas(q.y.atan2(q.x), q.z / rho))
+    }
+
+    /// Where camera `projector`'s pixel `px` lands on the canvas (its ray
+    /// meets the cylinder), or `None`.
+    pub fn canvas_of_pixel(
+        &self,
+        projector: &CameraProjector,
+        px: &Point2<f64>,
+    ) -> Option<(f64, f64)> {
+        let (o, d) = projector.ray_rig(px)?;
+        let q = cylinder_hit(&(o - self.centre), &d, self.spec.radius_m)?;
+        Some(self.spec.canvas(q.y.atan2(q.x), q.z / self.spec.radius_m))
+    }
+
+    /// Each camera's source mask (the pixels that reach the panorama), in
+    /// rig order: meter these.
+    pub fn source_masks(&self) -> &[RoiMask] {
+        &self.masks
+    }
+
+    /// The overlaps of the rig's neighbour pairs.
+    pub fn overlaps(&self) -> &[Overlap] {
+        &self.overlaps
+    }
+
+    /// The patch means of every overlap in the current frames (rig order),
+    /// from the calibration's patches. Frames of another size than the
+    /// calibration are an error.
+    pub fn pair_observations(&self, frames: &[FrameView<'_>]) -> Result<Vec<PairObservation>> {
+        self.check_frames(frames)?;
+        Ok(mosaic::observations(&self.overlaps, frames))
+    }
+}
+
+/// Where the ray `o + s·d` (`o` relative to a point of the axis, inside the
+/// cylinder) meets the vertical cylinder of radius `r` around the axis, for
+/// `s > 0`; relative to the same point.
+fn cylinder_hit(o: &Vector3<f64>, d: &Vector3<f64>, r: f64) -> Option<Vector3<f64>> {
+    let a = d.x * d.x + d.y * d.y;
+    if a < 1e-12 {
+        return None;
+    }
+    let b = 2.0 * (o.x * d.x + o.y * d.y);
+    let c = o.x * o.x + o.y * o.y - r * r;
+    let disc = b * b - 4.0 * a * c;
+    if disc < 0.0 {
+        return None;
+    }
+    let s = (-b + disc.sqrt()) / (2.0 * a);
+    (s > 0.0).then(|| o + d * s)
+}
+
+/// A rig whose neighbours share no canvas pixel cannot be stitched: the
+/// error names the first such pair.
+fn check_overlaps(mosaic: &Mosaic, overlaps: &[Overlap]) -> Result<()> {
+    if let Some(o) = overlaps.iter().find(|o| o.pixels == 0) {
+        let name = |k: usize| mosaic.layers().get(k).map_or("?", |l| l.name.as_str());
+        return Err(Error::InvalidConfig(format!(
+            "panorama: cameras `{}` and `{}` are neighbours in the rig but share no pixel of the cylinder: expected overlapping views (check their poses and the panorama's band)",
+            name(o.i),
+            name(o.j)
+        )));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests;

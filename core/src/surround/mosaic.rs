@@ -1,0 +1,637 @@
+//! What every view of the rig shares, whatever surface its canvas shows
+//! (the ground plane of the surround view, the cylinder of the panorama):
+//! each camera's map from canvas pixels to sub-pixel source positions, the
+//! blend weights of the three [`BlendMode`]s, and the per-frame remap plans
+//! built from them.
+//!
+//! A view describes its surface by one function: for a canvas pixel, the
+//! cameras that may show it and where in their images
+//! ([`Mosaic::build`]'s `locate`). The mosaic keeps the positions that
+//! fall inside the image (with its right and lower neighbour, for the
+//! bilinear sample), computes each camera's exclusive region and the
+//! distance of every pixel from it, and the weights: in an overlap, camera
+//! `c`'s weight falls off with its distance `d_c` from its exclusive region,
+//! `w_c ∝ 1/d_c²`; [`BlendMode::Alpha`] weighs all alike, and
+//! [`BlendMode::Seams`] gives each pixel to the camera of the largest
+//! linear weight. The canvas is mapped in bands of rows, one thread per
+//! core; each pixel is computed alone, so the maps do not depend on the
+//! number of threads.
+
+use std::sync::OnceLock;
+
+use nalgebra::Point2;
+use rigview_calib::rig::{CameraProjector, Frame, Rig};
+
+use super::remap;
+use super::{BlendMode, Overlap, OverlapPatch};
+use crate::error::{Error, Result};
+use crate::exposure::controller::PairObservation;
+use crate::exposure::PatchPair;
+use crate::image::{distance_to_zero, FrameView, RoiMask};
+
+/// One camera's part of the canvas.
+#[derive(Debug)]
+pub struct CameraLayer {
+    /// The camera's index in the rig.
+    pub camera: usize,
+    /// The camera's name in the rig.
+    pub name: String,
+    /// The part of the canvas it contributes to: column, row, width, height.
+    pub roi: [usize; 4],
+    /// Source image size (width, height).
+    pub source: (usize, usize),
+    /// Per ROI pixel, the source position (x, y), or (−1, −1) where the
+    /// camera contributes nothing.
+    pub map: Vec<[f32; 2]>,
+    /// Per blend mode ([`BlendMode::ALL`] order), per ROI pixel, the weight
+    /// in 1/256 (the weights of all cameras sum to exactly 256 on a covered
+    /// pixel).
+    pub weights: [Vec<u16>; 3],
+}
+
+impl CameraLayer {
+    /// Checks that `frame` has the camera's calibrated size.
+    pub fn check_frame(&self, frame: &FrameView<'_>) -> Result<()> {
+        if (frame.width(), frame.height()) != self.source {
+            return Err(Error::SizeMismatch {
+                what: "frame against its camera's calibration",
+                expected_width: self.source.0,
+                expected_height: self.source.1,
+                width: frame.width(),
+                height: frame.height(),
+            });
+        }
+        Ok(())
+    }
+}
+
+/// The cameras' maps and blend weights on one canvas, and the per-frame
+/// plans: the part of a view that [`super::Composer`] composes.
+#[derive(Debug)]
+pub struct Mosaic {
+    /// What the view is called in errors ("surround view", "panorama").
+    what: &'static str,
+    width: usize,
+    height: usize,
+    layers: Vec<CameraLayer>,
+    /// Per blend mode, the per-frame plan, built on first use.
+    plans: [OnceLock<remap::Plan>; 3],
+}
+
+/// What [`Mosaic::build`] returns besides the mosaic: the whole-canvas maps
+/// of every camera (a view derives its masks and overlaps from them).
+pub(crate) struct Maps {
+    /// Per camera, per canvas pixel, the source position or (−1, −1).
+    pub(crate) source: Vec<Vec<[f32; 2]>>,
+}
+
+impl Maps {
+    /// Whether camera `k` shows canvas pixel `p`.
+    pub(crate) fn sees(&self, k: usize, p: usize) -> bool {
+        self.source[k][p][0] >= 0.0
+    }
+
+    /// The row-major index of camera `k`'s source pixel nearest to where
+    /// canvas pixel `p` samples it (`sees(k, p)` must hold).
+    pub(crate) fn nearest(&self, k: usize, p: usize, (sw, sh): (usize, usize)) -> u32 {
+        let [x, y] = self.source[k][p];
+        let (x, y) = (
+            (x.round() as usize).min(sw - 1),
+            (y.round() as usize).min(sh - 1),
+        );
+        (y * sw + x) as u32
+    }
+}
+
+impl Mosaic {
+    /// Maps a `w × h` canvas into `cameras` (name and source size each).
+    /// `locate(col, row, out)` pushes `(camera, source position)` for each
+    /// camera that may show the pixel `(col, row)`; positions outside the
+    /// image (less one pixel right and below) are dropped. A camera that
+    /// shows no pixel is the error `empty(camera)`.
+    pub(crate) fn build<L>(
+        what: &'static str,
+        (w, h): (usize, usize),
+        cameras: &[(String, (usize, usize))],
+        locate: L,
+        empty: impl Fn(usize) -> Error,
+    ) -> Result<(Self, Maps)>
+    where
+        L: Fn(usize, usize, &mut Vec<(usize, Point2<f64>)>) + Sync,
+    {
+        let n = cameras.len();
+        let mut source: Vec<Vec<[f32; 2]>> = vec![vec![[-1.0, -1.0]; w * h]; n];
+        let mut count = vec![0u8; w * h];
+        // Bands of rows, one per core.
+        let threads = std::thread::available_parallelism().map_or(1, |t| t.get());
+        let band = h.div_ceil(threads.min(h).max(1)) * w;
+        let mut bands: Vec<Vec<&mut [[f32; 2]]>> = Vec::new();
+        for map in &mut source {
+            for (b, chunk) in map.chunks_mut(band).enumerate() {
+                if bands.len() <= b {
+                    bands.push(Vec::with_capacity(n));
+                }
+                bands[b].push(chunk);
+            }
+        }
+        let locate = &locate;
+        std::thread::scope(|scope| {
+            for (b, (mut maps, counts)) in bands.into_iter().zip(count.chunks_mut(band)).enumerate()
+            {
+                scope.spawn(move || {
+                    let mut found = Vec::with_capacity(n);
+                    for (i, count) in counts.iter_mut().enumerate() {
+                        let (c, r) = (i % w, b * band / w + i / w);
+                        found.clear();
+                        locate(c, r, &mut found);
+                        for &(k, px) in &found {
+                            let Some(&(_, (iw, ih))) = cameras.get(k) else {
+                                continue;
+                            };
+                            // Bilinear sampling needs the pixel and its
+                            // right and lower neighbours.
+                            if px.x >= 0.0
+                                && px.y >= 0.0
+                                && px.x <= iw as f64 - 1.0
+                                && px.y <= ih as f64 - 1.0
+                                && maps[k][i][0] < 0.0
+                            {
+                                maps[k][i] = [px.x as f32, px.y as f32];
+                                *count += 1;
+                            }
+                        }
+                    }
+                });
+            }
+        });
+        // The distance of every canvas pixel from each camera's exclusive
+        // region, and the weights.
+        let mut distance = Vec::with_capacity(n);
+        for (k, src) in source.iter().enumerate() {
+            let exclusive: Vec<u8> = (0..w * h)
+                .map(|i| u8::from(!(src[i][0] >= 0.0 && count[i] == 1)) * 255)
+                .collect();
+            distance.push(distance_to_zero(&exclusive, w, h).map_err(|e| {
+                Error::InvalidConfig(format!("{what}: camera {k}: distance transform: {e}"))
+            })?);
+        }
+        let mut layers = Vec::with_capacity(n);
+        let mut scratch = BlendScratch::default();
+        for (k, (name, size)) in cameras.iter().enumerate() {
+            let covered = |i: usize| source[k][i][0] >= 0.0;
+            let Some(roi) = bounding_box(w, h, covered) else {
+                return Err(empty(k));
+            };
+            let [c0, r0, rw, rh] = roi;
+            let mut map = Vec::with_capacity(rw * rh);
+            let mut weights: [Vec<u16>; 3] = std::array::from_fn(|_| Vec::with_capacity(rw * rh));
+            for r in r0..r0 + rh {
+                for c in c0..c0 + rw {
+                    let i = r * w + c;
+                    map.push(source[k][i]);
+                    let [lin, alpha, seam] = if covered(i) {
+                        blend_weights(k, i, &source, &distance, &mut scratch)
+                    } else {
+                        [0, 0, 0]
+                    };
+                    weights[0].push(lin);
+                    weights[1].push(alpha);
+                    weights[2].push(seam);
+                }
+            }
+            layers.push(CameraLayer {
+                camera: k,
+                name: name.clone(),
+                roi,
+                source: *size,
+                map,
+                weights,
+            });
+        }
+        let mosaic = Self {
+            what,
+            width: w,
+            height: h,
+            layers,
+            plans: Default::default(),
+        };
+        Ok((mosaic, Maps { source }))
+    }
+
+    /// The per-frame plan of `mode` (built on its first use).
+    pub(crate) fn plan(&self, mode: BlendMode) -> &remap::Plan {
+        let m = mode.index();
+        self.plans[m].get_or_init(|| {
+            let (w, layers) = (self.width, &self.layers);
+            let sources = layers.iter().map(|l| l.source).collect();
+            remap::Plan::build(w, w * self.height, sources, |i, list| {
+                let (c, r) = (i % w, i / w);
+                for (k, layer) in layers.iter().enumerate() {
+                    let [c0, r0, rw, rh] = layer.roi;
+                    if c < c0 || r < r0 || c >= c0 + rw || r >= r0 + rh {
+                        continue;
+                    }
+                    let j = (r - r0) * rw + (c - c0);
+                    let weight = layer.weights[m][j];
+                    if weight > 0 {
+                        list.push(remap::Contribution {
+                            camera: k as u32,
+                            at: layer.map[j],
+                            weight: f64::from(weight),
+                        });
+                    }
+                }
+            })
+        })
+    }
+
+    /// The plan of camera `k` alone over the canvas rectangle `rect`
+    /// (column, row, width, height; within the canvas), unweighted: its
+    /// warped image there, black where it sees nothing.
+    pub(crate) fn region_plan(&self, k: usize, rect: [usize; 4]) -> Option<remap::Plan> {
+        let layer = self.layers.get(k)?;
+        let [x0, y0, w, h] = rect;
+        if x0 + w > self.width || y0 + h > self.height || w == 0 || h == 0 {
+            return None;
+        }
+        let [c0, r0, rw, rh] = layer.roi;
+        Some(remap::Plan::build(
+            w,
+            w * h,
+            vec![layer.source],
+            |i, list| {
+                let (c, r) = (x0 + i % w, y0 + i / w);
+                if c < c0 || r < r0 || c >= c0 + rw || r >= r0 + rh {
+                    return;
+                }
+                let at = layer.map[(r - r0) * rw + (c - c0)];
+                if at[0] >= 0.0 {
+                    list.push(remap::Contribution {
+                        camera: 0,
+                        at,
+                        weight: 1.0,
+                    });
+                }
+            },
+        ))
+    }
+
+    /// Canvas width and height, pixels.
+    pub fn size(&self) -> (usize, usize) {
+        (self.width, self.height)
+    }
+
+    /// Each camera's part of the canvas, in rig order.
+    pub fn layers(&self) -> &[CameraLayer] {
+        &self.layers
+    }
+
+    /// Camera `k`'s blend weight (1/256) in `mode` at canvas pixel
+    /// (`col`, `row`): 0 where it shows nothing.
+    pub fn weight(&self, k: usize, mode: BlendMode, col: usize, row: usize) -> u16 {
+        let Some(layer) = self.layers.get(k) else {
+            return 0;
+        };
+        let [c0, r0, rw, rh] = layer.roi;
+        if col < c0 || row < r0 || col >= c0 + rw || row >= r0 + rh {
+            return 0;
+        }
+        layer.weights[mode.index()][(row - r0) * rw + col - c0]
+    }
+
+    /// Checks that there is one frame per camera, of its calibrated size;
+    /// an error names the camera.
+    pub fn check_frames(&self, frames: &[FrameView<'_>]) -> Result<()> {
+        if frames.len() != self.layers.len() {
+            return Err(Error::InvalidConfig(format!(
+                "{}: {} frames for a rig of {} cameras",
+                self.what,
+                frames.len(),
+                self.layers.len()
+            )));
+        }
+        self.layers
+            .iter()
+            .zip(frames)
+            .enumerate()
+            .try_for_each(|(k, (layer, f))| {
+                layer.check_frame(f).map_err(|e| self.camera_error(k, e))
+            })
+    }
+
+    /// `cause`, about camera `k`, as an error that names the camera.
+    pub(crate) fn camera_error(&self, k: usize, cause: impl std::fmt::Display) -> Error {
+        let name = self.layers.get(k).map_or("?", |l| l.name.as_str());
+        Error::InvalidConfig(format!("{}: camera {k} (\"{name}\"): {cause}", self.what))
+    }
+
+    /// What the view is called in errors.
+    pub(crate) fn what(&self) -> &'static str {
+        self.what
+    }
+}
+
+/// Buffers of [`blend_weights`], reused from pixel to pixel.
+#[derive(Debug, Default)]
+struct BlendScratch {
+    seeing: Vec<usize>,
+    inv: Vec<f64>,
+    exact: Vec<f64>,
+    rounded: Vec<u32>,
+}
+
+/// The 1/256 weights of camera `k` at canvas pixel `i` for the three blend
+/// modes. The weights of all cameras seeing the pixel are rounded together
+/// ([`mode_weights`]), so that they sum to exactly 256 in every mode.
+fn blend_weights(
+    k: usize,
+    i: usize,
+    source: &[Vec<[f32; 2]>],
+    distance: &[Vec<f32>],
+    scratch: &mut BlendScratch,
+) -> [u16; 3] {
+    let s = scratch;
+    s.seeing.clear();
+    s.seeing
+        .extend((0..source.len()).filter(|&m| source[m][i][0] >= 0.0));
+    let Some(me) = s.seeing.iter().position(|&m| m == k) else {
+        return [0, 0, 0];
+    };
+    if s.seeing.len() == 1 {
+        return [256, 256, 256];
+    }
+    // w ∝ 1/d², with d floored at half a pixel.
+    s.inv.clear();
+    s.inv.extend(
+        s.seeing
+            .iter()
+            .map(|&m| 1.0 / f64::from(distance[m][i].max(0.5)).powi(2)),
+    );
+    // The last camera of the largest weight takes the seam pixel.
+    let best = (0..s.inv.len())
+        .max_by(|&a, &b| s.inv[a].total_cmp(&s.inv[b]))
+        .unwrap_or(me);
+    let [linear, alpha] = mode_weights(&s.inv, me, &mut s.exact, &mut s.rounded);
+    [linear, alpha, if best == me { 256 } else { 0 }]
+}
+
+/// The linear and alpha weights (1/256) of camera `me` among the cameras
+/// seeing a pixel, from their `1/d²` (`inv`): each mode's weights of all
+/// the cameras are rounded together to sum to exactly 256 (rounding each on
+/// its own gives 257 when two fall on a half, 255 for three thirds).
+pub(super) fn mode_weights(
+    inv: &[f64],
+    me: usize,
+    exact: &mut Vec<f64>,
+    rounded: &mut Vec<u32>,
+) -> [u16; 2] {
+    let total: f64 = inv.iter().sum();
+    let n = inv.len() as f64;
+    rounded.resize(inv.len(), 0);
+    exact.clear();
+    exact.extend(inv.iter().map(|&v| 256.0 * v / total));
+    remap::round_to_total(exact, 256, rounded);
+    let linear = rounded[me] as u16;
+    exact.clear();
+    exact.resize(inv.len(), 256.0 / n);
+    remap::round_to_total(exact, 256, rounded);
+    [linear, rounded[me] as u16]
+}
+
+/// The smallest rectangle holding every pixel where `covered` holds.
+fn bounding_box(w: usize, h: usize, covered: impl Fn(usize) -> bool) -> Option<[usize; 4]> {
+    let (mut c0, mut r0, mut c1, mut r1) = (usize::MAX, usize::MAX, 0, 0);
+    for r in 0..h {
+        for c in 0..w {
+            if covered(r * w + c) {
+                c0 = c0.min(c);
+                c1 = c1.max(c);
+                r0 = r0.min(r);
+                r1 = r1.max(r);
+            }
+        }
+    }
+    (c0 != usize::MAX).then(|| [c0, r0, c1 - c0 + 1, r1 - r0 + 1])
+}
+
+/// Checks the sampling options a view shares: the fraction of a patch both
+/// cameras must show, and the source masks' step (1 to 16 pixels); errors
+/// name the option.
+pub(crate) fn check_sampling(
+    (coverage_name, coverage): (&'static str, f64),
+    (step_name, step): (&'static str, usize),
+) -> Result<()> {
+    crate::error::check_range(coverage_name, coverage, 0.0, 1.0, "a fraction in [0, 1]")?;
+    if step == 0 || step > 16 {
+        return Err(Error::InvalidParameter {
+            name: step_name,
+            value: step as f64,
+            expected: "a step of 1 to 16 source pixels",
+        });
+    }
+    Ok(())
+}
+
+/// A rig's cameras as a view of the vehicle's surroundings needs them:
+/// their names and image sizes, and their projectors.
+pub(crate) struct VehicleCameras {
+    /// Per camera, its name and image size.
+    pub(crate) sources: Vec<(String, (usize, usize))>,
+    /// Per camera, its pose and model.
+    pub(crate) projectors: Vec<CameraProjector>,
+}
+
+/// Checks that `rig` is posed in the vehicle frame and that each camera has
+/// a pose and a usable image size; errors name the camera and start with
+/// `what` (the view).
+pub(crate) fn vehicle_cameras(rig: &Rig, what: &str) -> Result<VehicleCameras> {
+    if rig.frame != Frame::Vehicle {
+        return Err(Error::InvalidConfig(format!(
+            "{what}: the rig's poses are not in the vehicle frame (x forward, y left, z up, ground z = 0); a camera-frame rig (e.g. a Kalibr camchain) needs its ground pose first (`rigview calib ground`)",
+        )));
+    }
+    let mut sources = Vec::with_capacity(rig.cameras.len());
+    let mut projectors = Vec::with_capacity(rig.cameras.len());
+    for cam in &rig.cameras {
+        let Some(projector) = cam.projector() else {
+            return Err(Error::InvalidConfig(format!(
+                "{what}: camera `{}` has no pose: expected every camera's pose in the vehicle frame",
+                cam.name
+            )));
+        };
+        let (iw, ih) = (
+            cam.intrinsics.width as usize,
+            cam.intrinsics.height as usize,
+        );
+        if iw < 2 || ih < 2 || iw.checked_mul(ih).is_none_or(|p| p > u32::MAX as usize) {
+            return Err(Error::InvalidConfig(format!(
+                "{what}: camera `{}` has {iw}×{ih} images: expected at least 2×2 and at most 2³² pixels",
+                cam.name
+            )));
+        }
+        sources.push((cam.name.clone(), (iw, ih)));
+        projectors.push(projector);
+    }
+    Ok(VehicleCameras {
+        sources,
+        projectors,
+    })
+}
+
+/// Each camera's source mask: its pixels (sampled every `step`, each result
+/// covering a `step × step` block) that land, through `to_canvas` (a
+/// source pixel to a canvas position, column and row), on a canvas pixel
+/// the camera contributes to. One thread per camera.
+pub(crate) fn source_masks<T>(
+    projectors: &[CameraProjector],
+    layers: &[CameraLayer],
+    step: usize,
+    to_canvas: T,
+) -> Result<Vec<RoiMask>>
+where
+    T: Fn(&CameraProjector, &Point2<f64>) -> Option<(f64, f64)> + Sync,
+{
+    let to_canvas = &to_canvas;
+    std::thread::scope(|scope| {
+        let jobs: Vec<_> = projectors
+            .iter()
+            .zip(layers)
+            .map(|(projector, layer)| {
+                scope.spawn(move || source_mask(projector, layer, step, to_canvas))
+            })
+            .collect();
+        jobs.into_iter()
+            .map(|job| job.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
+            .collect::<Result<Vec<_>>>()
+    })
+}
+
+fn source_mask(
+    projector: &CameraProjector,
+    layer: &CameraLayer,
+    step: usize,
+    to_canvas: impl Fn(&CameraProjector, &Point2<f64>) -> Option<(f64, f64)>,
+) -> Result<RoiMask> {
+    let (sw, sh) = layer.source;
+    let [c0, r0, rw, rh] = layer.roi;
+    let mut data = vec![0u8; sw * sh];
+    for y in (0..sh).step_by(step) {
+        for x in (0..sw).step_by(step) {
+            let centre = Point2::new(
+                x as f64 + 0.5 * (step as f64 - 1.0),
+                y as f64 + 0.5 * (step as f64 - 1.0),
+            );
+            let Some((c, r)) = to_canvas(projector, &centre) else {
+                continue;
+            };
+            if c < 0.0 || r < 0.0 {
+                continue;
+            }
+            let (c, r) = (c as usize, r as usize);
+            if c < c0 || r < r0 || c >= c0 + rw || r >= r0 + rh {
+                continue;
+            }
+            if layer.weights[0][(r - r0) * rw + (c - c0)] == 0 {
+                continue;
+            }
+            for yy in y..(y + step).min(sh) {
+                data[yy * sw + x..yy * sw + (x + step).min(sw)].fill(255);
+            }
+        }
+    }
+    RoiMask::new(sw, sh, data)
+}
+
+/// The overlap of cameras `i` and `j` on a `w × h` canvas and its patches:
+/// squares of `cell` canvas pixels of which at least the fraction
+/// `coverage` both cameras show; `centre` gives a canvas position's point
+/// (x, y) in the vehicle frame.
+pub(crate) fn overlap(
+    maps: &Maps,
+    layers: &[CameraLayer],
+    (w, h): (usize, usize),
+    (i, j): (usize, usize),
+    cell: usize,
+    coverage: f64,
+    centre: impl Fn(f64, f64) -> (f64, f64),
+) -> Overlap {
+    let both = |p: usize| maps.sees(i, p) && maps.sees(j, p);
+    let pixels = (0..w * h).filter(|&p| both(p)).count();
+    let need = (coverage * (cell * cell) as f64).ceil() as usize;
+    let mut patches = Vec::new();
+    for r0 in (0..h.saturating_sub(cell - 1)).step_by(cell) {
+        for c0 in (0..w.saturating_sub(cell - 1)).step_by(cell) {
+            let cells: Vec<usize> = (r0..r0 + cell)
+                .flat_map(|r| (c0..c0 + cell).map(move |c| r * w + c))
+                .filter(|&p| both(p))
+                .collect();
+            if cells.len() < need.max(1) {
+                continue;
+            }
+            let pixels_of = |k: usize| {
+                let mut px: Vec<u32> = cells
+                    .iter()
+                    .map(|&p| maps.nearest(k, p, layers[k].source))
+                    .collect();
+                px.sort_unstable();
+                px.dedup();
+                px
+            };
+            patches.push(OverlapPatch {
+                centre_m: centre(c0 as f64 + 0.5 * cell as f64, r0 as f64 + 0.5 * cell as f64),
+                pixels_i: pixels_of(i),
+                pixels_j: pixels_of(j),
+            });
+        }
+    }
+    Overlap {
+        i,
+        j,
+        pixels,
+        patches,
+    }
+}
+
+/// The patch means of every overlap in `frames` (checked against the view
+/// already), for the balancing (Eq. 5).
+pub(crate) fn observations(overlaps: &[Overlap], frames: &[FrameView<'_>]) -> Vec<PairObservation> {
+    overlaps
+        .iter()
+        .map(|o| PairObservation {
+            i: o.i,
+            j: o.j,
+            patches: o
+                .patches
+                .iter()
+                .map(|p| {
+                    let (mean_i, saturated_i) = patch_stats(&frames[o.i], &p.pixels_i);
+                    let (mean_j, saturated_j) = patch_stats(&frames[o.j], &p.pixels_j);
+                    PatchPair {
+                        mean_i,
+                        saturated_i,
+                        mean_j,
+                        saturated_j,
+                    }
+                })
+                .collect(),
+        })
+        .collect()
+}
+
+/// Mean intensity in [0, 1] and saturated fraction of the pixels `idx` of a
+/// frame (8-bit formats; others are read through their luminance row).
+fn patch_stats(frame: &FrameView<'_>, idx: &[u32]) -> (f32, f32) {
+    if idx.is_empty() {
+        return (0.0, 0.0);
+    }
+    let w = frame.width();
+    let (mut sum, mut sat) = (0.0f64, 0usize);
+    for &p in idx {
+        let p = p as usize;
+        let v = frame.luma_at(p % w, p / w);
+        sum += f64::from(v);
+        sat += usize::from(v >= crate::exposure::metering::SATURATED_LEVEL);
+    }
+    let n = idx.len() as f32;
+    ((sum / idx.len() as f64) as f32, sat as f32 / n)
+}

@@ -1,0 +1,216 @@
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+//! The panorama of the simulated rig, whose calibration is exactly known:
+//! Harris corners (OpenCV) on each overlap warped into the cylinder, BRIEF
+//! matches, RANSAC on each pair's relative rotation, and brightness ratios
+//! from the inliers' patches.
+//!
+//! - With the true calibration every pair has inliers, its rotation is
+//!   within 0.15° of none, and its inliers lie within a panorama pixel of
+//!   their epipolar planes.
+//! - With the right camera turned by 1.5° in the calibration, its pairs'
+//!   matches leave their epipolar planes by pixels, and the rotation RANSAC
+//!   fits turns it back towards the truth.
+//! - A camera twice as exposed as its neighbours gives ratios of about 2
+//!   (or ½) from the matched patches.
+//! - Every camera turned by 1° to 2° (seeded): the refinement of the
+//!   rotations brings every pair's inliers within a pixel of their
+//!   epipolar planes, and the two cameras seen through well-matched pairs
+//!   to within a quarter of their error; the third, seen through 8 inliers
+//!   of one pair, is not recovered.
+//!
+//! Run with `--nocapture` for the counts of corners, matches and inliers.
+
+mod surround_common;
+
+use nalgebra::{Rotation3, Vector3};
+use rigview_calib::{Pose, Rig};
+use rigview_core::exposure::balance::pair_ratio;
+use rigview_core::exposure::{BalanceParams, FrameView, PixelFormat};
+use rigview_core::panorama::{CylinderSpec, MatchOptions, PairMatches, Panorama, PanoramaOptions};
+use rigview_core::sim::{SimConfig, SimRender};
+
+fn render() -> SimRender {
+    let config = SimConfig {
+        scale: 1.0,
+        ..SimConfig::preset("overcast").unwrap()
+    };
+    SimRender::new(&config).unwrap()
+}
+
+fn spec() -> CylinderSpec {
+    CylinderSpec {
+        width: 2048,
+        height: 380,
+        ..CylinderSpec::default()
+    }
+}
+
+fn stills(r: &SimRender, shutter_us: &[f64]) -> Vec<Vec<u8>> {
+    (0..r.cameras().len())
+        .map(|k| surround_common::still(r, k, shutter_us[k]))
+        .collect()
+}
+
+fn matches(rig: &Rig, r: &SimRender, buffers: &[Vec<u8>]) -> Vec<PairMatches> {
+    let pano = Panorama::build(rig, &spec(), &PanoramaOptions::default()).unwrap();
+    let frames: Vec<FrameView<'_>> = buffers
+        .iter()
+        .zip(r.cameras())
+        .map(|(b, c)| FrameView::new(PixelFormat::Mono8, c.width, c.height, b).unwrap())
+        .collect();
+    let (pairs, times) = pano
+        .match_pairs(&frames, &rigview_tests::harris, &MatchOptions::default())
+        .unwrap();
+    println!("{times:?}");
+    for p in &pairs {
+        println!(
+            "{}–{}: corners {:?}, {} matches, {} inliers, rotation {:.3}°, error {:.2} -> {:.2} px, {} patches{}",
+            p.i,
+            p.j,
+            p.corners,
+            p.matches.len(),
+            p.inliers,
+            p.rotation.map_or(f64::NAN, |q| q.angle().to_degrees()),
+            p.error_before_px.unwrap_or(f64::NAN),
+            p.error_after_px.unwrap_or(f64::NAN),
+            p.patches.len(),
+            p.problem.as_deref().map(|s| format!(" ({s})")).unwrap_or_default()
+        );
+    }
+    pairs
+}
+
+#[test]
+fn true_poses_give_no_rotation_and_a_turned_camera_is_found() {
+    let r = render();
+    let buffers = stills(&r, &[4000.0; 4]);
+    let truth = r.rig().clone();
+    for p in matches(&truth, &r, &buffers) {
+        assert!(p.problem.is_none(), "{}–{}: {:?}", p.i, p.j, p.problem);
+        let angle = p.rotation.unwrap().angle().to_degrees();
+        assert!(angle < 0.15, "{}–{}: {angle}°", p.i, p.j);
+        assert!(p.error_before_px.unwrap() < 1.0);
+    }
+    // The right camera (3) turned by 1.5° about a tilted axis.
+    let turn = Rotation3::from_axis_angle(
+        &nalgebra::Unit::new_normalize(Vector3::new(0.3, -0.5, 1.0)),
+        1.5f64.to_radians(),
+    );
+    let mut turned = truth.clone();
+    let pose = turned.cameras[3].pose.unwrap();
+    turned.cameras[3].pose =
+        Some(Pose::new(turn * pose.rotation_matrix(), *pose.translation()).unwrap());
+    // Camera 3's pairs see it: their matches leave their epipolar planes
+    // by pixels, and the rotation RANSAC fits brings them back and turns
+    // camera 3 towards the truth (the prior on each pair's rotation holds
+    // it short of the whole 1.5°). A pair may lose its matches to the turn
+    // (too few inliers), but not both.
+    let mut seen = 0;
+    for p in matches(&turned, &r, &buffers) {
+        if p.j != 3 || p.problem.is_some() {
+            continue;
+        }
+        seen += 1;
+        let q = p.rotation.unwrap();
+        let left = (q * turn).angle().to_degrees();
+        println!(
+            "{}–{}: {left:.3}° from the truth after its rotation",
+            p.i, p.j
+        );
+        assert!(left < 1.0, "{}–{}: {left}° from the truth", p.i, p.j);
+        assert!(p.error_before_px.unwrap() > 2.0 && p.error_after_px.unwrap() < 1.0);
+    }
+    assert!(seen >= 1, "no pair of camera 3 has inliers");
+}
+
+#[test]
+fn matched_patches_give_the_exposure_ratio() {
+    let r = render();
+    // The left camera (1) at twice the others' exposure.
+    let buffers = stills(&r, &[1500.0, 3000.0, 1500.0, 1500.0]);
+    let params = BalanceParams::default();
+    for p in matches(r.rig(), &r, &buffers) {
+        let ratio = pair_ratio(&p.patches, &params).unwrap_or(f64::NAN);
+        println!(
+            "r_{}{} = {ratio:.3} from {} patches",
+            p.i,
+            p.j,
+            p.patches.len()
+        );
+        // r_ij = mean_j / mean_i: 2 where j is the brighter, ½ where i is;
+        // saturation and the sensor's response bend it a little.
+        let want = match (p.i, p.j) {
+            (_, 1) => 2.0,
+            (1, _) => 0.5,
+            _ => 1.0,
+        };
+        assert!(
+            (ratio / want).log2().abs() < 0.2,
+            "r_{}{} = {ratio} where {want} is expected",
+            p.i,
+            p.j
+        );
+    }
+}
+
+/// The rotation of camera `k` relative to camera 0.
+fn relative(rig: &Rig, k: usize) -> Rotation3<f64> {
+    let r = |c: usize| {
+        Rotation3::from_matrix_unchecked(*rig.cameras[c].pose.unwrap().rotation_matrix())
+    };
+    r(0).inverse() * r(k)
+}
+
+#[test]
+fn refinement_brings_perturbed_cameras_back() {
+    use rand::{Rng, SeedableRng};
+    use rigview_core::panorama::RefineOptions;
+    let r = render();
+    let buffers = stills(&r, &[4000.0; 4]);
+    let truth = r.rig().clone();
+    // Each camera turned by 1° to 2° about a random axis (seeded).
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(18);
+    let mut perturbed = truth.clone();
+    for cam in &mut perturbed.cameras {
+        let axis = nalgebra::Unit::new_normalize(Vector3::new(
+            rng.gen_range(-1.0..1.0),
+            rng.gen_range(-1.0..1.0),
+            rng.gen_range(-1.0..1.0),
+        ));
+        let turn = Rotation3::from_axis_angle(&axis, rng.gen_range(1.0f64..2.0).to_radians());
+        let pose = cam.pose.unwrap();
+        cam.pose = Some(Pose::new(turn * pose.rotation_matrix(), *pose.translation()).unwrap());
+    }
+    let pano = Panorama::build(&perturbed, &spec(), &PanoramaOptions::default()).unwrap();
+    let pairs = matches(&perturbed, &r, &buffers);
+    let refined = pano.refine(&pairs, &RefineOptions::default()).unwrap();
+    let after = refined.apply(&perturbed).unwrap();
+    for p in &refined.pairs {
+        let (e0, e1) = (p.error_before_px.unwrap(), p.error_after_px.unwrap());
+        println!(
+            "{}–{}: {} inliers, median error {e0:.2} -> {e1:.2} px",
+            p.i, p.j, p.inliers
+        );
+        assert!(e1 < 1.0 && e1 <= e0, "{}–{}: {e0} -> {e1}", p.i, p.j);
+    }
+    let off = |rig: &Rig, k: usize| {
+        (relative(rig, k) * relative(&truth, k).inverse())
+            .angle()
+            .to_degrees()
+    };
+    for k in 1..4 {
+        println!(
+            "camera {k}: {:.3}° from the truth (relative to camera 0) perturbed, {:.3}° refined",
+            off(&perturbed, k),
+            off(&after, k)
+        );
+    }
+    // Cameras 1 and 2 (the left and back), seen through pairs with many
+    // inliers, come back to within a quarter of their error; camera 3 (the
+    // right), seen through 8 inliers of one pair, is not recovered: the
+    // 0.15° of the goal is not reached.
+    for k in [1, 2] {
+        assert!(off(&after, k) < 0.25 * off(&perturbed, k), "camera {k}");
+    }
+    assert!(off(&after, 3) < 3.5);
+}
