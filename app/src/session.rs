@@ -193,7 +193,7 @@ fn start_sim(
                 Pacing::AsFastAsAsked
             },
             frames: spec.frames,
-            latency: None,
+            ..Default::default()
         },
     )?;
     let processor = Processor::new(cameras.clone(), Some(view), graph, processing.clone())?;
