@@ -6,6 +6,8 @@
 //! - [`calibration`]: `rigview calib`'s tools (show, convert, intrinsics,
 //!   ground).
 //! - [`demo`]: the closed loop on the simulated rig, printed.
+//! - [`eval`]: `rigview eval`, the paper's experiments as figures, data
+//!   and a report.
 //! - [`gui`]: the desktop app (eframe/egui).
 //! - [`headless`]: `rigview run --headless` (views, telemetry, plot and
 //!   summary to a folder).
@@ -24,6 +26,7 @@
 pub mod calibration;
 pub mod cli;
 pub mod demo;
+pub mod eval;
 pub mod gui;
 pub mod headless;
 pub mod live;
