@@ -3,6 +3,9 @@
 //!
 //! - [`cli`]: the command line's arguments, one file per subcommand, and
 //!   how they map to the options below.
+//! - [`brackets`]: exposure brackets (a folder of images at several
+//!   exposures per moment), their frame source and their export from the
+//!   simulated rig.
 //! - [`calibration`]: `rigview calib`'s tools (show, convert, intrinsics,
 //!   ground).
 //! - [`demo`]: the closed loop on the simulated rig, printed.
@@ -23,6 +26,7 @@
 //! - [`stills`]: still images of a calibrated rig composed into a
 //!   bird's-eye view (`rigview surround`).
 
+pub mod brackets;
 pub mod calibration;
 pub mod cli;
 pub mod demo;

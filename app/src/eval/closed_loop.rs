@@ -6,20 +6,30 @@
 use std::sync::Arc;
 
 use anyhow::{Context, Result};
+use rigview_calib::rig::Rig;
 use rigview_core::exposure::NeighbourGraph;
 use rigview_core::pipeline::{LockStep, ProcessingSettings, Processor};
 use rigview_core::sim::{SimRender, SimRig, SimRigOptions};
+use rigview_core::source::FrameSource;
 use rigview_core::surround::{Canvas, CanvasSpec, SeamBands, SurroundOptions, SurroundView};
 
 /// The surround view the evaluation meters and measures: the rig's ground
 /// at 25 px/m.
 pub fn eval_view(render: &SimRender) -> Result<SurroundView> {
+    rig_view(render.rig()).context("building the surround view of the simulated rig")
+}
+
+/// [`eval_view`] of any rig calibrated in the vehicle frame.
+pub fn rig_view(rig: &Rig) -> Result<SurroundView> {
     let spec = CanvasSpec {
         px_per_m: 25.0,
         ..Default::default()
     };
-    SurroundView::build(render.rig(), &spec, &SurroundOptions::default())
-        .context("building the surround view of the simulated rig")
+    Ok(SurroundView::build(
+        rig,
+        &spec,
+        &SurroundOptions::default(),
+    )?)
 }
 
 /// How far (canvas pixels) from a seam its step is measured.
@@ -88,15 +98,6 @@ pub fn run_with(
     options: LoopOptions,
     tick: &mut dyn FnMut(),
 ) -> Result<Trace> {
-    let cameras = render.cameras().to_vec();
-    let n = cameras.len();
-    let graph = NeighbourGraph::new(n, &render.rig().neighbours)?;
-    let mut processor = Processor::new(cameras, Some(eval_view(render)?), graph, settings)?;
-    processor.set_compose(options.view);
-    let seams = match (options.view, processor.view()) {
-        (true, Some(v)) => Some(SeamBands::new(v, SEAM_BAND_PX)),
-        _ => None,
-    };
     let source = SimRig::new(
         render.clone(),
         SimRigOptions {
@@ -104,10 +105,31 @@ pub fn run_with(
             ..Default::default()
         },
     )?;
+    run_source(source, render.rig(), settings, options, tick)
+}
+
+/// The loop on any `source` of the cameras of `rig` (calibrated in the
+/// vehicle frame), until the source ends.
+pub fn run_source<S: FrameSource>(
+    source: S,
+    rig: &Rig,
+    settings: ProcessingSettings,
+    options: LoopOptions,
+    tick: &mut dyn FnMut(),
+) -> Result<Trace> {
+    let cameras = source.cameras().to_vec();
+    let n = cameras.len();
+    let graph = NeighbourGraph::new(n, &rig.neighbours)?;
+    let mut processor = Processor::new(cameras, Some(rig_view(rig)?), graph, settings)?;
+    processor.set_compose(options.view);
+    let seams = match (options.view, processor.view()) {
+        (true, Some(v)) => Some(SeamBands::new(v, SEAM_BAND_PX)),
+        _ => None,
+    };
     let mut lp = LockStep::new(source, processor)?;
     let mut trace = Trace {
-        log2_e: vec![Vec::with_capacity(frames); n],
-        probe: vec![Vec::with_capacity(frames); n],
+        log2_e: vec![Vec::new(); n],
+        probe: vec![Vec::new(); n],
         pairs: lp.processor().pairs(),
         ..Default::default()
     };
