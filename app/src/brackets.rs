@@ -18,7 +18,7 @@
 //! exposure time and gain, so the controller sees the bracket's
 //! quantisation.
 
-use std::collections::HashMap;
+use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
@@ -98,7 +98,7 @@ pub fn read_manifest(dir: &Path, cameras: &[String]) -> Result<Manifest> {
             COLUMNS.join(",")
         );
     }
-    let mut moments: Vec<Option<Moment>> = Vec::new();
+    let mut moments: BTreeMap<usize, Moment> = BTreeMap::new();
     let mut seen: HashMap<(usize, usize, u64, u64), usize> = HashMap::new();
     for (n, line) in lines {
         let f: Vec<&str> = line.split(',').map(str::trim).collect();
@@ -147,10 +147,7 @@ pub fn read_manifest(dir: &Path, cameras: &[String]) -> Result<Manifest> {
                 f[0]
             );
         }
-        if moments.len() <= moment {
-            moments.resize(moment + 1, None);
-        }
-        let m = moments[moment].get_or_insert_with(|| Moment {
+        let m = moments.entry(moment).or_insert_with(|| Moment {
             time_s,
             cameras: vec![Vec::new(); cameras.len()],
         });
@@ -176,9 +173,13 @@ pub fn read_manifest(dir: &Path, cameras: &[String]) -> Result<Manifest> {
     let moments = moments
         .into_iter()
         .enumerate()
-        .map(|(k, m)| {
-            let mut m =
-                m.with_context(|| format!("{}: moment {k} has no images", path.display()))?;
+        .map(|(k, (number, mut m))| {
+            if number != k {
+                bail!(
+                    "{}: moment {k} has no images (moments are numbered from 0 without gaps)",
+                    path.display()
+                );
+            }
             for (c, images) in m.cameras.iter_mut().enumerate() {
                 if images.is_empty() {
                     bail!(
@@ -580,6 +581,11 @@ mod tests {
             e.contains("line 2") && e.contains("exposure_us \"fast\""),
             "{e}"
         );
+        let e = error(
+            &format!("{HEADER}front,0,0,1000,0,front/a.png\nleft,0,0,1000,0,front/a.png\nfront,99999999999,0,1000,0,front/a.png\n"),
+            &["front/a.png"],
+        );
+        assert!(e.contains("moment 1 has no images"), "{e}");
         let e = error("camera,moment\n", &[]);
         assert!(
             e.contains("line 1") && e.contains("expected the header"),
