@@ -316,4 +316,55 @@ fn the_quick_evaluation_writes_sane_figures_data_and_report() {
     }
     // A figure that is not finite shows as "–".
     assert!(!html.contains("<td>–"), "a headline figure is not finite");
+
+    // As a reader sees it: headless Chromium renders the page with its
+    // figures. The same page with its images taken out shows only the
+    // tables' colour swatches and the goals' colours.
+    let report = out.join(rigview::eval::files::REPORT);
+    let with = colourful(&screenshot(&report, &dir.path().join("with.png")));
+    let stripped = dir.path().join("stripped.html");
+    let mut text = html.clone();
+    while let Some(a) = text.find("<img ") {
+        let b = a + text[a..].find('>').unwrap() + 1;
+        text.replace_range(a..b, "");
+    }
+    std::fs::write(&stripped, text).unwrap();
+    let without = colourful(&screenshot(&stripped, &dir.path().join("without.png")));
+    println!("colourful pixels: {with} with the figures, {without} without");
+    assert!(with > 4 * without.max(1000), "{with} against {without}");
+}
+
+/// A screenshot of `page` in headless Chromium (Debian's `chromium`,
+/// which `scripts/setup` installs), 1400×6000 pixels.
+fn screenshot(page: &Path, png_path: &Path) -> image::RgbImage {
+    let out = std::process::Command::new("timeout")
+        .arg("120")
+        .arg("chromium")
+        .args([
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--hide-scrollbars",
+            "--window-size=1400,6000",
+        ])
+        .arg(format!("--screenshot={}", png_path.display()))
+        .arg(format!("file://{}", page.display()))
+        .output()
+        .expect("chromium (scripts/setup installs Debian's chromium package)");
+    assert!(
+        png_path.is_file(),
+        "chromium wrote no screenshot: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    image::open(png_path).unwrap().to_rgb8()
+}
+
+/// Pixels of a saturated colour (the figures' series), not grey or white.
+fn colourful(img: &image::RgbImage) -> usize {
+    img.pixels()
+        .filter(|p| {
+            let (lo, hi) = (p.0.iter().min().unwrap(), p.0.iter().max().unwrap());
+            hi - lo > 80
+        })
+        .count()
 }
