@@ -211,8 +211,8 @@ pub fn nearest(bracket: &[BracketImage], exposure: f64) -> usize {
 }
 
 /// Reads an image as a frame's pixels: 8-bit grey as Mono8, 16-bit grey as
-/// Mono16.
-fn read_image(file: &Path) -> Result<(PixelFormat, usize, usize, Vec<u8>)> {
+/// Mono16; returns the format, width, height and pixels.
+pub fn read_image(file: &Path) -> Result<(PixelFormat, usize, usize, Vec<u8>)> {
     let img = image::open(file).with_context(|| format!("reading the image {}", file.display()))?;
     let (w, h) = (img.width() as usize, img.height() as usize);
     match img {

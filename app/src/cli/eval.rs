@@ -32,6 +32,11 @@ pub struct EvalArgs {
     /// The folder to write the figures, their data and report.html into.
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
+    /// Run the experiments that apply (M against exposure, the seams, the
+    /// views) on this bracket sequence instead of the simulator
+    /// (docs/brackets.md).
+    #[arg(long, value_name = "DIR")]
+    pub brackets: Option<PathBuf>,
 }
 
 /// What `rigview eval` can do besides the evaluation.
@@ -96,7 +101,14 @@ pub fn run(args: &EvalArgs, out: &mut dyn Write) -> Result<()> {
         .context("rigview eval: --out DIR is needed (the folder of the report)")?;
     let plan = Plan::of(args.preset, &args.scenario);
     let started = Instant::now();
-    eval::run(&plan, dir)?;
+    match &args.brackets {
+        Some(b) => {
+            eval::on_brackets::run(&plan, b, dir)?;
+        }
+        None => {
+            eval::run(&plan, dir)?;
+        }
+    }
     writeln!(
         out,
         "rigview eval ({}): {} in {:.1} s; open {}",

@@ -136,122 +136,127 @@ pub fn report(r: &Results, out: &Path) -> Result<String> {
         "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">\
          <title>rigview evaluation ({preset})</title><style>{STYLE}</style></head><body>\n\
          <h1>rigview evaluation</h1>\n<p>rigview {version}, preset <b>{preset}</b>, \
-         simulated rig, scenario <code>{scenario}</code>; {total:.0} s in all.</p>\n",
+         {source}; {total:.0} s in all.</p>\n",
+        source = escape(&r.source),
         version = env!("CARGO_PKG_VERSION"),
         preset = p.preset,
-        scenario = escape(&p.scenario),
     );
 
     // Headline table.
     h += "<h2>Headline figures</h2>\n";
-    h += "<h3>1. γ̂ accuracy: median |γ̂ − γ*| (γ-equivalent)</h3>\n<table><tr><th>simulation</th>\
+    if !r.gamma.is_empty() {
+        h += "<h3>1. γ̂ accuracy: median |γ̂ − γ*| (γ-equivalent)</h3>\n<table><tr><th>simulation</th>\
           <th>3 anchors</th><th>7 anchors</th><th>15 anchors</th><th>7 anchors, 1/4 resolution</th>\
           <th>7 anchors, 1/16 resolution</th></tr>\n";
-    for sim in [Simulation::Gamma, Simulation::ScaleClip] {
-        let a = |k: usize| {
-            gamma::error_quantile(&r.gamma, 0.5, |g| {
-                g.series == "anchors" && g.simulation == sim && g.anchors == k
-            })
-        };
-        let d = |d: usize| {
-            gamma::error_quantile(&r.gamma, 0.5, |g| {
-                g.series == "resolution" && g.simulation == sim && g.divisor == d
-            })
-        };
-        let _ = writeln!(
-            h,
-            "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
-            super::sim_label(sim),
-            num(a(3), 3),
-            num(a(7), 3),
-            num(a(15), 3),
-            num(d(4), 3),
-            num(d(16), 3)
-        );
-    }
-    h += "</table>\n";
-
-    h += "<h3>2. Steps of light: frames to settle within 0.1 EV (median over cameras), largest overshoot and jitter</h3>\n\
-          <table><tr><th>strategy</th>";
-    let mut sorted_steps = STEPS.to_vec();
-    sorted_steps.sort_by(f64::total_cmp);
-    for s in &sorted_steps {
-        let _ = write!(h, "<th>{s:+} stops</th>");
-    }
-    h += "<th>overshoot (EV)</th><th>jitter (EV)</th></tr>\n";
-    for s in EvalStrategy::STEPS {
-        let _ = write!(h, "<tr><td>{}</td>", swatch(s));
-        let mut over = 0.0f64;
-        let mut jitter = 0.0f64;
-        for &stops in &sorted_steps {
-            let v = r.steps.responses(s, stops);
-            let mut f: Vec<f64> = v.iter().map(|x| x.settle_frames as f64).collect();
-            over = v.iter().map(|x| x.overshoot_ev).fold(over, f64::max);
-            jitter = v.iter().map(|x| x.jitter_ev).fold(jitter, f64::max);
-            let _ = write!(
+        for sim in [Simulation::Gamma, Simulation::ScaleClip] {
+            let a = |k: usize| {
+                gamma::error_quantile(&r.gamma, 0.5, |g| {
+                    g.series == "anchors" && g.simulation == sim && g.anchors == k
+                })
+            };
+            let d = |d: usize| {
+                gamma::error_quantile(&r.gamma, 0.5, |g| {
+                    g.series == "resolution" && g.simulation == sim && g.divisor == d
+                })
+            };
+            let _ = writeln!(
                 h,
-                "<td>{}</td>",
-                num(crate::report::quantile(&mut f, 0.5), 1)
+                "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+                super::sim_label(sim),
+                num(a(3), 3),
+                num(a(7), 3),
+                num(a(15), 3),
+                num(d(4), 3),
+                num(d(16), 3)
             );
         }
+        h += "</table>\n";
+    }
+    if !r.steps.rows.is_empty() {
+        h += "<h3>2. Steps of light: frames to settle within 0.1 EV (median over cameras), largest overshoot and jitter</h3>\n\
+          <table><tr><th>strategy</th>";
+        let mut sorted_steps = STEPS.to_vec();
+        sorted_steps.sort_by(f64::total_cmp);
+        for s in &sorted_steps {
+            let _ = write!(h, "<th>{s:+} stops</th>");
+        }
+        h += "<th>overshoot (EV)</th><th>jitter (EV)</th></tr>\n";
+        for s in EvalStrategy::STEPS {
+            let _ = write!(h, "<tr><td>{}</td>", swatch(s));
+            let mut over = 0.0f64;
+            let mut jitter = 0.0f64;
+            for &stops in &sorted_steps {
+                let v = r.steps.responses(s, stops);
+                let mut f: Vec<f64> = v.iter().map(|x| x.settle_frames as f64).collect();
+                over = v.iter().map(|x| x.overshoot_ev).fold(over, f64::max);
+                jitter = v.iter().map(|x| x.jitter_ev).fold(jitter, f64::max);
+                let _ = write!(
+                    h,
+                    "<td>{}</td>",
+                    num(crate::report::quantile(&mut f, 0.5), 1)
+                );
+            }
+            let _ = writeln!(
+                h,
+                "<td>{}</td><td>{}</td></tr>",
+                num(over, 2),
+                num(jitter, 3)
+            );
+        }
+        h += "</table>\n";
+        let (met, judged) = r.steps.goals_met();
         let _ = writeln!(
             h,
-            "<td>{}</td><td>{}</td></tr>",
-            num(over, 2),
-            num(jitter, 3)
-        );
-    }
-    h += "</table>\n";
-    let (met, judged) = r.steps.goals_met();
-    let _ = writeln!(
-        h,
-        "<p>The fast law's goals (settled within {} frames after ±2 stops and {} after ±4, \
+            "<p>The fast law's goals (settled within {} frames after ±2 stops and {} after ±4, \
          overshoot at most {} EV, jitter at most {} EV) are <span class=\"{}\">met by {met} of \
          its {judged} responses</span> to ±2 and ±4 stops (every camera, every step).</p>",
-        goals::SETTLE_2,
-        goals::SETTLE_4,
-        goals::OVERSHOOT_EV,
-        goals::JITTER_EV,
-        if met == judged { "met" } else { "missed" }
-    );
-    h += "<table><tr><th>fast law: camera</th>";
-    for s in &sorted_steps {
-        let _ = write!(h, "<th>{s:+} stops</th>");
-    }
-    h += "</tr>\n";
-    for cam in &r.steps.cameras {
-        let _ = write!(h, "<tr><td>{}</td>", escape(cam));
-        for &stops in &sorted_steps {
-            let row = r.steps.rows.iter().find(|x| {
-                x.strategy == EvalStrategy::Fast
-                    && &x.camera == cam
-                    && (x.stops - stops).abs() < 1e-9
-            });
-            match row {
-                Some(x) => {
-                    let class = match x.meets_goals() {
-                        Some(true) => "met",
-                        Some(false) => "missed",
-                        None => "",
-                    };
-                    let _ = write!(
-                        h,
-                        "<td class=\"{class}\">{} fr / {:.2} / {:.3}</td>",
-                        x.response.settle_frames, x.response.overshoot_ev, x.response.jitter_ev
-                    );
-                }
-                None => h += "<td>–</td>",
-            }
+            goals::SETTLE_2,
+            goals::SETTLE_4,
+            goals::OVERSHOOT_EV,
+            goals::JITTER_EV,
+            if met == judged { "met" } else { "missed" }
+        );
+        h += "<table><tr><th>fast law: camera</th>";
+        for s in &sorted_steps {
+            let _ = write!(h, "<th>{s:+} stops</th>");
         }
         h += "</tr>\n";
+        for cam in &r.steps.cameras {
+            let _ = write!(h, "<tr><td>{}</td>", escape(cam));
+            for &stops in &sorted_steps {
+                let row = r.steps.rows.iter().find(|x| {
+                    x.strategy == EvalStrategy::Fast
+                        && &x.camera == cam
+                        && (x.stops - stops).abs() < 1e-9
+                });
+                match row {
+                    Some(x) => {
+                        let class = match x.meets_goals() {
+                            Some(true) => "met",
+                            Some(false) => "missed",
+                            None => "",
+                        };
+                        let _ = write!(
+                            h,
+                            "<td class=\"{class}\">{} fr / {:.2} / {:.3}</td>",
+                            x.response.settle_frames, x.response.overshoot_ev, x.response.jitter_ev
+                        );
+                    }
+                    None => h += "<td>–</td>",
+                }
+            }
+            h += "</tr>\n";
+        }
+        h += "</table><p>Each cell: frames to settle / overshoot (EV) / jitter (EV); green: the goals are met, red: missed (±1 stop has no goal).</p>\n";
     }
-    h += "</table><p>Each cell: frames to settle / overshoot (EV) / jitter (EV); green: the goals are met, red: missed (±1 stop has no goal).</p>\n";
-
     h += "<h3>3. Settled exposure: M as a fraction of each camera's best</h3>\n<table><tr><th>strategy</th>\
           <th>mean</th><th>lowest</th><th>mean gap to the best (EV)</th></tr>\n";
     for s in EvalStrategy::SETTLED {
         let v: Vec<&super::sweep::Settled> =
             r.sweep.settled.iter().filter(|x| x.strategy == s).collect();
+        if v.is_empty() {
+            continue;
+        }
         let low = v.iter().map(|x| x.fraction).fold(f64::INFINITY, f64::min);
         let gap = v.iter().map(|x| x.log2_e - x.best_log2_e).sum::<f64>() / v.len().max(1) as f64;
         let _ = writeln!(
@@ -272,32 +277,36 @@ pub fn report(r: &Results, out: &Path) -> Result<String> {
     h += &seams_headline(r);
 
     // The experiments.
-    h += "<h2>1. γ̂ accuracy (Fig. 7)</h2>\n<p>For each camera (noise-free renders of the scenario's \
+    if !r.gamma.is_empty() {
+        h += "<h2>1. γ̂ accuracy (Fig. 7)</h2>\n<p>For each camera (noise-free renders of the scenario's \
           first moment) at exposures around its best, γ̂ against γ*, the best of a dense search over the \
           anchors' span (1/1.9 to 1.9) on the image at full resolution. Left: k anchors log-spaced over \
           the span, a polynomial of order min(5, k − 1), full resolution. Right: 7 anchors on the image \
           metered at a fraction of its width and height. Scale-and-clip's ŝ is shown as its \
           γ-equivalent 1/ŝ.</p>\n";
-    h += &figure(
-        out,
-        files::GAMMA_PNG,
-        "|γ̂ − γ*| against the anchors and the metered resolution",
-    )?;
-    h += "<h2>2. Convergence after steps of light (Fig. 9)</h2>\n<p>The light steps by +1, −1, +2, −2, \
+        h += &figure(
+            out,
+            files::GAMMA_PNG,
+            "|γ̂ − γ*| against the anchors and the metered resolution",
+        )?;
+    }
+    if !r.steps.rows.is_empty() {
+        h += "<h2>2. Convergence after steps of light (Fig. 9)</h2>\n<p>The light steps by +1, −1, +2, −2, \
           +4 and −4 stops (grey lines); one frame of actuation latency, a command every frame, each \
           camera alone except the built-in AE, which runs in the simulated cameras (rigview only \
           watches). Settled: within 0.1 EV of the exposure 30 frames after the step; jitter: the \
           standard deviation of log2 E over the last 20 of those frames.</p>\n";
-    h += &figure(
-        out,
-        files::STEPS_TRACE_PNG,
-        "log2 E of every camera under every strategy",
-    )?;
-    h += &figure(
-        out,
-        files::STEPS_PNG,
-        "frames to settle, overshoot and jitter per step",
-    )?;
+        h += &figure(
+            out,
+            files::STEPS_TRACE_PNG,
+            "log2 E of every camera under every strategy",
+        )?;
+        h += &figure(
+            out,
+            files::STEPS_PNG,
+            "frames to settle, overshoot and jitter per step",
+        )?;
+    }
     h += "<h2>3. M against exposure (Fig. 11)</h2>\n<p>The dense sweep of M over exposure for each camera \
           of each preset (noise-free, the ground the surround view shows metered as the controller \
           meters it), with the exposure each strategy settles at (the median of the last frames of a \

@@ -9,6 +9,8 @@
 //! - [`seams`]: experiment 4, the surround view's seams, and experiment 6,
 //!   the views side by side (experiment 5, the panorama's seams, waits for
 //!   a panorama view).
+//! - [`on_brackets`]: experiments 3, 4 and 6 on a bracket sequence
+//!   (`--brackets DIR`).
 //! - [`closed_loop`]: the app's processor in lock step on the simulated rig.
 //! - [`strategy`]: the strategies compared, with their colours.
 //! - [`figure`]: the figures (plotters); [`html`]: the report.
@@ -17,6 +19,7 @@ pub mod closed_loop;
 pub mod figure;
 pub mod gamma;
 pub mod html;
+pub mod on_brackets;
 pub mod seams;
 pub mod steps;
 pub mod strategy;
@@ -154,6 +157,11 @@ impl Plan {
         }
     }
 
+    /// The metering of the sweeps (the controller's).
+    pub fn sweep_metering(&self) -> rigview_core::exposure::MeteringConfig {
+        rigview_core::exposure::MeteringConfig::default()
+    }
+
     /// The simulation of `name` at the plan's scale.
     pub fn sim(&self, name: &str) -> Result<SimConfig> {
         let c = SimConfig::named(name).with_context(|| format!("scenario \"{name}\""))?;
@@ -256,6 +264,9 @@ pub struct Results {
     pub seams: SeamsResult,
     /// Seconds per experiment.
     pub seconds: Vec<(&'static str, f64)>,
+    /// What ran, in words (the simulated rig and its scenario, or a
+    /// bracket sequence).
+    pub source: String,
 }
 
 /// Runs the evaluation of `plan` into `out` (created if needed); a
@@ -323,6 +334,7 @@ pub fn run(plan: &Plan, out: &Path) -> Result<Results> {
         sweep,
         seams,
         seconds,
+        source: format!("simulated rig, scenario {}", plan.scenario),
     };
     write_all(&results, out)?;
     Ok(results)
@@ -359,9 +371,24 @@ fn sim_label(s: Simulation) -> &'static str {
     }
 }
 
-/// Writes every CSV, figure and the report of `r` into `out`.
+/// Writes every CSV, figure and the report of `r` into `out` (the
+/// experiments that were run).
 pub fn write_all(r: &Results, out: &Path) -> Result<()> {
-    // Experiment 1.
+    if !r.gamma.is_empty() {
+        write_gamma(r, out)?;
+    }
+    if !r.steps.rows.is_empty() {
+        write_steps(r, out)?;
+    }
+    write_sweep(r, out)?;
+    write_seams(r, out)?;
+    let html = html::report(r, out)?;
+    let path = out.join(files::REPORT);
+    std::fs::write(&path, html).with_context(|| format!("writing {}", path.display()))
+}
+
+/// Experiment 1's CSV and figure.
+fn write_gamma(r: &Results, out: &Path) -> Result<()> {
     write_csv(
         out,
         files::GAMMA_CSV,
@@ -418,7 +445,11 @@ pub fn write_all(r: &Results, out: &Path) -> Result<()> {
     }
     figure::write(&out.join(files::GAMMA_PNG), &panels, 2, 640, 420)?;
 
-    // Experiment 2.
+    Ok(())
+}
+
+/// Experiment 2's CSVs and figures.
+fn write_steps(r: &Results, out: &Path) -> Result<()> {
     let st = &r.steps;
     write_csv(
         out,
@@ -516,7 +547,11 @@ pub fn write_all(r: &Results, out: &Path) -> Result<()> {
     }
     figure::write(&out.join(files::STEPS_PNG), &panels, 3, 560, 440)?;
 
-    // Experiment 3.
+    Ok(())
+}
+
+/// Experiment 3's CSVs and figure.
+fn write_sweep(r: &Results, out: &Path) -> Result<()> {
     let sw = &r.sweep;
     let sweep_lines = sw.sweeps.iter().flat_map(|s| {
         s.sweep
@@ -571,13 +606,7 @@ pub fn write_all(r: &Results, out: &Path) -> Result<()> {
         })
         .collect();
     figure::write(&out.join(files::SWEEP_PNG), &panels, 4, 480, 360)?;
-
-    // Experiments 4 and 6.
-    write_seams(r, out)?;
-
-    let html = html::report(r, out)?;
-    let path = out.join(files::REPORT);
-    std::fs::write(&path, html).with_context(|| format!("writing {}", path.display()))
+    Ok(())
 }
 
 fn write_seams(r: &Results, out: &Path) -> Result<()> {

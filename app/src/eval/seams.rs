@@ -234,6 +234,37 @@ fn intensity(c: &Canvas, x: usize, y: usize) -> f64 {
     sum / n
 }
 
+/// The angles (degrees clockwise from ahead) where the profile's circle
+/// crosses a seam of `view`.
+pub fn seam_angles(view: &SurroundView) -> Vec<f64> {
+    let mut angles = Vec::new();
+    let mut last = None;
+    for d in 0..=360 {
+        let (x, y) = on_circle(view, f64::from(d));
+        let o = owner(view, x, y);
+        if let (Some(a), Some(b)) = (last, o) {
+            if a != b {
+                angles.push(f64::from(d) - 0.5);
+            }
+        }
+        if o.is_some() {
+            last = o;
+        }
+    }
+    angles
+}
+
+/// The intensity of `canvas` (a view of `view`) along the profile's
+/// circle, a value per degree.
+pub fn profile(view: &SurroundView, canvas: &Canvas) -> Vec<(f64, f64)> {
+    (0..360)
+        .map(|d| {
+            let (x, y) = on_circle(view, f64::from(d));
+            (f64::from(d), intensity(canvas, x, y))
+        })
+        .collect()
+}
+
 /// Runs experiment 4; `config` makes a scenario's simulation.
 pub fn run(
     plan: &SeamsPlan,
@@ -259,20 +290,7 @@ pub fn run(
                 s
             })
             .collect::<rigview_core::Result<Vec<_>>>()?;
-        let mut angles = Vec::new();
-        let mut last = None;
-        for d in 0..=360 {
-            let (x, y) = on_circle(&view, f64::from(d));
-            let o = owner(&view, x, y);
-            if let (Some(a), Some(b)) = (last, o) {
-                if a != b {
-                    angles.push(f64::from(d) - 0.5);
-                }
-            }
-            if o.is_some() {
-                last = o;
-            }
-        }
+        let angles = seam_angles(&view);
         out.seam_angles.push((scenario.clone(), angles));
         for strategy in EvalStrategy::SEAMS {
             let trace = closed_loop::run_with(
@@ -294,12 +312,7 @@ pub fn run(
                 .canvas
                 .clone()
                 .context("the closed loop composed no view")?;
-            let profile = (0..360)
-                .map(|d| {
-                    let (x, y) = on_circle(&view, f64::from(d));
-                    (f64::from(d), intensity(&canvas, x, y))
-                })
-                .collect();
+            let profile = profile(&view, &canvas);
             out.runs.push(SeamRun {
                 scenario: scenario.clone(),
                 strategy,
@@ -322,12 +335,18 @@ pub fn write_views(result: &SeamsResult, scenarios: &[String], path: &Path) -> R
         .find_map(|r| r.trace.canvas.as_ref().map(|c| (c.width, c.height)))
         .context("no view was composed")?;
     let (left, top, gap) = (110usize, 40usize, 6usize);
-    let cols = EvalStrategy::SEAMS.len();
+    let mut strategies: Vec<EvalStrategy> = Vec::new();
+    for r in &result.runs {
+        if !strategies.contains(&r.strategy) {
+            strategies.push(r.strategy);
+        }
+    }
+    let cols = strategies.len();
     let w = left + cols * (tile.0 + gap);
     let h = top + scenarios.len() * (tile.1 + gap);
     let mut buf = vec![255u8; w * h * 3];
     for (row, scenario) in scenarios.iter().enumerate() {
-        for (col, strategy) in EvalStrategy::SEAMS.iter().enumerate() {
+        for (col, strategy) in strategies.iter().enumerate() {
             let Some(c) = result
                 .runs
                 .iter()
@@ -351,7 +370,7 @@ pub fn write_views(result: &SeamsResult, scenarios: &[String], path: &Path) -> R
     {
         let root = BitMapBackend::with_buffer(&mut buf, (w as u32, h as u32)).into_drawing_area();
         let style = TextStyle::from((FONT, 14)).color(&BLACK);
-        for (col, strategy) in EvalStrategy::SEAMS.iter().enumerate() {
+        for (col, strategy) in strategies.iter().enumerate() {
             let x = (left + col * (tile.0 + gap)) as i32;
             root.draw_text(strategy.label(), &style, (x, 12))
                 .map_err(|e| anyhow::anyhow!("views: {e}"))?;
