@@ -295,14 +295,7 @@ pub fn run(plan: &Plan, out: &Path) -> Result<Results> {
         + (EvalStrategy::STEPS.len() * plan.steps.frames(&steps_config)) as u64
         + plan.sweep.presets.len() as u64 * sweep::units(&plan.sweep, cameras)
         + seams::units(&plan.seams, &seam_frames, cameras);
-    let bar = ProgressBar::new(total);
-    bar.set_style(
-        ProgressStyle::with_template(
-            "{msg:<34} [{bar:40}] {percent:>3}% {elapsed_precise} (eta {eta})",
-        )
-        .context("the progress bar's template")?
-        .progress_chars("=> "),
-    );
+    let bar = progress_bar(total)?;
     let mut seconds = Vec::new();
 
     bar.set_message("1/4 γ̂ accuracy");
@@ -338,6 +331,20 @@ pub fn run(plan: &Plan, out: &Path) -> Result<Results> {
     };
     write_all(&results, out)?;
     Ok(results)
+}
+
+/// The evaluation's progress bar on stderr (hidden when stderr is not a
+/// terminal), of `total` units.
+pub fn progress_bar(total: u64) -> Result<ProgressBar> {
+    let bar = ProgressBar::new(total);
+    bar.set_style(
+        ProgressStyle::with_template(
+            "{msg:<34} [{bar:40}] {percent:>3}% {elapsed_precise} (eta {eta})",
+        )
+        .context("the progress bar's template")?
+        .progress_chars("=> "),
+    );
+    Ok(bar)
 }
 
 fn write_csv(

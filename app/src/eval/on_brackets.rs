@@ -97,6 +97,8 @@ pub fn run(plan: &Plan, dir: &Path, out: &Path) -> Result<Results> {
     let t_sweep = started.elapsed().as_secs_f64();
 
     let t = Instant::now();
+    let bar = super::progress_bar((STRATEGIES.len() * moments) as u64)?;
+    bar.set_message("closed loops on the brackets");
     let mut settled = Vec::new();
     let mut runs = Vec::new();
     for strategy in STRATEGIES {
@@ -106,7 +108,7 @@ pub fn run(plan: &Plan, dir: &Path, out: &Path) -> Result<Results> {
             &rig,
             strategy.settings(),
             LoopOptions { view: true },
-            &mut || {},
+            &mut || bar.inc(1),
         )?;
         let mut m_fraction = Vec::new();
         for (cam, s) in sweeps.iter().enumerate() {
@@ -138,6 +140,7 @@ pub fn run(plan: &Plan, dir: &Path, out: &Path) -> Result<Results> {
             m_fraction,
         });
     }
+    bar.finish_and_clear();
     let results = Results {
         gamma: Vec::new(),
         steps: Default::default(),
