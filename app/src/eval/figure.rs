@@ -160,8 +160,9 @@ fn draw(
             if s.style == Style::Marks {
                 anno.legend(move |(x, y)| Circle::new((x + 8, y), 5, c.filled()));
             } else {
+                let width = if s.style == Style::Thin { 1 } else { 2 };
                 anno.legend(move |(x, y)| {
-                    PathElement::new(vec![(x, y), (x + 16, y)], c.stroke_width(2))
+                    PathElement::new(vec![(x, y), (x + 16, y)], c.stroke_width(width))
                 });
             }
         }
