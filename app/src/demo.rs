@@ -62,7 +62,7 @@ pub fn run(demo: &Demo, settings: &ProcessingSettings, out: &mut dyn Write) -> R
                 Pacing::AsFastAsAsked
             },
             frames: Some(frames),
-            latency: None,
+            ..Default::default()
         },
     )?;
     let mut processor = Processor::new(cams.to_vec(), Some(view), graph, settings.clone())?;

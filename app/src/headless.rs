@@ -61,7 +61,7 @@ pub fn run(
     let spec = &run.source;
     let lockstep = match spec {
         SourceSpec::Sim(s) => !s.realtime,
-        SourceSpec::Replay(_) => true,
+        SourceSpec::Replay(_) | SourceSpec::Brackets(_) => true,
         SourceSpec::Live(_) => false,
     };
     let cpu = CpuMeter::start();

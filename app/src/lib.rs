@@ -3,9 +3,14 @@
 //!
 //! - [`cli`]: the command line's arguments, one file per subcommand, and
 //!   how they map to the options below.
+//! - [`brackets`]: exposure brackets (a folder of images at several
+//!   exposures per moment), their frame source and their export from the
+//!   simulated rig.
 //! - [`calibration`]: `rigview calib`'s tools (show, convert, intrinsics,
 //!   ground).
 //! - [`demo`]: the closed loop on the simulated rig, printed.
+//! - [`eval`]: `rigview eval`, the paper's experiments as figures, data
+//!   and a report.
 //! - [`gui`]: the desktop app (eframe/egui).
 //! - [`headless`]: `rigview run --headless` (views, telemetry, plot and
 //!   summary to a folder).
@@ -23,9 +28,11 @@
 //! - [`stills`]: still images of a calibrated rig composed into a
 //!   bird's-eye view (`rigview surround`).
 
+pub mod brackets;
 pub mod calibration;
 pub mod cli;
 pub mod demo;
+pub mod eval;
 pub mod gui;
 pub mod headless;
 pub mod live;

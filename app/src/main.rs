@@ -41,5 +41,6 @@ fn run() -> Result<()> {
         Some(Command::Live(args)) => cli::live::run(args, &cli.view, out),
         Some(Command::Record(args)) => cli::record::run(args, out),
         Some(Command::Recording(args)) => cli::record::run_recording(args, out),
+        Some(Command::Eval(args)) => cli::eval::run(args, out),
     }
 }

@@ -8,9 +8,11 @@ use anyhow::{Context, Result};
 use plotters::prelude::*;
 use rigview_core::pipeline::{Telemetry, TelemetryRow};
 
-const FONT: &str = "rigview-sans";
+/// The font every plot is drawn in.
+pub const FONT: &str = "rigview-sans";
 
-fn register_font() -> Result<()> {
+/// Registers [`FONT`] with plotters (once).
+pub fn register_font() -> Result<()> {
     static ONCE: Once = Once::new();
     let mut result = Ok(());
     ONCE.call_once(|| {

@@ -54,6 +54,17 @@ pub enum SourceSpec {
     Live(LiveSpec),
     /// A recording replayed.
     Replay(crate::recording::ReplaySpec),
+    /// A bracket sequence ([`crate::brackets`]).
+    Brackets(BracketSpec),
+}
+
+/// A bracket sequence to run on.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BracketSpec {
+    /// Its folder.
+    pub dir: std::path::PathBuf,
+    /// Its calibration, if not `dir/rig.yaml`.
+    pub rig: Option<std::path::PathBuf>,
 }
 
 /// A running session.
@@ -162,7 +173,42 @@ pub fn start_recording(
         SourceSpec::Replay(r) => {
             crate::recording::start_replay(r, processing, options, notify, record)
         }
+        SourceSpec::Brackets(b) => start_brackets(b, processing, options, notify, record),
     }
+}
+
+/// Where a bracket sequence's cameras start: the simulated rig's start.
+pub const BRACKETS_START: rigview_core::exposure::ExposureSetting =
+    rigview_core::exposure::ExposureSetting {
+        shutter_us: 2000.0,
+        gain_db: 0.0,
+    };
+
+fn start_brackets(
+    spec: &BracketSpec,
+    processing: &ProcessingSettings,
+    options: PipelineOptions,
+    notify: Notify,
+    record: Option<&RecordSpec>,
+) -> Result<Session> {
+    let (source, rig) =
+        crate::brackets::open_with_rig(&spec.dir, spec.rig.as_deref(), BRACKETS_START)?;
+    let cameras = source.cameras().to_vec();
+    let (view, graph) = view_of(&rig, &cameras)
+        .with_context(|| format!("the calibration of the brackets {}", spec.dir.display()))?;
+    let processor = Processor::new(cameras.clone(), Some(view), graph, processing.clone())?;
+    let origin = Origin {
+        source_name: format!(
+            "brackets {} ({} moments × {} cameras)",
+            spec.dir.display(),
+            source.manifest().moments.len(),
+            cameras.len()
+        ),
+        calibration: format!("{}", spec.dir.join(crate::brackets::RIG).display()),
+        rig: Some(&rig),
+        time_offset_ns: rigview_record::writer::unix_now_ns(),
+    };
+    start_session(source, processor, options, notify, record, origin)
 }
 
 fn start_sim(
@@ -193,7 +239,7 @@ fn start_sim(
                 Pacing::AsFastAsAsked
             },
             frames: spec.frames,
-            latency: None,
+            ..Default::default()
         },
     )?;
     let processor = Processor::new(cameras.clone(), Some(view), graph, processing.clone())?;

@@ -4,6 +4,7 @@
 
 pub mod calib;
 pub mod demo;
+pub mod eval;
 pub mod live;
 pub mod panorama;
 pub mod record;
@@ -64,6 +65,9 @@ pub enum Command {
     Record(record::RecordArgs),
     /// Look at or repair a recording.
     Recording(record::RecordingCmd),
+    /// The paper's experiments on the simulated rig: figures, their data
+    /// and a report, written to a folder.
+    Eval(eval::EvalArgs),
 }
 
 /// Options of the window and of `rigview run`.

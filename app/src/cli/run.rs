@@ -22,6 +22,8 @@ pub enum SourceKind {
     Live,
     /// A recording (`replay:FILE`).
     Replay(PathBuf),
+    /// A bracket sequence (`brackets:DIR`).
+    Brackets(PathBuf),
 }
 
 impl std::str::FromStr for SourceKind {
@@ -30,10 +32,11 @@ impl std::str::FromStr for SourceKind {
         match s {
             "sim" => Ok(Self::Sim),
             "live" => Ok(Self::Live),
-            _ => match s.strip_prefix("replay:") {
-                Some(f) if !f.is_empty() => Ok(Self::Replay(PathBuf::from(f))),
+            _ => match (s.strip_prefix("replay:"), s.strip_prefix("brackets:")) {
+                (Some(f), _) if !f.is_empty() => Ok(Self::Replay(PathBuf::from(f))),
+                (_, Some(d)) if !d.is_empty() => Ok(Self::Brackets(PathBuf::from(d))),
                 _ => Err(format!(
-                    "unknown source \"{s}\" (known: sim, live, replay:FILE)"
+                    "unknown source \"{s}\" (known: sim, live, replay:FILE, brackets:DIR)"
                 )),
             },
         }
@@ -46,9 +49,14 @@ pub struct RunArgs {
     /// Without the window: write views, telemetry and a plot to `--out`.
     #[arg(long)]
     pub headless: bool,
-    /// Where frame sets come from: sim, live or replay:FILE (a recording;
-    /// its calibration unless --rig gives another).
-    #[arg(long, value_name = "sim|live|replay:FILE", default_value = "sim")]
+    /// Where frame sets come from: sim, live, replay:FILE (a recording;
+    /// its calibration unless --rig gives another) or brackets:DIR (a
+    /// bracket sequence, docs/brackets.md; its rig.yaml unless --rig).
+    #[arg(
+        long,
+        value_name = "sim|live|replay:FILE|brackets:DIR",
+        default_value = "sim"
+    )]
     pub source: SourceKind,
     /// Record every processed set into this MCAP file.
     #[arg(long, value_name = "FILE")]
@@ -105,6 +113,15 @@ impl RunArgs {
                     interactive: !headless,
                 }))
             }
+            SourceKind::Brackets(dir) => {
+                if self.fake {
+                    anyhow::bail!("--fake is an option of --source live");
+                }
+                Ok(SourceSpec::Brackets(crate::session::BracketSpec {
+                    dir: dir.clone(),
+                    rig: self.rig.clone(),
+                }))
+            }
             SourceKind::Sim => {
                 if self.rig.is_some() || self.fake {
                     anyhow::bail!("--rig and --fake are options of --source live");
@@ -143,7 +160,7 @@ pub fn run(args: &RunArgs, view: &ViewArgs) -> Result<()> {
         let source = args.source(true)?;
         // A replay runs to the recording's end unless --frames says.
         let frames = match source {
-            SourceSpec::Replay(_) => args.frames.unwrap_or(u64::MAX),
+            SourceSpec::Replay(_) | SourceSpec::Brackets(_) => args.frames.unwrap_or(u64::MAX),
             _ => args.frames.unwrap_or(FRAMES),
         };
         let run = HeadlessRun {
@@ -192,6 +209,18 @@ mod tests {
             Command::Run(a) => a,
             other => panic!("{other:?}"),
         }
+    }
+
+    #[test]
+    fn a_bracket_sequence_is_a_source() {
+        let run = run_args(&["--source", "brackets:seq", "--headless"]);
+        assert_eq!(run.source, SourceKind::Brackets(PathBuf::from("seq")));
+        let Ok(SourceSpec::Brackets(b)) = run.source(true) else {
+            panic!("not a bracket source");
+        };
+        assert_eq!((b.dir, b.rig), (PathBuf::from("seq"), None));
+        let e = "brackets:".parse::<SourceKind>().unwrap_err();
+        assert!(e.contains("brackets:DIR"), "{e}");
     }
 
     #[test]

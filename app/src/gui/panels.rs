@@ -418,7 +418,9 @@ fn controls_inner(app: &mut RigviewApp, ui: &mut Ui) {
         for s in Strategy::ALL {
             let enabled = s != Strategy::CameraAuto || camera_auto;
             let r = ui.add_enabled(enabled, egui::RadioButton::new(p.strategy == s, s.label()));
-            let r = r.on_disabled_hover_text("live cameras with their own auto-exposure only");
+            let r = r.on_disabled_hover_text(
+                "cameras with their own auto-exposure only (live, or the simulated rig)",
+            );
             if r.clicked() && p.strategy != s {
                 p.strategy = s;
                 changed = true;

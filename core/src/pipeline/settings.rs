@@ -16,8 +16,8 @@ use crate::surround::{BlendMode, SurroundView};
 pub enum Strategy {
     /// Every camera at a fixed manual exposure level.
     Manual,
-    /// The cameras' own auto-exposure (live cameras only); rigview only
-    /// watches.
+    /// The cameras' own auto-exposure (live cameras, and the simulated
+    /// rig's model of it: `sim::camera_ae`); rigview only watches.
     CameraAuto,
     /// Mean-intensity auto-exposure (baseline).
     Mean,

@@ -17,6 +17,9 @@
 //!   GenICam fake camera's fill callback).
 //! - [`source`]: [`SimRig`], the [`crate::source::FrameSource`] with
 //!   actuation latency and a trigger rate.
+//! - [`camera_ae`]: the cameras' own auto-exposure (a mean-intensity
+//!   loop, damped and rate-limited, shutter before gain), which the rig
+//!   runs when it is switched on.
 //! - [`truth`]: ground truth: the dense-sweep optimum of the metric, the
 //!   estimator's fixed points, the true overlap ratios, the dynamic range.
 //!
@@ -34,6 +37,7 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
+pub mod camera_ae;
 pub mod config;
 pub mod render;
 pub mod rig;
@@ -44,6 +48,7 @@ pub mod source;
 mod texture;
 pub mod truth;
 
+pub use camera_ae::CameraAeParams;
 pub use config::{RigChoice, SimConfig, PRESETS};
 pub use render::{FillRequest, SimRender};
 pub use rig::reference_rig;

@@ -6,6 +6,12 @@
 //! before set `n` is produced first shows in set `n + L` (0: in the very
 //! next set). Every frame reports the setting it was taken with.
 //!
+//! With the cameras' own auto-exposure switched on
+//! ([`FrameSource::set_camera_auto`]), each camera runs the built-in AE of
+//! [`super::camera_ae`] on its own frames, with the same latency, and
+//! rigview's commands are ignored (a camera locks its exposure features
+//! while its own auto-exposure runs).
+//!
 //! Simulation time is `trigger / trigger_hz`, whatever the wall clock does;
 //! [`Pacing::Realtime`] also holds each set back until its trigger's moment,
 //! [`Pacing::AsFastAsAsked`] renders each set when asked.
@@ -14,8 +20,9 @@ use std::collections::VecDeque;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+use super::camera_ae::CameraAeParams;
 use super::render::{FillRequest, SimRender};
-use crate::exposure::ExposureSetting;
+use crate::exposure::{ExposureSetting, Meter, MeteringConfig};
 use crate::source::{
     check_command, CameraInfo, ExposureCommand, Frame, FrameSet, FrameSource, SourceError,
     StreamHealth,
@@ -41,6 +48,8 @@ pub struct SimRigOptions {
     /// Frames between a command and the first frame that shows it (0 to 2;
     /// `None`: the configuration's).
     pub latency: Option<u32>,
+    /// The cameras' own auto-exposure, while it is switched on.
+    pub camera_ae: CameraAeParams,
 }
 
 impl Default for SimRigOptions {
@@ -49,6 +58,7 @@ impl Default for SimRigOptions {
             pacing: Pacing::AsFastAsAsked,
             frames: None,
             latency: None,
+            camera_ae: CameraAeParams::default(),
         }
     }
 }
@@ -65,6 +75,13 @@ pub struct SimRig {
     started: Option<Instant>,
     recent: VecDeque<Instant>,
     health: Vec<StreamHealth>,
+    /// Whether the cameras' own auto-exposure runs.
+    camera_auto: bool,
+    /// Per camera, the setting its own auto-exposure last chose (queued or
+    /// in force).
+    ae_setting: Vec<ExposureSetting>,
+    /// The whole-image metering of the cameras' own auto-exposure.
+    ae_meter: Meter,
 }
 
 impl SimRig {
@@ -77,8 +94,12 @@ impl SimRig {
                 "simulated rig: latency {latency} frames: expected 0, 1 or 2"
             )));
         }
+        options.camera_ae.validate()?;
         let n = render.cameras().len();
         Ok(Self {
+            camera_auto: false,
+            ae_setting: vec![render.config().start; n],
+            ae_meter: Meter::new(MeteringConfig::default())?,
             settings: vec![render.config().start; n],
             health: vec![StreamHealth::default(); n],
             render,
@@ -106,7 +127,32 @@ impl SimRig {
     /// cameras' own auto-exposure), and forgets queued commands.
     pub fn force_all(&mut self, setting: ExposureSetting) {
         self.settings.fill(setting);
+        self.ae_setting.fill(setting);
         self.queued.clear();
+    }
+
+    /// Whether the cameras' own auto-exposure runs.
+    pub fn camera_auto(&self) -> bool {
+        self.camera_auto
+    }
+
+    /// Camera `i`'s own auto-exposure after its frame `frame`: queues the
+    /// setting it chooses.
+    fn camera_ae(&mut self, i: usize, frame: &Frame) -> Result<(), SourceError> {
+        let mean = f64::from(self.ae_meter.meter(&frame.view()?, None)?.stats().mean);
+        let range = self.render.cameras()[i].range;
+        if let Some(setting) =
+            self.options
+                .camera_ae
+                .next(mean, frame.meta.taken, self.ae_setting[i], &range)
+        {
+            self.ae_setting[i] = setting;
+            self.queued.push((
+                self.trigger + 1 + self.latency,
+                ExposureCommand { camera: i, setting },
+            ));
+        }
+        Ok(())
     }
 
     /// The next trigger's number (sets produced so far).
@@ -134,6 +180,13 @@ impl SimRig {
             let mut buf = vec![0u8; req.buffer_len()];
             let meta = self.render.fill(&req, &mut buf)?;
             frames.push(Some(Frame::new(meta, buf.into())?));
+        }
+        if self.camera_auto {
+            for (i, f) in frames.iter().enumerate() {
+                if let Some(f) = f {
+                    self.camera_ae(i, f)?;
+                }
+            }
         }
         let now = Instant::now();
         self.recent.push_back(now);
@@ -205,6 +258,10 @@ impl FrameSource for SimRig {
                 });
             }
         }
+        if self.camera_auto {
+            // The cameras' own auto-exposure holds their exposure.
+            return Ok(());
+        }
         for c in commands {
             // A camera clamps a setting to its ranges, as GenICam features do.
             let r = &self.render.cameras()[c.camera].range;
@@ -232,6 +289,27 @@ impl FrameSource for SimRig {
 
     fn is_finished(&self) -> bool {
         self.options.frames.is_some_and(|f| self.trigger >= f)
+    }
+
+    fn has_camera_auto(&self) -> bool {
+        true
+    }
+
+    fn set_camera_auto(&mut self, on: bool) -> Result<(), SourceError> {
+        if on && !self.camera_auto {
+            // The AE starts from where each camera will be once rigview's
+            // commands in flight have shown.
+            for (i, s) in self.settings.iter().enumerate() {
+                self.ae_setting[i] = self
+                    .queued
+                    .iter()
+                    .rev()
+                    .find(|(_, c)| c.camera == i)
+                    .map_or(*s, |(_, c)| c.setting);
+            }
+        }
+        self.camera_auto = on;
+        Ok(())
     }
 }
 
@@ -332,6 +410,48 @@ mod tests {
             .health()
             .iter()
             .all(|h| h.completed == 3 && h.failed == 0));
+    }
+
+    #[test]
+    fn the_cameras_own_auto_exposure_reaches_its_target_and_ignores_commands() {
+        let mut rig = SimRig::new(test_render(), SimRigOptions::default()).unwrap();
+        rig.force_all(setting(20.0));
+        assert!(rig.has_camera_auto());
+        rig.set_camera_auto(true).unwrap();
+        let meter = Meter::new(MeteringConfig::default()).unwrap();
+        let params = CameraAeParams::default();
+        let mut last = Vec::new();
+        for _ in 0..60 {
+            let set = rig.next_set(WAIT).unwrap().unwrap();
+            // Commands are ignored while the cameras' own AE runs.
+            rig.apply(&[ExposureCommand {
+                camera: 0,
+                setting: setting(10.0),
+            }])
+            .unwrap();
+            last = set
+                .frames
+                .iter()
+                .map(|f| {
+                    let f = f.as_ref().unwrap();
+                    let m = meter.meter(&f.view().unwrap(), None).unwrap();
+                    (f64::from(m.stats().mean), f.meta.taken)
+                })
+                .collect();
+        }
+        for (i, (mean, taken)) in last.iter().enumerate() {
+            // Within the dead band of its target, give or take the noise.
+            let off = (mean / params.target).log2().abs();
+            assert!(
+                off <= params.dead_band_ev + 0.02,
+                "camera {i}: mean {mean:.3} at {taken:?}"
+            );
+        }
+        // Switched off, the cameras keep their setting and obey again.
+        rig.set_camera_auto(false).unwrap();
+        let before = rig.setting(2).unwrap();
+        rig.next_set(WAIT).unwrap();
+        assert_eq!(rig.setting(2).unwrap(), before);
     }
 
     #[test]

@@ -1,0 +1,176 @@
+//! One closed loop of the evaluation: the app's processor in lock step on
+//! the simulated rig (one frame of actuation latency, a command every
+//! frame, the surround view's ground metered and its overlaps measured, no
+//! view composed).
+
+use std::sync::Arc;
+
+use anyhow::{Context, Result};
+use rigview_calib::rig::Rig;
+use rigview_core::exposure::NeighbourGraph;
+use rigview_core::pipeline::{LockStep, ProcessingSettings, Processor};
+use rigview_core::sim::{SimRender, SimRig, SimRigOptions};
+use rigview_core::source::FrameSource;
+use rigview_core::surround::{Canvas, CanvasSpec, SeamBands, SurroundOptions, SurroundView};
+
+/// The surround view the evaluation meters and measures: the rig's ground
+/// at 25 px/m.
+pub fn eval_view(render: &SimRender) -> Result<SurroundView> {
+    rig_view(render.rig()).context("building the surround view of the simulated rig")
+}
+
+/// [`eval_view`] of any rig calibrated in the vehicle frame.
+pub fn rig_view(rig: &Rig) -> Result<SurroundView> {
+    let spec = CanvasSpec {
+        px_per_m: 25.0,
+        ..Default::default()
+    };
+    Ok(SurroundView::build(
+        rig,
+        &spec,
+        &SurroundOptions::default(),
+    )?)
+}
+
+/// How far (canvas pixels) from a seam its step is measured.
+pub const SEAM_BAND_PX: usize = 3;
+
+/// What a closed loop records besides the exposures.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct LoopOptions {
+    /// Compose the view (with the settings' display gains), measure the
+    /// ratios it shows and the step across each seam, and keep the last
+    /// canvas.
+    pub view: bool,
+}
+
+/// What a closed loop did, frame by frame.
+#[derive(Clone, Debug, Default)]
+pub struct Trace {
+    /// Per camera, log2 of the exposure each frame was taken with.
+    pub log2_e: Vec<Vec<f64>>,
+    /// Per camera, whether each frame was a probe frame.
+    pub probe: Vec<Vec<bool>>,
+    /// The overlaps, camera index pairs.
+    pub pairs: Vec<(usize, usize)>,
+    /// Per set, per overlap, `log2 r_ij` of the overlap patches in the
+    /// cameras' images.
+    pub log2_r: Vec<Vec<Option<f64>>>,
+    /// Per set, per overlap, `log2 r_ij` as the view shows it (the display
+    /// gains applied; with [`LoopOptions::view`] only).
+    pub shown_log2_r: Vec<Vec<Option<f64>>>,
+    /// Per set, per seam, the step the view shows across it, EV (with
+    /// [`LoopOptions::view`] only).
+    pub seam_steps: Vec<Vec<Option<f64>>>,
+    /// The last composed view.
+    pub canvas: Option<Arc<Canvas>>,
+}
+
+impl Trace {
+    /// Camera `k`'s settled log2 E: the median over the last `tail` frames
+    /// (probe frames left out); NaN for an empty trace.
+    pub fn settled(&self, k: usize, tail: usize) -> f64 {
+        let (Some(e), Some(p)) = (self.log2_e.get(k), self.probe.get(k)) else {
+            return f64::NAN;
+        };
+        let from = e.len().saturating_sub(tail);
+        let mut v: Vec<f64> = (from..e.len()).filter(|&i| !p[i]).map(|i| e[i]).collect();
+        crate::report::quantile(&mut v, 0.5)
+    }
+}
+
+/// Runs `settings` on `render` for `frames` sets; `tick` is called after
+/// each.
+pub fn run(
+    render: &Arc<SimRender>,
+    settings: ProcessingSettings,
+    frames: usize,
+    tick: &mut dyn FnMut(),
+) -> Result<Trace> {
+    run_with(render, settings, frames, LoopOptions::default(), tick)
+}
+
+/// [`run`], recording what `options` asks for.
+pub fn run_with(
+    render: &Arc<SimRender>,
+    settings: ProcessingSettings,
+    frames: usize,
+    options: LoopOptions,
+    tick: &mut dyn FnMut(),
+) -> Result<Trace> {
+    let source = SimRig::new(
+        render.clone(),
+        SimRigOptions {
+            frames: Some(frames as u64),
+            ..Default::default()
+        },
+    )?;
+    run_source(source, render.rig(), settings, options, tick)
+}
+
+/// The loop on any `source` of the cameras of `rig` (calibrated in the
+/// vehicle frame), until the source ends.
+pub fn run_source<S: FrameSource>(
+    source: S,
+    rig: &Rig,
+    settings: ProcessingSettings,
+    options: LoopOptions,
+    tick: &mut dyn FnMut(),
+) -> Result<Trace> {
+    let cameras = source.cameras().to_vec();
+    let n = cameras.len();
+    let graph = NeighbourGraph::new(n, &rig.neighbours)?;
+    let mut processor = Processor::new(cameras, Some(rig_view(rig)?), graph, settings)?;
+    processor.set_compose(options.view);
+    let seams = match (options.view, processor.view()) {
+        (true, Some(v)) => Some(SeamBands::new(v, SEAM_BAND_PX)),
+        _ => None,
+    };
+    let mut lp = LockStep::new(source, processor)?;
+    let mut trace = Trace {
+        log2_e: vec![Vec::new(); n],
+        probe: vec![Vec::new(); n],
+        pairs: lp.processor().pairs(),
+        ..Default::default()
+    };
+    while let Some(step) = lp.step()? {
+        let output = step
+            .output
+            .context("the simulated rig gave an incomplete frame set")?;
+        for c in &output.step.cameras {
+            trace.log2_e[c.camera].push(c.taken.exposure().log2());
+            trace.probe[c.camera].push(c.probe_frame);
+        }
+        trace
+            .log2_r
+            .push(output.pairs.iter().map(|p| p.log2_r).collect());
+        if let Some(seams) = &seams {
+            let gains = (output.display_gains.len() == n).then_some(&output.display_gains[..]);
+            let gain = |k: usize| gains.map_or(0.0, |g| f64::from(g[k]).log2());
+            trace.shown_log2_r.push(
+                output
+                    .pairs
+                    .iter()
+                    .map(|p| p.log2_r.map(|r| r + gain(p.j) - gain(p.i)))
+                    .collect(),
+            );
+            let views = step
+                .set
+                .frames
+                .iter()
+                .flatten()
+                .map(|f| f.view())
+                .collect::<std::result::Result<Vec<_>, _>>()?;
+            trace.seam_steps.push(
+                seams
+                    .steps(&views, gains)?
+                    .iter()
+                    .map(|s| s.step_ev)
+                    .collect(),
+            );
+            trace.canvas = output.canvas.clone();
+        }
+        tick();
+    }
+    Ok(trace)
+}

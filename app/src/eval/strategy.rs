@@ -1,0 +1,139 @@
+//! The strategies the evaluation compares, each with its name, its label
+//! and the one colour it has in every figure.
+
+use plotters::style::RGBColor;
+use rigview_core::exposure::{LawKind, Simulation};
+use rigview_core::pipeline::{ProcessingSettings, Strategy};
+
+/// A strategy of the evaluation: a processing strategy with its law.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum EvalStrategy {
+    /// Fixed manual exposure.
+    Fixed,
+    /// The simulated cameras' own auto-exposure.
+    CameraAe,
+    /// rigview's mean-intensity auto-exposure.
+    Mean,
+    /// The PID reference on `γ̂ − 1`.
+    Pid,
+    /// Each camera alone, the paper's linear law (Eq. 3).
+    Linear,
+    /// Each camera alone, the paper's nonlinear law (Eq. 4): "single".
+    Nonlinear,
+    /// Each camera alone, rigview's fast law.
+    Fast,
+    /// Balanced with the neighbours (Eq. 5/6), nonlinear law.
+    Multi,
+    /// The cameras' own auto-exposure, and display gains that even out the
+    /// seams of the view (what surround-view systems and OpenCV's stitcher
+    /// do).
+    CameraAeComp,
+    /// Balanced, and display gains that even out what balancing leaves.
+    MultiComp,
+}
+
+impl EvalStrategy {
+    /// The strategies of the step responses (experiment 2).
+    pub const STEPS: [EvalStrategy; 6] = [
+        Self::Linear,
+        Self::Nonlinear,
+        Self::Fast,
+        Self::Pid,
+        Self::Mean,
+        Self::CameraAe,
+    ];
+
+    /// The strategies whose settled exposure is marked on M(E)
+    /// (experiment 3).
+    pub const SETTLED: [EvalStrategy; 7] = [
+        Self::Linear,
+        Self::Nonlinear,
+        Self::Fast,
+        Self::Multi,
+        Self::Pid,
+        Self::Mean,
+        Self::CameraAe,
+    ];
+
+    /// The strategies of the surround seams (experiment 4) and of the
+    /// visual comparison (experiment 6).
+    pub const SEAMS: [EvalStrategy; 6] = [
+        Self::Fixed,
+        Self::CameraAe,
+        Self::Nonlinear,
+        Self::Multi,
+        Self::CameraAeComp,
+        Self::MultiComp,
+    ];
+
+    /// The name in CSV files.
+    pub fn key(self) -> &'static str {
+        match self {
+            Self::Fixed => "fixed",
+            Self::CameraAe => "camera-ae",
+            Self::Mean => "mean",
+            Self::Pid => "pid",
+            Self::Linear => "linear",
+            Self::Nonlinear => "nonlinear",
+            Self::Fast => "fast",
+            Self::Multi => "multi",
+            Self::CameraAeComp => "camera-ae+display",
+            Self::MultiComp => "multi+display",
+        }
+    }
+
+    /// The label in figures and the report.
+    pub fn label(self) -> &'static str {
+        match self {
+            Self::Fixed => "fixed manual",
+            Self::CameraAe => "camera built-in AE (simulated)",
+            Self::Mean => "mean-intensity AE",
+            Self::Pid => "PID (the paper's reference)",
+            Self::Linear => "gradient, linear law",
+            Self::Nonlinear => "gradient, nonlinear law",
+            Self::Fast => "gradient, fast law",
+            Self::Multi => "gradient balanced (multi)",
+            Self::CameraAeComp => "built-in AE + display gains",
+            Self::MultiComp => "balanced + display gains",
+        }
+    }
+
+    /// The colour in every figure.
+    pub fn colour(self) -> RGBColor {
+        match self {
+            Self::Fixed => RGBColor(120, 120, 120),
+            Self::CameraAe => RGBColor(230, 140, 20),
+            Self::Mean => RGBColor(200, 60, 140),
+            Self::Pid => RGBColor(140, 90, 40),
+            Self::Linear => RGBColor(40, 120, 200),
+            Self::Nonlinear => RGBColor(60, 160, 60),
+            Self::Fast => RGBColor(210, 40, 40),
+            Self::Multi => RGBColor(120, 60, 200),
+            Self::CameraAeComp => RGBColor(240, 200, 60),
+            Self::MultiComp => RGBColor(30, 170, 170),
+        }
+    }
+
+    /// The processing settings: the γ-mapping, probes off (the laws
+    /// measured alone), display gains only where the strategy says, the
+    /// rest at rigview's defaults.
+    pub fn settings(self) -> ProcessingSettings {
+        let mut p = ProcessingSettings::default();
+        p.controller.estimator.simulation = Simulation::Gamma;
+        p.controller.probe = None;
+        p.display.compensate = matches!(self, Self::CameraAeComp | Self::MultiComp);
+        let (strategy, law) = match self {
+            Self::Fixed => (Strategy::Manual, LawKind::Nonlinear),
+            Self::CameraAe | Self::CameraAeComp => (Strategy::CameraAuto, LawKind::Nonlinear),
+            Self::Mean => (Strategy::Mean, LawKind::Nonlinear),
+            Self::Pid => (Strategy::Pid, LawKind::Nonlinear),
+            Self::Linear => (Strategy::Single, LawKind::Linear),
+            Self::Nonlinear => (Strategy::Single, LawKind::Nonlinear),
+            Self::Fast => (Strategy::Single, LawKind::Fast),
+            Self::Multi | Self::MultiComp => (Strategy::Multi, LawKind::Nonlinear),
+        };
+        p.strategy = strategy;
+        p.controller.law.kind = law;
+        p
+    }
+}

@@ -1,0 +1,162 @@
+//! Experiment 3, M against exposure (the paper's Fig. 11): for each camera
+//! of each preset, the dense sweep of M over exposure (noise-free renders,
+//! the ground the surround view shows metered as the controller meters it),
+//! and where each strategy settles: the median log2 E of the last `tail`
+//! frames of a closed loop of `frames` sets in the preset's constant light,
+//! with M there as a fraction of the sweep's best.
+
+use std::sync::Arc;
+
+use anyhow::Result;
+use rigview_core::sim::truth::{self, Sweep, SweepOptions};
+use rigview_core::sim::{SimConfig, SimRender};
+
+use super::closed_loop;
+use super::strategy::EvalStrategy;
+
+/// What experiment 3 measures.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SweepPlan {
+    /// The presets (constant light).
+    pub presets: Vec<String>,
+    /// The sweep: lowest and highest level, and levels.
+    pub lo: f64,
+    /// Highest level.
+    pub hi: f64,
+    /// Levels of the sweep.
+    pub steps: usize,
+    /// Sets of each closed loop.
+    pub frames: usize,
+    /// Frames at the end whose median is the settled exposure.
+    pub tail: usize,
+}
+
+/// One camera's sweep in one preset.
+#[derive(Clone, Debug)]
+pub struct CameraSweep {
+    /// The preset.
+    pub preset: String,
+    /// The camera's name.
+    pub camera: String,
+    /// The sweep.
+    pub sweep: Sweep,
+}
+
+/// Where a strategy settled.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Settled {
+    /// The preset.
+    pub preset: String,
+    /// The camera's name.
+    pub camera: String,
+    /// The strategy.
+    pub strategy: EvalStrategy,
+    /// The settled log2 E.
+    pub log2_e: f64,
+    /// M there.
+    pub m: f64,
+    /// M there over the sweep's best.
+    pub fraction: f64,
+    /// The sweep's best log2 E.
+    pub best_log2_e: f64,
+}
+
+impl Settled {
+    /// The CSV header.
+    pub const HEADER: &'static str =
+        "preset,camera,strategy,settled_log2_e,m,m_fraction_of_best,best_log2_e,gap_ev";
+
+    /// A CSV line.
+    pub fn csv(&self) -> String {
+        format!(
+            "{},{},{},{:.4},{:.3},{:.5},{:.4},{:.4}",
+            self.preset,
+            self.camera,
+            self.strategy.key(),
+            self.log2_e,
+            self.m,
+            self.fraction,
+            self.best_log2_e,
+            self.log2_e - self.best_log2_e
+        )
+    }
+}
+
+/// What experiment 3 measured.
+#[derive(Clone, Debug, Default)]
+pub struct SweepResult {
+    /// The sweeps.
+    pub sweeps: Vec<CameraSweep>,
+    /// The settled exposures.
+    pub settled: Vec<Settled>,
+}
+
+/// Work units of one preset (sweep levels and closed-loop sets).
+pub fn units(plan: &SweepPlan, cameras: usize) -> u64 {
+    (cameras * plan.steps + EvalStrategy::SETTLED.len() * plan.frames) as u64
+}
+
+/// Runs experiment 3; `config` makes the preset's simulation.
+pub fn run(
+    plan: &SweepPlan,
+    config: &dyn Fn(&str) -> Result<SimConfig>,
+    tick: &mut dyn FnMut(u64),
+) -> Result<SweepResult> {
+    let mut out = SweepResult::default();
+    for preset in &plan.presets {
+        let render = Arc::new(SimRender::new(&config(preset)?)?);
+        let view = closed_loop::eval_view(&render)?;
+        let options = SweepOptions {
+            lo: plan.lo,
+            hi: plan.hi,
+            steps: plan.steps,
+            ..Default::default()
+        };
+        let first = out.sweeps.len();
+        for (cam, info) in render.cameras().iter().enumerate() {
+            let mask = view.ground_masks().get(cam);
+            let sweep = truth::sweep(&render, cam, 0.0, &options, mask)?;
+            tick(plan.steps as u64);
+            out.sweeps.push(CameraSweep {
+                preset: preset.clone(),
+                camera: info.name.clone(),
+                sweep,
+            });
+        }
+        for strategy in EvalStrategy::SETTLED {
+            let trace =
+                closed_loop::run(&render, strategy.settings(), plan.frames, &mut || tick(1))?;
+            for (cam, s) in out.sweeps[first..].iter().enumerate() {
+                let log2_e = trace.settled(cam, plan.tail);
+                let m = s.sweep.score_at(log2_e.exp2());
+                out.settled.push(Settled {
+                    preset: preset.clone(),
+                    camera: s.camera.clone(),
+                    strategy,
+                    log2_e,
+                    m,
+                    fraction: m / s.sweep.best_score.max(f64::MIN_POSITIVE),
+                    best_log2_e: s.sweep.best.log2(),
+                });
+            }
+        }
+    }
+    Ok(out)
+}
+
+impl SweepResult {
+    /// The mean of `M/M_best` of `strategy` over every camera and preset.
+    pub fn mean_fraction(&self, strategy: EvalStrategy) -> f64 {
+        let v: Vec<f64> = self
+            .settled
+            .iter()
+            .filter(|s| s.strategy == strategy)
+            .map(|s| s.fraction)
+            .collect();
+        if v.is_empty() {
+            f64::NAN
+        } else {
+            v.iter().sum::<f64>() / v.len() as f64
+        }
+    }
+}
