@@ -928,7 +928,11 @@ fn a_frame_still_at_the_old_setting_shows_no_command_that_leads_back_towards_it(
     assert!(cam.command(1800.0, at(1, 2000.0).taken).0.is_some());
     assert_eq!(cam.in_flight(), 2);
     cam.unary(&config, &at(2, 2000.0), &scene).unwrap();
-    assert_eq!(cam.in_flight(), 2, "a frame at the old setting shows nothing");
+    assert_eq!(
+        cam.in_flight(),
+        2,
+        "a frame at the old setting shows nothing"
+    );
     assert_eq!(cam.base(at(2, 2000.0).taken).exposure(), 1800.0);
     cam.unary(&config, &at(3, 1000.0), &scene).unwrap();
     assert_eq!(cam.in_flight(), 1);
