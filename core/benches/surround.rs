@@ -97,6 +97,21 @@ fn rig() -> Rig {
     .unwrap()
 }
 
+/// The OpenCV-remap peer composes the same view within a few levels (it
+/// rounds positions to 1/32 px): fewer than 1 % of the values differ by
+/// more than 10.
+fn assert_like_opencv_remap(ours: &[u8], opencv: &[u8]) {
+    let differ = ours
+        .iter()
+        .zip(opencv)
+        .filter(|(a, b)| a.abs_diff(**b) > 10)
+        .count();
+    assert!(
+        differ < ours.len() / 100,
+        "the OpenCV-remap composition differs: {differ} values"
+    );
+}
+
 fn frames() -> Vec<Vec<u8>> {
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
     (0..4)
@@ -577,16 +592,7 @@ fn compose(c: &mut Criterion) {
     // The peers compose the same view: the OpenCV-remap one within a few
     // levels (it rounds positions to 1/32 px), and the reference at the
     // same place (its own remap chain, so only roughly alike).
-    let differ = canvas
-        .data
-        .iter()
-        .zip(&opencv_canvas)
-        .filter(|(a, b)| a.abs_diff(**b) > 10)
-        .count();
-    assert!(
-        differ < canvas.data.len() / 100,
-        "the OpenCV-remap composition differs: {differ} values"
-    );
+    assert_like_opencv_remap(&canvas.data, &opencv_canvas);
     let covered: usize = view
         .layers()
         .iter()
@@ -827,16 +833,7 @@ fn panorama(c: &mut Criterion) {
     let mut opencv_remap = OpencvRemap::new(&pano);
     let mut opencv_canvas = vec![0u8; canvas.data.len()];
     opencv_remap.compose(&pano, &data, &mut opencv_canvas);
-    let differ = canvas
-        .data
-        .iter()
-        .zip(&opencv_canvas)
-        .filter(|(a, b)| a.abs_diff(**b) > 10)
-        .count();
-    assert!(
-        differ < canvas.data.len() / 100,
-        "the OpenCV-remap composition differs: {differ} values"
-    );
+    assert_like_opencv_remap(&canvas.data, &opencv_canvas);
     let mut compose_group = group(c, "panorama_4x1288x964_to_4096x1024", 6);
     compose_group.bench_function("rigview_linear_rgb", |b| {
         b.iter(|| {

@@ -52,8 +52,7 @@ use serde::{Deserialize, Serialize};
 use rigview_calib::rig::{CameraProjector, Rig};
 
 use crate::error::{check_range, Error, Result};
-use crate::exposure::controller::PairObservation;
-use crate::image::{FrameView, RoiMask};
+use crate::image::RoiMask;
 use crate::surround::mosaic;
 use crate::surround::{Mosaic, Overlap, Plan};
 
@@ -229,8 +228,6 @@ pub struct Panorama {
     origins: Vec<Vector3<f64>>,
     headings: Vec<f64>,
     mosaic: Mosaic,
-    masks: Vec<RoiMask>,
-    overlaps: Vec<Overlap>,
     /// Per overlap, its band of the canvas.
     bands: Vec<OverlapBand>,
     /// Per band, the plans warping each of its cameras into it, built on
@@ -289,7 +286,7 @@ impl Panorama {
             .collect();
         let slopes: Vec<f64> = (0..h).map(|r| spec.slope(r as f64 + 0.5)).collect();
         let radius = spec.radius_m;
-        let (mosaic, maps) = Mosaic::build(
+        let (mut mosaic, maps) = Mosaic::build(
             what,
             (w, h),
             &cameras.sources,
@@ -342,14 +339,13 @@ impl Panorama {
                 .into_iter()
                 .flatten()
                 .collect();
+        mosaic.set_regions(masks, overlaps);
         Ok(Self {
             spec: spec.clone(),
             centre,
             origins: projectors.iter().map(|p| *p.pose().translation()).collect(),
             headings,
             mosaic,
-            masks,
-            overlaps,
             band_plans: bands.iter().map(|_| OnceLock::new()).collect(),
             bands,
         })
@@ -406,20 +402,7 @@ impl Panorama {
     /// Each camera's source mask (the pixels that reach the panorama), in
     /// rig order: meter these.
     pub fn source_masks(&self) -> &[RoiMask] {
-        &self.masks
-    }
-
-    /// The overlaps of the rig's neighbour pairs.
-    pub fn overlaps(&self) -> &[Overlap] {
-        &self.overlaps
-    }
-
-    /// The patch means of every overlap in the current frames (rig order),
-    /// from the calibration's patches. Frames of another size than the
-    /// calibration are an error.
-    pub fn pair_observations(&self, frames: &[FrameView<'_>]) -> Result<Vec<PairObservation>> {
-        self.check_frames(frames)?;
-        Ok(mosaic::observations(&self.overlaps, frames))
+        self.mosaic.masks()
     }
 }
 

@@ -46,7 +46,7 @@
 //! It also derives the **ground masks** (the source pixels that reach the
 //! canvas: only these are metered) and the **overlap patches** (a grid of
 //! small ground squares in each overlap, each with its source pixels in both
-//! cameras), from which [`SurroundView::pair_observations`] gives the
+//! cameras), from which [`Mosaic::pair_observations`] gives the
 //! balancing its patch means.
 
 mod compose;
@@ -65,8 +65,7 @@ pub(crate) use remap::Plan;
 pub use seams::{SeamBands, SeamStep};
 
 use crate::error::{Error, Result};
-use crate::exposure::controller::PairObservation;
-use crate::image::{FrameView, RoiMask};
+use crate::image::RoiMask;
 
 /// The ground rectangle a canvas shows, and at what resolution.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -289,8 +288,6 @@ pub struct Overlap {
 pub struct SurroundView {
     spec: CanvasSpec,
     mosaic: Mosaic,
-    masks: Vec<RoiMask>,
-    overlaps: Vec<Overlap>,
 }
 
 impl std::ops::Deref for SurroundView {
@@ -355,7 +352,7 @@ impl SurroundView {
             })
             .collect();
         let projectors = &cameras.projectors;
-        let (mosaic, maps) = Mosaic::build(
+        let (mut mosaic, maps) = Mosaic::build(
             what,
             (w, h),
             &cameras.sources,
@@ -402,11 +399,10 @@ impl SurroundView {
                 )
             })
             .collect();
+        mosaic.set_regions(masks, overlaps);
         Ok(Self {
             spec: spec.clone(),
             mosaic,
-            masks,
-            overlaps,
         })
     }
 
@@ -423,20 +419,7 @@ impl SurroundView {
     /// Each camera's ground mask (source pixels that reach the canvas), in
     /// rig order: meter only these.
     pub fn ground_masks(&self) -> &[RoiMask] {
-        &self.masks
-    }
-
-    /// The overlaps of the rig's neighbour pairs.
-    pub fn overlaps(&self) -> &[Overlap] {
-        &self.overlaps
-    }
-
-    /// The patch means of every overlap in the current frames (rig order),
-    /// for the balancing (Eq. 5). Frames of another size than the
-    /// calibration are an error.
-    pub fn pair_observations(&self, frames: &[FrameView<'_>]) -> Result<Vec<PairObservation>> {
-        self.check_frames(frames)?;
-        Ok(mosaic::observations(&self.overlaps, frames))
+        self.mosaic.masks()
     }
 }
 
@@ -458,6 +441,7 @@ fn validate_options(o: &SurroundOptions) -> Result<()> {
 pub(crate) mod tests {
     use super::mosaic::mode_weights;
     use super::*;
+    use crate::image::FrameView;
 
     #[test]
     fn bad_canvas_specs_are_refused_with_the_field() {

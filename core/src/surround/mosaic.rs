@@ -76,6 +76,11 @@ pub struct Mosaic {
     layers: Vec<CameraLayer>,
     /// Per blend mode, the per-frame plan, built on first use.
     plans: [OnceLock<remap::Plan>; 3],
+    /// Per camera, the source pixels that reach the canvas (set by the
+    /// view from the maps).
+    masks: Vec<RoiMask>,
+    /// The overlaps of the rig's neighbour pairs (set by the view).
+    overlaps: Vec<Overlap>,
 }
 
 /// What [`Mosaic::build`] returns besides the mosaic: the whole-canvas maps
@@ -214,8 +219,37 @@ impl Mosaic {
             height: h,
             layers,
             plans: Default::default(),
+            masks: Vec::new(),
+            overlaps: Vec::new(),
         };
         Ok((mosaic, Maps { source }))
+    }
+
+    /// Sets what the view derived from the maps: each camera's mask of the
+    /// source pixels that reach the canvas, and the neighbour pairs'
+    /// overlaps.
+    pub(crate) fn set_regions(&mut self, masks: Vec<RoiMask>, overlaps: Vec<Overlap>) {
+        self.masks = masks;
+        self.overlaps = overlaps;
+    }
+
+    /// Each camera's mask of the source pixels that reach the canvas, in
+    /// rig order.
+    pub(crate) fn masks(&self) -> &[RoiMask] {
+        &self.masks
+    }
+
+    /// The overlaps of the rig's neighbour pairs.
+    pub fn overlaps(&self) -> &[Overlap] {
+        &self.overlaps
+    }
+
+    /// The patch means of every overlap in the current frames (rig order),
+    /// for the balancing (Eq. 5). Frames of another size than the
+    /// calibration are an error.
+    pub fn pair_observations(&self, frames: &[FrameView<'_>]) -> Result<Vec<PairObservation>> {
+        self.check_frames(frames)?;
+        Ok(observations(&self.overlaps, frames))
     }
 
     /// The per-frame plan of `mode` (built on its first use).
@@ -594,7 +628,7 @@ pub(crate) fn overlap(
 
 /// The patch means of every overlap in `frames` (checked against the view
 /// already), for the balancing (Eq. 5).
-pub(crate) fn observations(overlaps: &[Overlap], frames: &[FrameView<'_>]) -> Vec<PairObservation> {
+fn observations(overlaps: &[Overlap], frames: &[FrameView<'_>]) -> Vec<PairObservation> {
     overlaps
         .iter()
         .map(|o| PairObservation {
