@@ -488,10 +488,9 @@ impl CameraController {
                 && self.manual.is_none()
                 && hold != Some(Hold::RepeatedFrame)
         });
-        let follow = light.and_then(|p| {
-            self.light
-                .change(&p, metered, taken)
-                .filter(|c| c.follow(&p) && (c.best / taken).log2().abs() >= p.min_change_ev / 2.0)
+        let measured = light.and_then(|p| self.light.change(&p, metered, taken));
+        let follow = light.zip(measured).and_then(|(p, c)| {
+            (c.follow(&p) && (c.best / taken).log2().abs() >= p.min_change_ev / 2.0).then_some(c)
         });
         if light.is_none() && hold.is_none() {
             self.light.reset();
@@ -672,9 +671,9 @@ impl CameraController {
         }
         // A frame that shows the camera at rest, in the light the law
         // worked in, is the next change's reference.
-        if let Some(p) = light.filter(|p| {
+        if let Some(p) = light.filter(|_| {
             follow.is_none()
-                && (!self.light.has_reference() || self.light.change(p, metered, taken).is_some())
+                && (!self.light.has_reference() || measured.is_some())
                 && (base / taken).log2().abs() < REST_EV
                 && probe.is_none()
                 && !probe_frame
