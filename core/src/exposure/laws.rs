@@ -162,9 +162,11 @@ impl LawParams {
     ///   that already go further that way stand.
     /// - [`LawStep::Predicted`]: the best exposure is `taken · ratio`; the
     ///   command moves `damping` of the way there from `base`, in log
-    ///   exposure, bounded to `max_step` per command, and stays at `base`
-    ///   when that is within [`FAST_REST_EV`].
-    pub fn next_exposure(&self, step: LawStep, taken: f64, base: f64) -> f64 {
+    ///   exposure (times [`FAST_SMALL_DAMPING`] within [`FAST_SMALL_EV`]
+    ///   when `damp_small`: a camera under its own law; balancing damps
+    ///   its own moves), bounded to `max_step` per command, and stays at
+    ///   `base` when that is within [`FAST_REST_EV`].
+    pub fn next_exposure(&self, step: LawStep, taken: f64, base: f64, damp_small: bool) -> f64 {
         match step {
             LawStep::Relative(r) => taken * r,
             LawStep::AtLeast(r) => {
@@ -182,7 +184,14 @@ impl LawParams {
                     // would only make the camera creep.
                     return base;
                 }
-                base * self.bound((best / base).powf(self.damping))
+                // A small correction is the size of the estimate's own
+                // frame-to-frame noise: go half of it.
+                let damping = if damp_small && (best / base).log2().abs() < FAST_SMALL_EV {
+                    self.damping * FAST_SMALL_DAMPING
+                } else {
+                    self.damping
+                };
+                base * self.bound((best / base).powf(damping))
             }
         }
     }
@@ -253,6 +262,17 @@ pub fn nonlinear_ratio(kp: f64, d: f64, gamma_hat: f64) -> f64 {
 /// The fast law leaves the camera where its commands put it while the
 /// predicted best exposure is within this (EV).
 pub const FAST_REST_EV: f64 = 0.01;
+
+/// The fast law moves [`FAST_SMALL_DAMPING`] of the way to a predicted best
+/// exposure this close (EV) to where its commands put the camera. So close,
+/// the prediction is as much the estimate's noise as a change: under
+/// scale-and-clip at full resolution, frame-to-frame `ŝ` of a camera at its
+/// fixed point varies by up to ±0.15 EV, and following it in full made the
+/// camera wander by as much after a change of light.
+pub const FAST_SMALL_EV: f64 = 0.2;
+
+/// The share of a small correction ([`FAST_SMALL_EV`]) the fast law makes.
+pub const FAST_SMALL_DAMPING: f64 = 0.5;
 
 /// Mean intensity the fast law aims for when the estimate is at a bound.
 pub const FAST_MEAN_TARGET: f64 = 0.45;
