@@ -377,6 +377,17 @@ pub struct ExportSpec {
     pub levels: Vec<f64>,
 }
 
+/// `--range-ev LO:HI`: two levels in log2 µs, `0 ≤ LO < HI ≤ 30`.
+pub fn parse_range_ev(text: &str) -> Result<(f64, f64)> {
+    let parse = |s: &str| s.trim().parse::<f64>().ok().filter(|v| v.is_finite());
+    match text.split_once(':').map(|(a, b)| (parse(a), parse(b))) {
+        Some((Some(lo), Some(hi))) if lo < hi && (0.0..=30.0).contains(&lo) && hi <= 30.0 => {
+            Ok((lo, hi))
+        }
+        _ => bail!("--range-ev {text}: expected LO:HI in log2 µs, 0 ≤ LO < HI ≤ 30 (e.g. 8:13)"),
+    }
+}
+
 /// The exposure levels of `n` brackets evenly spaced in log2 from
 /// `lo_ev` to `hi_ev` (log2 µs).
 pub fn levels(lo_ev: f64, hi_ev: f64, n: usize) -> Vec<f64> {
@@ -393,6 +404,147 @@ pub fn levels(lo_ev: f64, hi_ev: f64, n: usize) -> Vec<f64> {
         .collect()
 }
 
+/// Writes a bracket sequence into a folder, one whole moment at a time: a
+/// moment's images and manifest lines are written only once every camera's
+/// bracket is complete, and the manifest is flushed after each, so that a
+/// sequence cut short (a camera lost, the disk full, the program stopped)
+/// keeps every moment written before, readable as it is.
+#[derive(Debug)]
+pub struct BracketWriter {
+    dir: PathBuf,
+    manifest: std::fs::File,
+    cameras: Vec<String>,
+    moments: usize,
+}
+
+/// One image of a moment for [`BracketWriter::write_moment`].
+#[derive(Clone, Copy, Debug)]
+pub struct BracketFrame<'a> {
+    /// The camera's index in the rig.
+    pub camera: usize,
+    /// What it was taken with (as the camera reported it).
+    pub setting: ExposureSetting,
+    /// Its pixels.
+    pub format: PixelFormat,
+    /// Its size.
+    pub width: usize,
+    /// Its size.
+    pub height: usize,
+    /// Its pixels, `format`'s layout.
+    pub data: &'a [u8],
+}
+
+impl BracketWriter {
+    /// Creates `dir` with the rig's calibration (when known), a folder per
+    /// camera and the manifest's header; `title` is its first comment line.
+    pub fn create(
+        dir: &Path,
+        rig: Option<&rigview_calib::Rig>,
+        cameras: &[String],
+        title: &str,
+    ) -> Result<Self> {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+        let path = dir.join(MANIFEST);
+        if path.exists() {
+            bail!(
+                "{} exists already: write brackets into a new folder",
+                path.display()
+            );
+        }
+        if let Some(rig) = rig {
+            rigview_calib::formats::save(rig, &dir.join(RIG), None)
+                .with_context(|| format!("writing {}", dir.join(RIG).display()))?;
+        }
+        for name in cameras {
+            std::fs::create_dir_all(dir.join(name))
+                .with_context(|| format!("creating {}", dir.join(name).display()))?;
+        }
+        let mut manifest =
+            std::fs::File::create(&path).with_context(|| format!("creating {}", path.display()))?;
+        use std::io::Write;
+        write!(manifest, "# {title}\n{}\n", COLUMNS.join(","))
+            .and_then(|()| manifest.flush())
+            .with_context(|| format!("writing {}", path.display()))?;
+        Ok(Self {
+            dir: dir.to_path_buf(),
+            manifest,
+            cameras: cameras.to_vec(),
+            moments: 0,
+        })
+    }
+
+    /// Moments written so far.
+    pub fn moments(&self) -> usize {
+        self.moments
+    }
+
+    /// Writes the next moment, taken `time_s` after the first: its images
+    /// (Mono8 as 8-bit grey PNG; Mono12 and Mono16 as 16-bit grey, Mono12
+    /// shifted to the top bits), then their lines of the manifest.
+    pub fn write_moment(&mut self, time_s: f64, frames: &[BracketFrame<'_>]) -> Result<()> {
+        use std::io::Write;
+        let n = self.moments;
+        let mut lines = String::new();
+        let mut per_camera = vec![0usize; self.cameras.len()];
+        for f in frames {
+            let name = self.cameras.get(f.camera).with_context(|| {
+                format!(
+                    "a frame of camera {} in a rig of {} cameras",
+                    f.camera,
+                    self.cameras.len()
+                )
+            })?;
+            let k = per_camera[f.camera];
+            per_camera[f.camera] += 1;
+            let file = format!("{name}/{n:06}_{k:02}.png");
+            let path = self.dir.join(&file);
+            write_png(&path, f)
+                .with_context(|| format!("writing {} (camera \"{name}\")", path.display()))?;
+            lines += &format!(
+                "{name},{n},{time_s:.6},{:.3},{:.3},{file}\n",
+                f.setting.shutter_us, f.setting.gain_db
+            );
+        }
+        let path = self.dir.join(MANIFEST);
+        self.manifest
+            .write_all(lines.as_bytes())
+            .and_then(|()| self.manifest.flush())
+            .with_context(|| format!("writing {}", path.display()))?;
+        self.moments += 1;
+        Ok(())
+    }
+}
+
+/// Writes one frame as a grey PNG.
+fn write_png(path: &Path, f: &BracketFrame<'_>) -> Result<()> {
+    let (w, h) = (f.width as u32, f.height as u32);
+    match f.format {
+        PixelFormat::Mono8 => image::GrayImage::from_raw(w, h, f.data.to_vec())
+            .context("a frame of the wrong size")?
+            .save(path)?,
+        PixelFormat::Mono12 | PixelFormat::Mono16 => {
+            let scale = if f.format == PixelFormat::Mono12 {
+                16
+            } else {
+                1
+            };
+            let px: Vec<u16> = f
+                .data
+                .chunks_exact(2)
+                .map(|c| u16::from_le_bytes([c[0], c[1]]).saturating_mul(scale))
+                .collect();
+            image::ImageBuffer::<image::Luma<u16>, _>::from_raw(w, h, px)
+                .context("a frame of the wrong size")?
+                .save(path)?;
+        }
+        other => bail!(
+            "pixel format {}: brackets hold grey images (Mono8, Mono12 or Mono16)",
+            other.genicam_name()
+        ),
+    }
+    Ok(())
+}
+
 /// Writes a bracket sequence of the simulated rig `render` into `dir`:
 /// its calibration, and for every moment and camera the frame the
 /// simulated camera takes at each level (with the noise of that moment),
@@ -404,24 +556,19 @@ pub fn export(
     tick: &mut dyn FnMut(),
 ) -> Result<()> {
     use rigview_core::sim::FillRequest;
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-    rigview_calib::formats::save(render.rig(), &dir.join(RIG), None)
-        .with_context(|| format!("writing {}", dir.join(RIG).display()))?;
-    let mut manifest = format!(
-        "# rigview exposure brackets of the simulated rig \"{}\": {} moments, {} exposures each\n{}\n",
+    let names: Vec<String> = render.cameras().iter().map(|c| c.name.clone()).collect();
+    let title = format!(
+        "rigview exposure brackets of the simulated rig \"{}\": {} moments, {} exposures each",
         render.config().name,
         spec.frames,
         spec.levels.len(),
-        COLUMNS.join(",")
     );
-    for info in render.cameras() {
-        std::fs::create_dir_all(dir.join(&info.name))
-            .with_context(|| format!("creating {}", dir.join(&info.name).display()))?;
-    }
+    let mut writer = BracketWriter::create(dir, Some(render.rig()), &names, &title)?;
     for n in 0..spec.frames {
         let t = render.time_of(n as u64);
+        let mut images = Vec::new();
         for (i, info) in render.cameras().iter().enumerate() {
-            for (k, &level) in spec.levels.iter().enumerate() {
+            for &level in &spec.levels {
                 let setting = ExposureSetting {
                     shutter_us: level,
                     gain_db: 0.0,
@@ -430,35 +577,24 @@ pub fn export(
                     FillRequest::new(i, n as u64, setting, info.format, info.width, info.height);
                 let mut buf = vec![0u8; req.buffer_len()];
                 render.fill(&req, &mut buf)?;
-                let name = format!("{}/{n:06}_{k:02}.png", info.name);
-                let path = dir.join(&name);
-                let (w, h) = (info.width as u32, info.height as u32);
-                match info.format {
-                    PixelFormat::Mono8 => image::GrayImage::from_raw(w, h, buf)
-                        .context("a frame of the wrong size")?
-                        .save(&path),
-                    _ => {
-                        let scale = match info.format {
-                            PixelFormat::Mono12 => 16,
-                            _ => 1,
-                        };
-                        let px: Vec<u16> = buf
-                            .chunks_exact(2)
-                            .map(|c| u16::from_le_bytes([c[0], c[1]]).saturating_mul(scale))
-                            .collect();
-                        image::ImageBuffer::<image::Luma<u16>, _>::from_raw(w, h, px)
-                            .context("a frame of the wrong size")?
-                            .save(&path)
-                    }
-                }
-                .with_context(|| format!("writing {}", path.display()))?;
-                manifest += &format!("{},{n},{t:.6},{level:.3},0,{name}\n", info.name);
+                images.push((i, setting, info, buf));
                 tick();
             }
         }
+        let frames: Vec<BracketFrame<'_>> = images
+            .iter()
+            .map(|(i, setting, info, buf)| BracketFrame {
+                camera: *i,
+                setting: *setting,
+                format: info.format,
+                width: info.width,
+                height: info.height,
+                data: buf,
+            })
+            .collect();
+        writer.write_moment(t, &frames)?;
     }
-    let path = dir.join(MANIFEST);
-    std::fs::write(&path, manifest).with_context(|| format!("writing {}", path.display()))
+    Ok(())
 }
 
 #[cfg(test)]

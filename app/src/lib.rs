@@ -39,6 +39,7 @@ pub mod live;
 pub mod logging;
 pub mod panorama;
 pub mod plot_png;
+pub mod record_brackets;
 pub mod recording;
 pub mod report;
 pub mod session;

@@ -619,10 +619,13 @@ pub enum CaptureFrom {
 }
 
 /// A source opened for `rigview record`.
-struct Opened {
-    source: Box<dyn FrameSource>,
-    rig: Option<Rig>,
-    what: String,
+pub(crate) struct Opened {
+    /// The source.
+    pub source: Box<dyn FrameSource>,
+    /// Its calibration, when it fits the source's cameras.
+    pub rig: Option<Rig>,
+    /// What it is, for the recording's metadata.
+    pub what: String,
     time_offset_ns: u64,
 }
 
@@ -637,10 +640,10 @@ pub struct CaptureRun {
     pub seconds: Option<f64>,
 }
 
-/// Captures `run`, printing the set count now and then; returns the
-/// recording's summary.
-pub fn capture(run: &CaptureRun, out: &mut dyn std::io::Write) -> Result<String> {
-    let opened = match &run.from {
+/// Opens what `rigview record` captures from (the simulated rig paced at
+/// its trigger rate).
+pub(crate) fn open(from: &CaptureFrom) -> Result<Opened> {
+    Ok(match from {
         CaptureFrom::Sim { scenario, scale } => {
             let mut config = SimConfig::named(scenario)
                 .with_context(|| format!("loading the simulation \"{scenario}\""))?;
@@ -663,7 +666,21 @@ pub fn capture(run: &CaptureRun, out: &mut dyn std::io::Write) -> Result<String>
             }
         }
         CaptureFrom::Live(spec) => open_live(spec)?,
-    };
+    })
+}
+
+/// `--seconds S` as a duration.
+pub(crate) fn time_limit(seconds: Option<f64>) -> Result<Option<Duration>> {
+    seconds
+        .map(Duration::try_from_secs_f64)
+        .transpose()
+        .context("--seconds: expected a number of seconds ≥ 0")
+}
+
+/// Captures `run`, printing the set count now and then; returns the
+/// recording's summary.
+pub fn capture(run: &CaptureRun, out: &mut dyn std::io::Write) -> Result<String> {
+    let opened = open(&run.from)?;
     let recorder = run.record.create(
         opened.source.cameras(),
         opened.rig.as_ref(),
@@ -672,11 +689,7 @@ pub fn capture(run: &CaptureRun, out: &mut dyn std::io::Write) -> Result<String>
     )?;
     let mut source = opened.source;
     let start = Instant::now();
-    let limit = run
-        .seconds
-        .map(Duration::try_from_secs_f64)
-        .transpose()
-        .context("--seconds: expected a number of seconds ≥ 0")?;
+    let limit = time_limit(run.seconds)?;
     let mut last_print = Instant::now();
     loop {
         if limit.is_some_and(|l| start.elapsed() >= l) || recorder.is_stopped() {

@@ -73,20 +73,7 @@ pub struct ExportArgs {
 impl ExportArgs {
     /// `--range-ev` as two numbers.
     pub fn range(&self) -> Result<(f64, f64)> {
-        let parse = |s: &str| s.trim().parse::<f64>().ok().filter(|v| v.is_finite());
-        match self
-            .range_ev
-            .split_once(':')
-            .map(|(a, b)| (parse(a), parse(b)))
-        {
-            Some((Some(lo), Some(hi))) if lo < hi && (0.0..=30.0).contains(&lo) && hi <= 30.0 => {
-                Ok((lo, hi))
-            }
-            _ => anyhow::bail!(
-                "--range-ev {}: expected LO:HI in log2 µs, 0 ≤ LO < HI ≤ 30 (e.g. 8:13)",
-                self.range_ev
-            ),
-        }
+        brackets::parse_range_ev(&self.range_ev)
     }
 }
 

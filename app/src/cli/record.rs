@@ -52,12 +52,25 @@ pub struct RecordArgs {
     /// Render scale of `--sim` and `--fake`.
     #[arg(long, default_value_t = 1.0)]
     pub scale: f64,
-    /// The recording (MCAP).
-    #[arg(long, value_name = "FILE")]
+    /// The recording (MCAP), or with `--brackets` the folder of the
+    /// bracket sequence.
+    #[arg(long, value_name = "FILE|DIR")]
     pub out: PathBuf,
     /// Stop after this many seconds (otherwise when the source ends).
     #[arg(long, value_name = "S")]
     pub seconds: Option<f64>,
+    /// Record exposure brackets instead of a recording: the cameras cycle
+    /// through N exposures per moment, and each frame that shows one is
+    /// written into the folder `--out` (docs/brackets.md).
+    #[arg(long, value_name = "N")]
+    pub brackets: Option<usize>,
+    /// With `--brackets`: the exposures' range, log2 µs at 0 dB, `LO:HI`
+    /// (default: 3 EV either side of each camera's exposure at the start).
+    #[arg(long, value_name = "LO:HI", requires = "brackets")]
+    pub range_ev: Option<String>,
+    /// With `--brackets`: stop after this many moments.
+    #[arg(long, value_name = "M", requires = "brackets")]
+    pub moments: Option<usize>,
     /// How the recording is written.
     #[command(flatten)]
     pub recording: RecordingArgs,
@@ -112,6 +125,23 @@ pub fn run(args: &RecordArgs, out: &mut dyn std::io::Write) -> Result<()> {
         },
         _ => anyhow::bail!("rigview record needs one of --rig FILE, --fake or --sim"),
     };
+    if let Some(exposures) = args.brackets {
+        let run = crate::record_brackets::BracketRun {
+            from,
+            dir: args.out.clone(),
+            exposures,
+            range_ev: args
+                .range_ev
+                .as_deref()
+                .map(crate::brackets::parse_range_ev)
+                .transpose()?,
+            moments: args.moments,
+            seconds: args.seconds,
+        };
+        let summary = crate::record_brackets::capture(&run, out)?;
+        writeln!(out, "{summary}")?;
+        return Ok(());
+    }
     let run = CaptureRun {
         from,
         record: args.recording.spec(args.out.clone()),
