@@ -36,30 +36,37 @@ struct Xvfb {
 }
 
 impl Xvfb {
+    /// Starts Xvfb on a free display and waits until it accepts
+    /// connections: with `-displayfd`, Xvfb picks the display and writes
+    /// its number only once it is ready.
     fn start() -> Self {
-        let n = 90 + std::process::id() % 400;
-        let display = format!(":{n}");
-        let child = Command::new("Xvfb")
+        use std::io::BufRead;
+        let mut child = Command::new("Xvfb")
             .args([
-                display.as_str(),
+                "-displayfd",
+                "1",
                 "-screen",
                 "0",
                 "1600x1000x24",
                 "-nolisten",
                 "tcp",
             ])
-            .stdout(std::process::Stdio::null())
+            .stdout(std::process::Stdio::piped())
             .stderr(std::process::Stdio::null())
             .spawn()
             .expect("Xvfb is missing: scripts/setup installs it");
-        let socket = format!("/tmp/.X11-unix/X{n}");
-        for _ in 0..100 {
-            if std::path::Path::new(&socket).exists() {
-                break;
-            }
-            std::thread::sleep(std::time::Duration::from_millis(50));
+        let mut line = String::new();
+        std::io::BufReader::new(child.stdout.take().unwrap())
+            .read_line(&mut line)
+            .unwrap();
+        let n: u32 = line
+            .trim()
+            .parse()
+            .unwrap_or_else(|_| panic!("Xvfb did not say its display: {line:?}"));
+        Self {
+            child,
+            display: format!(":{n}"),
         }
-        Self { child, display }
     }
 }
 
