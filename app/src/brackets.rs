@@ -210,6 +210,29 @@ pub fn nearest(bracket: &[BracketImage], exposure: f64) -> usize {
     best.0
 }
 
+/// The exposure levels of camera `cam`'s brackets when every moment has
+/// the same (within 0.01 EV); `None` when they vary.
+fn common_levels(manifest: &Manifest, cam: usize) -> Option<Vec<f64>> {
+    let levels = |m: &Moment| -> Vec<f64> {
+        m.cameras
+            .get(cam)
+            .map(|b| b.iter().map(|i| i.setting.exposure()).collect())
+            .unwrap_or_default()
+    };
+    let first = levels(manifest.moments.first()?);
+    manifest
+        .moments
+        .iter()
+        .all(|m| {
+            let l = levels(m);
+            l.len() == first.len()
+                && l.iter()
+                    .zip(&first)
+                    .all(|(a, b)| (a / b).log2().abs() <= 0.01)
+        })
+        .then_some(first)
+}
+
 /// Reads an image as a frame's pixels: 8-bit grey as Mono8, 16-bit grey as
 /// Mono16; returns the format, width, height and pixels.
 pub fn read_image(file: &Path) -> Result<(PixelFormat, usize, usize, Vec<u8>)> {
@@ -247,7 +270,8 @@ impl BracketSource {
         let cameras = names
             .iter()
             .zip(&first.cameras)
-            .map(|(name, images)| {
+            .enumerate()
+            .map(|(cam, (name, images))| {
                 let (format, width, height, _) = read_image(&images[0].file)?;
                 Ok(CameraInfo {
                     name: name.clone(),
@@ -255,6 +279,7 @@ impl BracketSource {
                     width,
                     height,
                     range: ExposureRange::default(),
+                    levels: common_levels(&manifest, cam),
                 })
             })
             .collect::<Result<Vec<_>>>()?;

@@ -143,6 +143,11 @@ pub struct CameraInfo {
     pub height: usize,
     /// The exposure and gain ranges it reports.
     pub range: ExposureRange,
+    /// The only exposure levels (`shutter · gain`) it takes, ascending, when
+    /// it has a fixed set: a bracket sequence answers every command with
+    /// its nearest level. `None`: any level within `range`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub levels: Option<Vec<f64>>,
 }
 
 /// The state of one camera's stream.

@@ -206,6 +206,7 @@ fn bench_seek(c: &mut Criterion) {
             width: 128,
             height: 96,
             range: Default::default(),
+            levels: None,
         })
         .collect();
     let frames: Vec<Frame> = (0..4)

@@ -449,6 +449,7 @@ fn configure(
         width: usize::try_from(width).unwrap_or(0),
         height: usize::try_from(height).unwrap_or(0),
         range,
+        levels: None,
     };
     Ok(Device {
         stream,

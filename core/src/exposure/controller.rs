@@ -172,6 +172,19 @@ pub enum Hold {
 /// mean-intensity step is taken instead.
 pub const SATURATED_FALLBACK: f32 = 0.8;
 
+/// On a camera with fixed exposure levels, the level it has stays while
+/// the exposure asked lies within this share of the way to the next
+/// (nearest-level rounding is 0.5).
+const LEVEL_HYSTERESIS: f64 = 0.6;
+
+/// How much of the distance (in log exposure) between the exposure asked of
+/// a camera with fixed levels and the level it took carries to the next
+/// step ([`CameraController::anchor`]). Below 1, the steps' noise does not
+/// add up without bound while the camera rests at a level; on brackets
+/// 0.25 EV apart, 1 let noise walk the linear law 0.24 EV from where it
+/// settles on the simulator, 0.6 left the mean AE 0.26 EV short.
+const LEVEL_RETAIN: f64 = 0.8;
+
 /// Tolerance (relative) for "this frame shows the commanded exposure".
 const SETTLED_TOLERANCE: f64 = 2e-3;
 
@@ -296,6 +309,12 @@ pub struct CameraController {
     /// Whether this frame became the light's reference: the exposure
     /// commanded on it (after balancing) is the one a change of light moves.
     fresh_reference: bool,
+    /// The only exposure levels the camera takes, ascending, if it has a
+    /// fixed set ([`crate::source::CameraInfo::levels`]).
+    levels: Option<Vec<f64>>,
+    /// The exposure last asked of a camera with fixed levels, before it
+    /// was rounded to one, and the level it was sent ([`Self::anchor`]).
+    intended: Option<(f64, f64)>,
 }
 
 /// The frame the camera's own law passed (scale-and-clip) is read only by
@@ -353,7 +372,54 @@ impl CameraController {
             light: LightTracker::default(),
             kept_light_ev: 0.0,
             fresh_reference: false,
+            levels: None,
+            intended: None,
         })
+    }
+
+    /// Tells the controller that the camera takes only these exposure
+    /// levels (`None`: any within its range); see [`Self::anchor`].
+    pub fn set_levels(&mut self, levels: Option<Vec<f64>>) {
+        self.levels = levels.filter(|l| !l.is_empty());
+        self.intended = None;
+    }
+
+    /// The level to send for `exposure` on a camera with fixed levels, at
+    /// `current` now: the nearest in log exposure, except that `current`
+    /// stays while `exposure` lies within [`LEVEL_HYSTERESIS`] of the way
+    /// to the next level, so that an exposure asked near the middle between
+    /// two levels does not send the camera back and forth.
+    fn level_of(levels: &[f64], exposure: f64, current: f64) -> f64 {
+        let dist = |l: f64| (l / exposure).log2().abs();
+        let nearest = levels
+            .iter()
+            .copied()
+            .min_by(|a, b| dist(*a).total_cmp(&dist(*b)))
+            .unwrap_or(exposure);
+        let spacing = (nearest / current).log2().abs();
+        if spacing > 0.0 && dist(current) < LEVEL_HYSTERESIS * spacing {
+            current
+        } else {
+            nearest
+        }
+    }
+
+    /// Where a step computed on a frame taken at `taken` starts from. On a
+    /// camera with fixed levels that shows the level of the exposure last
+    /// asked of it, the step starts from that exposure (drawn
+    /// [`LEVEL_RETAIN`] of the way from the level), not from the level: a
+    /// law whose steps are smaller than half the levels' spacing would
+    /// otherwise ask for the level it has on every frame and stop a level
+    /// or more short of its fixed point, while from the exposure asked its
+    /// steps add up until they reach the next level. Between two levels
+    /// the camera then alternates, as long at each as its fixed point is
+    /// near it. On a camera with any level, and until then, `taken`.
+    fn anchor(&self, taken: f64) -> f64 {
+        self.intended
+            .filter(|&(_, level)| (level / taken).log2().abs() <= SETTLED_TOLERANCE)
+            .map_or(taken, |(asked, level)| {
+                level * (asked / level).powf(LEVEL_RETAIN)
+            })
     }
 
     /// The splitter (ranges and hysteresis state).
@@ -418,12 +484,24 @@ impl CameraController {
         self.repeller.reset();
         self.light.reset();
         self.kept_light_ev = 0.0;
+        self.intended = None;
     }
 
     /// The setting the camera will have once the commands in flight have
     /// shown: the newest command's, or `taken` when none is in flight.
     pub fn base(&self, taken: ExposureSetting) -> ExposureSetting {
         self.in_flight.back().map_or(taken, |c| c.setting)
+    }
+
+    /// The exposure the next step starts from: [`Self::base`], except on
+    /// a camera with fixed levels that shows the level last sent, where it
+    /// is the exposure asked before rounding ([`Self::anchor`]).
+    pub fn working_point(&self, taken: ExposureSetting) -> f64 {
+        if self.in_flight.is_empty() {
+            self.anchor(taken.exposure())
+        } else {
+            self.base(taken).exposure()
+        }
     }
 
     /// Commands in flight (sent, not yet shown by a frame).
@@ -614,7 +692,19 @@ impl CameraController {
                 base
             }
             (None, Some(c)) => base * config.law.bound(c.best / base),
-            (None, None) => config.law.next_exposure(step, taken, base, own_law),
+            (None, None) => match (step, self.intended) {
+                // The fast law's prediction is of the best exposure itself.
+                (LawStep::Predicted { .. }, _) => {
+                    config.law.next_exposure(step, taken, base, own_law)
+                }
+                // A frame from before the level sent shows: the exposure
+                // asked stands (a step from the frame's level would undo
+                // the steps added up since).
+                (_, Some((asked, _))) if !self.in_flight.is_empty() => asked,
+                _ => config
+                    .law
+                    .next_exposure(step, self.anchor(taken), base, own_law),
+            },
         };
         // The bracket is the estimator's: under the fast law, whose jumps
         // can straddle a discontinuity of the estimate, it holds whether or
@@ -733,8 +823,16 @@ impl CameraController {
         if std::mem::take(&mut self.fresh_reference) {
             self.light.set_best(target);
         }
-        let (setting, clamped) = self.splitter.split(target);
+        let (mut setting, clamped) = self.splitter.split(target);
         let base = self.base(taken);
+        if let Some(levels) = &self.levels {
+            // The camera is sent the level it will take, and the exposure
+            // asked is remembered for the next step (`anchor`).
+            let asked = setting.exposure();
+            let level = Self::level_of(levels, asked, base.exposure());
+            self.intended = Some((asked, level));
+            setting = self.splitter.split(level).0;
+        }
         let must_show = std::mem::take(&mut self.must_show);
         let probe = std::mem::take(&mut self.probe_next);
         let same = (setting.shutter_us / base.shutter_us - 1.0).abs() <= SETTLED_TOLERANCE / 4.0
@@ -989,7 +1087,7 @@ impl RigController {
             .cameras
             .iter()
             .zip(inputs)
-            .map(|(c, input)| c.base(input.info.taken).exposure())
+            .map(|(c, input)| c.working_point(input.info.taken))
             .collect();
         // What balancing acts on: the measured ratios, or a pair's held
         // scene ratio while its patches are unusable.

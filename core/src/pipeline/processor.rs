@@ -81,7 +81,10 @@ impl Processor {
             check_view(v, &cameras)?;
         }
         let ranges: Vec<_> = cameras.iter().map(|c| c.range).collect();
-        let controller = RigController::new(settings.controller_config(), &ranges, graph)?;
+        let mut controller = RigController::new(settings.controller_config(), &ranges, graph)?;
+        for (k, cam) in cameras.iter().enumerate() {
+            controller.camera_mut(k)?.set_levels(cam.levels.clone());
+        }
         let display_estimators = cameras
             .iter()
             .map(|_| Estimator::new(settings.controller.estimator.clone()))
@@ -236,6 +239,7 @@ impl Processor {
             let manual = self.controller.camera_mut(i)?.manual();
             let c = controller.camera_mut(i)?;
             c.set_manual(manual);
+            c.set_levels(self.cameras[i].levels.clone());
             if let Some(Some(t)) = self.last_taken.get(i) {
                 c.sync(*t);
             }

@@ -170,6 +170,7 @@ impl SimRender {
                 width: p.width,
                 height: p.height,
                 range: config.sensor.range(),
+                levels: None,
             })
             .collect();
         Ok(Self {
