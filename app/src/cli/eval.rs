@@ -26,7 +26,8 @@ pub struct EvalArgs {
     pub preset: Preset,
     /// A simulation preset or file (repeatable): the first gives the scene
     /// of the γ̂ accuracy and the steps of light, all of them the M(E)
-    /// sweeps [default: reference; sweeps: reference, backlight, overcast].
+    /// sweeps and the seams [default: reference; sweeps: reference,
+    /// backlight, overcast; seams: backlight, tunnel, reference].
     #[arg(long, value_name = "NAME|FILE")]
     pub scenario: Vec<String>,
     /// The folder to write the figures, their data and report.html into.

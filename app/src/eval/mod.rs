@@ -140,7 +140,7 @@ impl Plan {
                 tail: 20,
             },
             seams: SeamsPlan {
-                scenarios: seam_scenarios(),
+                scenarios: seam_scenarios(scenarios),
                 frames: 200,
                 warmup: 40,
                 tail: 20,
@@ -184,11 +184,16 @@ fn sweep_presets(scenarios: &[String]) -> Vec<String> {
     }
 }
 
-/// The scenarios of the seams: a low sun, a tunnel, and the reference.
-fn seam_scenarios() -> Vec<String> {
-    ["backlight", "tunnel", "reference"]
-        .map(String::from)
-        .to_vec()
+/// The scenarios of the seams: the scenarios given, or a low sun, a
+/// tunnel and the reference.
+fn seam_scenarios(scenarios: &[String]) -> Vec<String> {
+    if scenarios.is_empty() {
+        ["backlight", "tunnel", "reference"]
+            .map(String::from)
+            .to_vec()
+    } else {
+        scenarios.to_vec()
+    }
 }
 
 /// The files an evaluation writes, relative to its folder.
@@ -762,4 +767,23 @@ fn per_scenario(
             }
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_scenarios_given_replace_the_defaults_of_every_experiment() {
+        let given = vec!["overcast".to_string(), "tunnel".to_string()];
+        for plan in [Plan::quick(&given), Plan::full(&given)] {
+            assert_eq!(plan.scenario, "overcast");
+            assert_eq!(plan.sweep.presets, given);
+            assert_eq!(plan.seams.scenarios, given);
+        }
+        let plan = Plan::quick(&[]);
+        assert_eq!(plan.scenario, "reference");
+        assert_eq!(plan.sweep.presets, ["reference", "backlight", "overcast"]);
+        assert_eq!(plan.seams.scenarios, ["backlight", "tunnel", "reference"]);
+    }
 }
