@@ -68,7 +68,7 @@ pub fn write(path: &Path, panels: &[Panel], cols: usize, panel_w: u32, panel_h: 
         root.present().map_err(|e| anyhow::anyhow!("figure: {e}"))?;
     }
     let img = image::RgbImage::from_raw(w, h, buf).context("figure: wrong buffer size")?;
-    img.save(path)
+    crate::plot_png::save_png(&img, path)
         .with_context(|| format!("writing the figure {}", path.display()))
 }
 

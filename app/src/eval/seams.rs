@@ -383,6 +383,6 @@ pub fn write_views(result: &SeamsResult, scenarios: &[String], path: &Path) -> R
         root.present().map_err(|e| anyhow::anyhow!("views: {e}"))?;
     }
     let img = image::RgbImage::from_raw(w as u32, h as u32, buf).context("views: buffer size")?;
-    img.save(path)
+    crate::plot_png::save_png(&img, path)
         .with_context(|| format!("writing the views {}", path.display()))
 }
