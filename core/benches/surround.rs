@@ -54,7 +54,9 @@ use rigview_calib::pose::Pose;
 use rigview_calib::rig::{Camera, Frame, Rig};
 use rigview_core::exposure::{FrameView, PixelFormat};
 use rigview_core::image::{distance_to_zero, rgb8_to_mono8};
-use rigview_core::panorama::{CylinderSpec, MatchOptions, Panorama, PanoramaOptions};
+use rigview_core::panorama::{
+    CylinderSpec, MatchOptions, MatchTimes, Panorama, PanoramaOptions, RefineOptions,
+};
 use rigview_core::sim::{SimConfig, SimRender};
 use rigview_core::surround::{
     BlendMode, Canvas, CanvasSpec, Composer, Mosaic, SurroundOptions, SurroundView,
@@ -878,18 +880,52 @@ fn panorama(c: &mut Criterion) {
             .map_err(|e| rigview_core::Error::InvalidConfig(e.to_string()))
     };
     let options = MatchOptions::default();
-    // The first call builds the bands' plans; the second gives the split.
+    let refine_options = RefineOptions::default();
+    // The first call builds the bands' plans; the next ten give the split
+    // (mean per call, one core).
     sim.match_pairs(&sim_views, &detect, &options).unwrap();
-    let (pairs, times) = sim.match_pairs(&sim_views, &detect, &options).unwrap();
+    let calls = 10u32;
+    let mut sum = MatchTimes::default();
+    let mut refine_time = Duration::ZERO;
+    let mut inliers = Vec::new();
+    for _ in 0..calls {
+        let (pairs, times) = sim.match_pairs(&sim_views, &detect, &options).unwrap();
+        let t = std::time::Instant::now();
+        black_box(sim.refine(&pairs, &refine_options).unwrap());
+        refine_time += t.elapsed();
+        sum.warp += times.warp;
+        sum.detect += times.detect;
+        sum.describe += times.describe;
+        sum.matching += times.matching;
+        sum.ransac += times.ransac;
+        inliers = pairs.iter().map(|p| p.inliers).collect();
+    }
     eprintln!(
-        "matching, simulated rig at 4096x1024: {times:?}; inliers per pair {:?}",
-        pairs.iter().map(|p| p.inliers).collect::<Vec<_>>()
+        "matching and refinement, simulated rig at 4096x1024, mean of {calls} calls on one core: warp {:?}, detect {:?}, describe {:?}, match {:?}, RANSAC and patches {:?}, refine {:?}; inliers per pair {inliers:?}",
+        sum.warp / calls,
+        sum.detect / calls,
+        sum.describe / calls,
+        sum.matching / calls,
+        sum.ransac / calls,
+        refine_time / calls,
     );
+    let (pairs, _) = sim.match_pairs(&sim_views, &detect, &options).unwrap();
     let mut group = group(c, "panorama_matching_sim_4096x1024", 10);
     group.bench_function("four_pairs", |b| {
         b.iter(|| {
             sim.match_pairs(black_box(&sim_views), &detect, &options)
                 .unwrap()
+        });
+    });
+    group.bench_function("refine", |b| {
+        b.iter(|| sim.refine(black_box(&pairs), &refine_options).unwrap());
+    });
+    group.bench_function("four_pairs_and_refine", |b| {
+        b.iter(|| {
+            let (pairs, _) = sim
+                .match_pairs(black_box(&sim_views), &detect, &options)
+                .unwrap();
+            sim.refine(&pairs, &refine_options).unwrap()
         });
     });
     group.finish();

@@ -22,14 +22,7 @@ use rigview_core::surround::{CanvasSpec, SurroundOptions, SurroundView};
 fn build(c: &mut Criterion) {
     let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/data/surround-nz");
     let rig = formats::load(&data, None, None).unwrap().rig;
-    let spec = CanvasSpec {
-        x_min_m: -8.0,
-        x_max_m: 8.0,
-        y_min_m: -6.0,
-        y_max_m: 6.0,
-        px_per_m: 100.0,
-        vehicle_m: [-2.5, 2.5, -1.0, 1.0],
-    };
+    let spec = CanvasSpec::around_car_16x12(100.0);
     assert_eq!(spec.size(), (1200, 1600));
     let options = SurroundOptions::default();
     let mut g = c.benchmark_group("view_build");

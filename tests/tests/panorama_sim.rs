@@ -16,7 +16,8 @@
 //!   rotations brings every pair's inliers within a pixel of their
 //!   epipolar planes, and the two cameras seen through well-matched pairs
 //!   to within a quarter of their error; the third, seen through 8 inliers
-//!   of one pair, is not recovered.
+//!   of one pair, is not recovered. Issue 18's goal (every camera within
+//!   0.15°) is a test of its own, ignored while it is not met.
 //!
 //! Run with `--nocapture` for the counts of corners, matches and inliers.
 
@@ -161,17 +162,13 @@ fn relative(rig: &Rig, k: usize) -> Rotation3<f64> {
     r(0).inverse() * r(k)
 }
 
-#[test]
-fn refinement_brings_perturbed_cameras_back() {
+/// `truth` with each camera turned by 1° to 2° about a random axis
+/// (seeded).
+fn perturbed(truth: &Rig, seed: u64) -> Rig {
     use rand::{Rng, SeedableRng};
-    use rigview_core::panorama::RefineOptions;
-    let r = render();
-    let buffers = stills(&r, &[4000.0; 4]);
-    let truth = r.rig().clone();
-    // Each camera turned by 1° to 2° about a random axis (seeded).
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(18);
-    let mut perturbed = truth.clone();
-    for cam in &mut perturbed.cameras {
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let mut out = truth.clone();
+    for cam in &mut out.cameras {
         let axis = nalgebra::Unit::new_normalize(Vector3::new(
             rng.gen_range(-1.0..1.0),
             rng.gen_range(-1.0..1.0),
@@ -181,10 +178,26 @@ fn refinement_brings_perturbed_cameras_back() {
         let pose = cam.pose.unwrap();
         cam.pose = Some(Pose::new(turn * pose.rotation_matrix(), *pose.translation()).unwrap());
     }
-    let pano = Panorama::build(&perturbed, &spec(), &PanoramaOptions::default()).unwrap();
-    let pairs = matches(&perturbed, &r, &buffers);
+    out
+}
+
+/// How far camera `k` of `rig` is turned from the truth, relative to
+/// camera 0, degrees.
+fn off(rig: &Rig, truth: &Rig, k: usize) -> f64 {
+    (relative(rig, k) * relative(truth, k).inverse())
+        .angle()
+        .to_degrees()
+}
+
+/// Refines the perturbed rig from one frame set: the refined rig, with
+/// each pair's inliers and median errors before and after printed and
+/// checked (below a pixel after, and not worse than before).
+fn refine_perturbed(r: &SimRender, perturbed: &Rig) -> Rig {
+    use rigview_core::panorama::RefineOptions;
+    let buffers = stills(r, &[4000.0; 4]);
+    let pano = Panorama::build(perturbed, &spec(), &PanoramaOptions::default()).unwrap();
+    let pairs = matches(perturbed, r, &buffers);
     let refined = pano.refine(&pairs, &RefineOptions::default()).unwrap();
-    let after = refined.apply(&perturbed).unwrap();
     for p in &refined.pairs {
         let (e0, e1) = (p.error_before_px.unwrap(), p.error_after_px.unwrap());
         println!(
@@ -193,24 +206,48 @@ fn refinement_brings_perturbed_cameras_back() {
         );
         assert!(e1 < 1.0 && e1 <= e0, "{}–{}: {e0} -> {e1}", p.i, p.j);
     }
-    let off = |rig: &Rig, k: usize| {
-        (relative(rig, k) * relative(&truth, k).inverse())
-            .angle()
-            .to_degrees()
-    };
+    refined.apply(perturbed).unwrap()
+}
+
+#[test]
+fn refinement_brings_perturbed_cameras_back() {
+    let r = render();
+    let truth = r.rig().clone();
+    let perturbed = perturbed(&truth, 18);
+    let after = refine_perturbed(&r, &perturbed);
     for k in 1..4 {
         println!(
             "camera {k}: {:.3}° from the truth (relative to camera 0) perturbed, {:.3}° refined",
-            off(&perturbed, k),
-            off(&after, k)
+            off(&perturbed, &truth, k),
+            off(&after, &truth, k)
         );
     }
     // Cameras 1 and 2 (the left and back), seen through pairs with many
     // inliers, come back to within a quarter of their error; camera 3 (the
-    // right), seen through 8 inliers of one pair, is not recovered: the
-    // 0.15° of the goal is not reached.
+    // right), seen through 8 inliers of one pair, is not recovered.
     for k in [1, 2] {
-        assert!(off(&after, k) < 0.25 * off(&perturbed, k), "camera {k}");
+        assert!(
+            off(&after, &truth, k) < 0.25 * off(&perturbed, &truth, k),
+            "camera {k}"
+        );
     }
-    assert!(off(&after, 3) < 3.5);
+    assert!(off(&after, &truth, 3) < 3.5);
+}
+
+/// Issue 18's goal: every camera within 0.15° of the truth after the
+/// refinement. Not met: the epipolar errors of matches in 30° overlaps
+/// hardly see a turn that moves the matches along their epipolar curves
+/// (about the vertical, where the curves run level), so that even from
+/// the true calibration the refinement wanders by 0.2° to 0.4°.
+#[test]
+#[ignore = "issue 18's 0.15° goal is not met (cameras end 0.3° to 3.1° off); run with --ignored"]
+fn refinement_recovers_every_camera_within_the_goal() {
+    let r = render();
+    let truth = r.rig().clone();
+    let after = refine_perturbed(&r, &perturbed(&truth, 18));
+    for k in 1..4 {
+        let left = off(&after, &truth, k);
+        println!("camera {k}: {left:.3}° from the truth");
+        assert!(left < 0.15, "camera {k}: {left}°");
+    }
 }

@@ -230,19 +230,23 @@ pub struct MatchTimes {
 /// byte a pixel, non-zero to search) to corner positions (x, y), pixels.
 pub type Detector<'a> = dyn Fn(&[u8], usize, usize, &[u8]) -> Result<Vec<[f32; 2]>> + 'a;
 
-/// The bands of every overlap: see [`OverlapBand`].
+/// The bands of every overlap: see [`OverlapBand`]. `shared(i, j)` is a
+/// canvas rectangle (column, row, width, height) holding every pixel both
+/// cameras may show.
 pub(super) fn bands(
-    (pano_width, height): (usize, usize),
+    (pano_width, _height): (usize, usize),
     sees: impl Fn(usize, usize) -> bool,
+    shared: impl Fn(usize, usize) -> Option<[usize; 4]>,
     pairs: &[(usize, usize)],
 ) -> Vec<Option<OverlapBand>> {
     let reach = (PATCH_RADIUS + 1) as f32;
     pairs
         .iter()
         .map(|&(i, j)| {
+            let [x0, y0, sw, sh] = shared(i, j)?;
             let (mut c0, mut r0, mut c1, mut r1) = (usize::MAX, usize::MAX, 0, 0);
-            for r in 0..height {
-                for c in 0..pano_width {
+            for r in y0..y0 + sh {
+                for c in x0..x0 + sw {
                     let p = r * pano_width + c;
                     if sees(i, p) && sees(j, p) {
                         c0 = c0.min(c);

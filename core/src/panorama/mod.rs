@@ -53,7 +53,7 @@ use rigview_calib::rig::{CameraProjector, Rig};
 
 use crate::error::{check_range, Error, Result};
 use crate::image::RoiMask;
-use crate::surround::mosaic;
+use crate::surround::{grid, mosaic};
 use crate::surround::{Mosaic, Overlap, Plan};
 
 pub use matching::{Detector, FeatureMatch, MatchOptions, MatchTimes, OverlapBand, PairMatches};
@@ -252,6 +252,17 @@ fn wrap(a: f64) -> f64 {
 impl Panorama {
     /// Builds the panorama of `rig` (poses in the vehicle frame) on `spec`.
     pub fn build(rig: &Rig, spec: &CylinderSpec, options: &PanoramaOptions) -> Result<Self> {
+        Self::build_on_grid(rig, spec, options, grid::MAP_GRID)
+    }
+
+    /// [`Panorama::build`] with the maps interpolated on a grid of `grid`
+    /// pixels (1: every pixel projected exactly).
+    pub(crate) fn build_on_grid(
+        rig: &Rig,
+        spec: &CylinderSpec,
+        options: &PanoramaOptions,
+        grid: usize,
+    ) -> Result<Self> {
         spec.validate()?;
         options.validate()?;
         let what = "panorama";
@@ -290,6 +301,7 @@ impl Panorama {
             what,
             (w, h),
             &cameras.sources,
+            grid,
             |c, r, found| {
                 let (co, s, shows) = &columns[c];
                 let p = centre + radius * Vector3::new(*co, *s, slopes[r]);
@@ -312,33 +324,33 @@ impl Panorama {
             },
         )?;
         let masks =
-            mosaic::source_masks(projectors, mosaic.layers(), options.mask_step, |p, px| {
+            mosaic::source_masks(&mosaic, projectors, (options.mask_step, grid), |p, px| {
                 let (o, d) = p.ray_rig(px)?;
                 let q = cylinder_hit(&(o - centre), &d, radius)?;
                 Some(spec.canvas(q.y.atan2(q.x), q.z / radius))
             })?;
-        let mut overlaps = Vec::with_capacity(rig.neighbours.len());
-        for &(i, j) in &rig.neighbours {
-            let o = mosaic::overlap(
-                &maps,
-                mosaic.layers(),
-                (w, h),
-                (i, j),
-                options.patch_px,
-                options.patch_coverage,
-                |c, _| {
-                    let phi = spec.azimuth(c);
-                    (centre.x + radius * phi.cos(), centre.y + radius * phi.sin())
-                },
-            );
-            overlaps.push(o);
-        }
+        let overlaps = mosaic::overlaps(
+            &maps,
+            mosaic.layers(),
+            (w, h),
+            &rig.neighbours,
+            options.patch_px,
+            options.patch_coverage,
+            |c, _| {
+                let phi = spec.azimuth(c);
+                (centre.x + radius * phi.cos(), centre.y + radius * phi.sin())
+            },
+        );
         check_overlaps(&mosaic, &overlaps)?;
-        let bands: Vec<OverlapBand> =
-            matching::bands((w, h), |k, p| maps.sees(k, p), &rig.neighbours)
-                .into_iter()
-                .flatten()
-                .collect();
+        let bands: Vec<OverlapBand> = matching::bands(
+            (w, h),
+            |k, p| maps.sees(k, p),
+            |i, j| mosaic::shared_rect(mosaic.layers(), i, j),
+            &rig.neighbours,
+        )
+        .into_iter()
+        .flatten()
+        .collect();
         mosaic.set_regions(masks, overlaps);
         Ok(Self {
             spec: spec.clone(),

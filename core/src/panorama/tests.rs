@@ -109,9 +109,12 @@ fn canvas_positions_and_directions_are_inverse() {
 fn every_map_position_sees_its_canvas_pixel() {
     // A canvas pixel's source position in a camera, unprojected and met
     // with the cylinder, is the canvas pixel again: the maps project the
-    // cylinder's points with the full pose.
+    // cylinder's points with the full pose. Every pixel projected exactly
+    // (grid 1): the interpolation of the default build is bounded against
+    // these maps in `surround::grid`'s tests.
     let rig = rig(160, 120, [0.0, 90.0, 180.0, -90.0]);
-    let pano = Panorama::build(&rig, &small_spec(), &PanoramaOptions::default()).unwrap();
+    let pano =
+        Panorama::build_on_grid(&rig, &small_spec(), &PanoramaOptions::default(), 1).unwrap();
     let (w, _) = pano.size();
     let mut checked = 0;
     for (k, layer) in pano.layers().iter().enumerate() {

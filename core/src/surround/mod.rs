@@ -50,6 +50,7 @@
 //! balancing its patch means.
 
 mod compose;
+pub(crate) mod grid;
 pub(crate) mod mosaic;
 mod remap;
 mod seams;
@@ -95,6 +96,21 @@ impl Default for CanvasSpec {
             y_max_m: 5.0,
             px_per_m: 100.0,
             vehicle_m: [-2.3, 2.3, -0.95, 0.95],
+        }
+    }
+}
+
+impl CanvasSpec {
+    /// 16 m × 12 m around a 5 m × 2 m car (the canvas of the real
+    /// surround-nz rig's source project) at `px_per_m`.
+    pub fn around_car_16x12(px_per_m: f64) -> Self {
+        Self {
+            x_min_m: -8.0,
+            x_max_m: 8.0,
+            y_min_m: -6.0,
+            y_max_m: 6.0,
+            px_per_m,
+            vehicle_m: [-2.5, 2.5, -1.0, 1.0],
         }
     }
 }
@@ -337,6 +353,17 @@ impl SurroundView {
     /// Builds the view of `rig` on `spec`. The rig's cameras need poses in
     /// the vehicle frame.
     pub fn build(rig: &Rig, spec: &CanvasSpec, options: &SurroundOptions) -> Result<Self> {
+        Self::build_on_grid(rig, spec, options, grid::MAP_GRID)
+    }
+
+    /// [`SurroundView::build`] with the maps interpolated on a grid of
+    /// `grid` pixels (1: every pixel projected exactly).
+    pub(crate) fn build_on_grid(
+        rig: &Rig,
+        spec: &CanvasSpec,
+        options: &SurroundOptions,
+        grid: usize,
+    ) -> Result<Self> {
         spec.validate()?;
         validate_options(options)?;
         let what = "surround view";
@@ -356,6 +383,7 @@ impl SurroundView {
             what,
             (w, h),
             &cameras.sources,
+            grid,
             |c, r, found| {
                 let (x, y) = spec.ground(c as f64 + 0.5, r as f64 + 0.5);
                 if spec.on_vehicle(x, y) {
@@ -379,26 +407,20 @@ impl SurroundView {
             },
         )?;
         let masks =
-            mosaic::source_masks(projectors, mosaic.layers(), options.mask_step, |p, px| {
+            mosaic::source_masks(&mosaic, projectors, (options.mask_step, grid), |p, px| {
                 let g = p.ground_point(px)?;
                 Some(spec.canvas(g.x, g.y))
             })?;
         let cell = (options.patch_m * spec.px_per_m).round().max(2.0) as usize;
-        let overlaps = rig
-            .neighbours
-            .iter()
-            .map(|&(i, j)| {
-                mosaic::overlap(
-                    &maps,
-                    mosaic.layers(),
-                    (w, h),
-                    (i, j),
-                    cell,
-                    options.patch_coverage,
-                    |c, r| spec.ground(c, r),
-                )
-            })
-            .collect();
+        let overlaps = mosaic::overlaps(
+            &maps,
+            mosaic.layers(),
+            (w, h),
+            &rig.neighbours,
+            cell,
+            options.patch_coverage,
+            |c, r| spec.ground(c, r),
+        );
         mosaic.set_regions(masks, overlaps);
         Ok(Self {
             spec: spec.clone(),

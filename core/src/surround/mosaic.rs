@@ -22,6 +22,7 @@ use std::sync::OnceLock;
 use nalgebra::Point2;
 use rigview_calib::rig::{CameraProjector, Frame, Rig};
 
+use super::grid;
 use super::remap;
 use super::{BlendMode, Overlap, OverlapPatch};
 use crate::error::{Error, Result};
@@ -113,106 +114,107 @@ impl Mosaic {
     /// `locate(col, row, out)` pushes `(camera, source position)` for each
     /// camera that may show the pixel `(col, row)`; positions outside the
     /// image (less one pixel right and below) are dropped. A camera that
-    /// shows no pixel is the error `empty(camera)`.
+    /// shows no pixel is the error `empty(camera)`. `locate` runs on a
+    /// grid of `grid` pixels and the maps are interpolated where that is
+    /// exact enough ([`grid::map_canvas`]; 1: every pixel exactly).
     pub(crate) fn build<L>(
         what: &'static str,
         (w, h): (usize, usize),
         cameras: &[(String, (usize, usize))],
+        grid: usize,
         locate: L,
         empty: impl Fn(usize) -> Error,
     ) -> Result<(Self, Maps)>
     where
         L: Fn(usize, usize, &mut Vec<(usize, Point2<f64>)>) + Sync,
     {
-        let n = cameras.len();
-        let mut source: Vec<Vec<[f32; 2]>> = vec![vec![[-1.0, -1.0]; w * h]; n];
-        let mut count = vec![0u8; w * h];
-        // Bands of rows, one per core.
-        let threads = std::thread::available_parallelism().map_or(1, |t| t.get());
-        let band = h.div_ceil(threads.min(h).max(1)) * w;
-        let mut bands: Vec<Vec<&mut [[f32; 2]]>> = Vec::new();
-        for map in &mut source {
-            for (b, chunk) in map.chunks_mut(band).enumerate() {
-                if bands.len() <= b {
-                    bands.push(Vec::with_capacity(n));
-                }
-                bands[b].push(chunk);
-            }
-        }
-        let locate = &locate;
-        std::thread::scope(|scope| {
-            for (b, (mut maps, counts)) in bands.into_iter().zip(count.chunks_mut(band)).enumerate()
-            {
-                scope.spawn(move || {
-                    let mut found = Vec::with_capacity(n);
-                    for (i, count) in counts.iter_mut().enumerate() {
-                        let (c, r) = (i % w, b * band / w + i / w);
-                        found.clear();
-                        locate(c, r, &mut found);
-                        for &(k, px) in &found {
-                            let Some(&(_, (iw, ih))) = cameras.get(k) else {
-                                continue;
-                            };
-                            // Bilinear sampling needs the pixel and its
-                            // right and lower neighbours.
-                            if px.x >= 0.0
-                                && px.y >= 0.0
-                                && px.x <= iw as f64 - 1.0
-                                && px.y <= ih as f64 - 1.0
-                                && maps[k][i][0] < 0.0
-                            {
-                                maps[k][i] = [px.x as f32, px.y as f32];
-                                *count += 1;
+        let sizes: Vec<(usize, usize)> = cameras.iter().map(|(_, size)| *size).collect();
+        let (source, count) =
+            grid::map_canvas((w, h), &sizes, &locate, (grid, grid::MAP_TOLERANCE_PX));
+        // Per camera, its part of the canvas and the distance of each of
+        // its pixels from its exclusive region (which lies within it, so
+        // the distances there are those over the whole canvas).
+        let regions = std::thread::scope(|scope| {
+            let jobs: Vec<_> = source
+                .iter()
+                .enumerate()
+                .map(|(k, src)| {
+                    let count = &count;
+                    scope.spawn(move || -> Result<Option<Region>> {
+                        let covered = |i: usize| src[i][0] >= 0.0;
+                        let Some(roi) = bounding_box(w, h, covered) else {
+                            return Ok(None);
+                        };
+                        let [c0, r0, rw, rh] = roi;
+                        let mut exclusive = Vec::with_capacity(rw * rh);
+                        for r in r0..r0 + rh {
+                            exclusive.extend((c0..c0 + rw).map(|c| {
+                                let i = r * w + c;
+                                u8::from(!(covered(i) && count[i] == 1)) * 255
+                            }));
+                        }
+                        let distance = distance_to_zero(&exclusive, rw, rh).map_err(|e| {
+                            Error::InvalidConfig(format!(
+                                "{what}: camera {k}: distance transform: {e}"
+                            ))
+                        })?;
+                        Ok(Some(Region { roi, distance }))
+                    })
+                })
+                .collect();
+            jobs.into_iter()
+                .map(|job| job.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
+                .collect::<Result<Vec<_>>>()
+        })?;
+        let regions: Vec<Region> = regions
+            .into_iter()
+            .enumerate()
+            .map(|(k, r)| r.ok_or_else(|| empty(k)))
+            .collect::<Result<_>>()?;
+        // The weights, one thread per camera.
+        let layers = std::thread::scope(|scope| {
+            let jobs: Vec<_> = cameras
+                .iter()
+                .enumerate()
+                .map(|(k, (name, size))| {
+                    let (source, regions, count) = (&source, &regions, &count);
+                    scope.spawn(move || {
+                        let [c0, r0, rw, rh] = regions[k].roi;
+                        let mut scratch = BlendScratch::default();
+                        let mut map = Vec::with_capacity(rw * rh);
+                        let mut weights: [Vec<u16>; 3] =
+                            std::array::from_fn(|_| Vec::with_capacity(rw * rh));
+                        for r in r0..r0 + rh {
+                            for c in c0..c0 + rw {
+                                let i = r * w + c;
+                                map.push(source[k][i]);
+                                let [lin, alpha, seam] = if source[k][i][0] < 0.0 {
+                                    [0, 0, 0]
+                                } else if count[i] == 1 {
+                                    [256, 256, 256]
+                                } else {
+                                    blend_weights(k, (c, r), w, source, regions, &mut scratch)
+                                };
+                                weights[0].push(lin);
+                                weights[1].push(alpha);
+                                weights[2].push(seam);
                             }
                         }
-                    }
-                });
-            }
-        });
-        // The distance of every canvas pixel from each camera's exclusive
-        // region, and the weights.
-        let mut distance = Vec::with_capacity(n);
-        for (k, src) in source.iter().enumerate() {
-            let exclusive: Vec<u8> = (0..w * h)
-                .map(|i| u8::from(!(src[i][0] >= 0.0 && count[i] == 1)) * 255)
+                        CameraLayer {
+                            camera: k,
+                            name: name.clone(),
+                            roi: regions[k].roi,
+                            source: *size,
+                            map,
+                            weights,
+                        }
+                    })
+                })
                 .collect();
-            distance.push(distance_to_zero(&exclusive, w, h).map_err(|e| {
-                Error::InvalidConfig(format!("{what}: camera {k}: distance transform: {e}"))
-            })?);
-        }
-        let mut layers = Vec::with_capacity(n);
-        let mut scratch = BlendScratch::default();
-        for (k, (name, size)) in cameras.iter().enumerate() {
-            let covered = |i: usize| source[k][i][0] >= 0.0;
-            let Some(roi) = bounding_box(w, h, covered) else {
-                return Err(empty(k));
-            };
-            let [c0, r0, rw, rh] = roi;
-            let mut map = Vec::with_capacity(rw * rh);
-            let mut weights: [Vec<u16>; 3] = std::array::from_fn(|_| Vec::with_capacity(rw * rh));
-            for r in r0..r0 + rh {
-                for c in c0..c0 + rw {
-                    let i = r * w + c;
-                    map.push(source[k][i]);
-                    let [lin, alpha, seam] = if covered(i) {
-                        blend_weights(k, i, &source, &distance, &mut scratch)
-                    } else {
-                        [0, 0, 0]
-                    };
-                    weights[0].push(lin);
-                    weights[1].push(alpha);
-                    weights[2].push(seam);
-                }
-            }
-            layers.push(CameraLayer {
-                camera: k,
-                name: name.clone(),
-                roi,
-                source: *size,
-                map,
-                weights,
-            });
-        }
+            jobs.into_iter()
+                .map(|job| job.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
+                .collect::<Vec<_>>()
+        });
         let mosaic = Self {
             what,
             width: w,
@@ -372,19 +374,41 @@ struct BlendScratch {
     inv: Vec<f64>,
     exact: Vec<f64>,
     rounded: Vec<u32>,
+    /// Per number of cameras `n` and camera, its alpha weight among `n`
+    /// (computed on first use).
+    alpha: Vec<Vec<u16>>,
 }
 
-/// The 1/256 weights of camera `k` at canvas pixel `i` for the three blend
-/// modes. The weights of all cameras seeing the pixel are rounded together
-/// ([`mode_weights`]), so that they sum to exactly 256 in every mode.
+/// A camera's part of the canvas (column, row, width, height) and, per
+/// pixel of it, the distance from the camera's exclusive region.
+struct Region {
+    roi: [usize; 4],
+    distance: Vec<f32>,
+}
+
+impl Region {
+    /// The distance at canvas pixel (`c`, `r`), which the camera shows.
+    fn distance(&self, (c, r): (usize, usize)) -> f32 {
+        let [c0, r0, rw, _] = self.roi;
+        self.distance[(r - r0) * rw + (c - c0)]
+    }
+}
+
+/// The 1/256 weights of camera `k` at canvas pixel `at` (column, row; the
+/// canvas is `w` wide) for the three blend modes. The weights of all
+/// cameras seeing the pixel are rounded together ([`linear_weight`],
+/// [`alpha_weight`]), so
+/// that they sum to exactly 256 in every mode.
 fn blend_weights(
     k: usize,
-    i: usize,
+    at: (usize, usize),
+    w: usize,
     source: &[Vec<[f32; 2]>],
-    distance: &[Vec<f32>],
+    regions: &[Region],
     scratch: &mut BlendScratch,
 ) -> [u16; 3] {
     let s = scratch;
+    let i = at.1 * w + at.0;
     s.seeing.clear();
     s.seeing
         .extend((0..source.len()).filter(|&m| source[m][i][0] >= 0.0));
@@ -399,37 +423,63 @@ fn blend_weights(
     s.inv.extend(
         s.seeing
             .iter()
-            .map(|&m| 1.0 / f64::from(distance[m][i].max(0.5)).powi(2)),
+            .map(|&m| 1.0 / f64::from(regions[m].distance(at).max(0.5)).powi(2)),
     );
     // The last camera of the largest weight takes the seam pixel.
     let best = (0..s.inv.len())
         .max_by(|&a, &b| s.inv[a].total_cmp(&s.inv[b]))
         .unwrap_or(me);
-    let [linear, alpha] = mode_weights(&s.inv, me, &mut s.exact, &mut s.rounded);
-    [linear, alpha, if best == me { 256 } else { 0 }]
+    let linear = linear_weight(&s.inv, me, &mut s.exact, &mut s.rounded);
+    let n = s.inv.len();
+    if s.alpha.len() <= n {
+        s.alpha.resize(n + 1, Vec::new());
+    }
+    if s.alpha[n].is_empty() {
+        s.alpha[n] = (0..n)
+            .map(|m| alpha_weight(n, m, &mut s.exact, &mut s.rounded))
+            .collect();
+    }
+    [linear, s.alpha[n][me], if best == me { 256 } else { 0 }]
 }
 
 /// The linear and alpha weights (1/256) of camera `me` among the cameras
 /// seeing a pixel, from their `1/d²` (`inv`): each mode's weights of all
 /// the cameras are rounded together to sum to exactly 256 (rounding each on
 /// its own gives 257 when two fall on a half, 255 for three thirds).
+#[cfg(test)]
 pub(super) fn mode_weights(
     inv: &[f64],
     me: usize,
     exact: &mut Vec<f64>,
     rounded: &mut Vec<u32>,
 ) -> [u16; 2] {
+    [
+        linear_weight(inv, me, exact, rounded),
+        alpha_weight(inv.len(), me, exact, rounded),
+    ]
+}
+
+/// Camera `me`'s linear weight (1/256) among the cameras seeing a pixel,
+/// from their `1/d²` (`inv`), rounded together with the others' to sum to
+/// exactly 256 (rounding each on its own gives 257 when two fall on a
+/// half, 255 for three thirds).
+fn linear_weight(inv: &[f64], me: usize, exact: &mut Vec<f64>, rounded: &mut Vec<u32>) -> u16 {
     let total: f64 = inv.iter().sum();
-    let n = inv.len() as f64;
     rounded.resize(inv.len(), 0);
     exact.clear();
     exact.extend(inv.iter().map(|&v| 256.0 * v / total));
     remap::round_to_total(exact, 256, rounded);
-    let linear = rounded[me] as u16;
+    rounded[me] as u16
+}
+
+/// Camera `me`'s alpha weight (1/256) among `n` alike, rounded the same
+/// way.
+fn alpha_weight(n: usize, me: usize, exact: &mut Vec<f64>, rounded: &mut Vec<u32>) -> u16 {
+    rounded.resize(n, 0);
     exact.clear();
-    exact.resize(inv.len(), 256.0 / n);
+    exact.resize(n, 256.0 / n as f64);
     remap::round_to_total(exact, 256, rounded);
-    [linear, rounded[me] as u16]
+    rounded[me] as u16
 }
 
 /// The smallest rectangle holding every pixel where `covered` holds.
@@ -515,72 +565,113 @@ pub(crate) fn vehicle_cameras(rig: &Rig, what: &str) -> Result<VehicleCameras> {
 /// Each camera's source mask: its pixels (sampled every `step`, each result
 /// covering a `step × step` block) that land, through `to_canvas` (a
 /// source pixel to a canvas position, column and row), on a canvas pixel
-/// the camera contributes to. One thread per camera.
+/// the camera contributes to. The canvas positions of the samples are
+/// mapped like the canvas itself ([`grid::map_canvas`] on a grid of
+/// [`grid::MASK_GRID`] samples, or `grid` if smaller: within
+/// [`grid::MASK_TOLERANCE_PX`] canvas pixels of `to_canvas`).
 pub(crate) fn source_masks<T>(
+    mosaic: &Mosaic,
     projectors: &[CameraProjector],
-    layers: &[CameraLayer],
-    step: usize,
+    (step, grid): (usize, usize),
     to_canvas: T,
 ) -> Result<Vec<RoiMask>>
 where
     T: Fn(&CameraProjector, &Point2<f64>) -> Option<(f64, f64)> + Sync,
 {
-    let to_canvas = &to_canvas;
-    std::thread::scope(|scope| {
-        let jobs: Vec<_> = projectors
-            .iter()
-            .zip(layers)
-            .map(|(projector, layer)| {
-                scope.spawn(move || source_mask(projector, layer, step, to_canvas))
-            })
-            .collect();
-        jobs.into_iter()
-            .map(|job| job.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
-            .collect::<Result<Vec<_>>>()
-    })
+    let (w, h) = mosaic.size();
+    let layers = mosaic.layers();
+    projectors
+        .iter()
+        .zip(layers)
+        .map(|(projector, layer)| {
+            let (sw, sh) = layer.source;
+            let (nx, ny) = (sw.div_ceil(step), sh.div_ceil(step));
+            let half = 0.5 * (step as f64 - 1.0);
+            let locate = |x: usize, y: usize, found: &mut Vec<(usize, Point2<f64>)>| {
+                let centre = Point2::new((x * step) as f64 + half, (y * step) as f64 + half);
+                if let Some((c, r)) = to_canvas(projector, &centre) {
+                    found.push((0, Point2::new(c, r)));
+                }
+            };
+            // Positions up to the canvas's far edges are kept (and then
+            // left out below, as outside the camera's part).
+            let (positions, _) = grid::map_canvas(
+                (nx, ny),
+                &[(w + 1, h + 1)],
+                &locate,
+                (grid.min(grid::MASK_GRID), grid::MASK_TOLERANCE_PX),
+            );
+            source_mask(layer, step, (nx, &positions[0]))
+        })
+        .collect()
 }
 
 fn source_mask(
-    projector: &CameraProjector,
     layer: &CameraLayer,
     step: usize,
-    to_canvas: impl Fn(&CameraProjector, &Point2<f64>) -> Option<(f64, f64)>,
+    (nx, positions): (usize, &[[f32; 2]]),
 ) -> Result<RoiMask> {
     let (sw, sh) = layer.source;
     let [c0, r0, rw, rh] = layer.roi;
     let mut data = vec![0u8; sw * sh];
-    for y in (0..sh).step_by(step) {
-        for x in (0..sw).step_by(step) {
-            let centre = Point2::new(
-                x as f64 + 0.5 * (step as f64 - 1.0),
-                y as f64 + 0.5 * (step as f64 - 1.0),
-            );
-            let Some((c, r)) = to_canvas(projector, &centre) else {
-                continue;
-            };
-            if c < 0.0 || r < 0.0 {
-                continue;
-            }
-            let (c, r) = (c as usize, r as usize);
-            if c < c0 || r < r0 || c >= c0 + rw || r >= r0 + rh {
-                continue;
-            }
-            if layer.weights[0][(r - r0) * rw + (c - c0)] == 0 {
-                continue;
-            }
-            for yy in y..(y + step).min(sh) {
-                data[yy * sw + x..yy * sw + (x + step).min(sw)].fill(255);
-            }
+    for (i, &[c, r]) in positions.iter().enumerate() {
+        if c < 0.0 || r < 0.0 {
+            continue;
+        }
+        let (x, y) = ((i % nx) * step, (i / nx) * step);
+        let (c, r) = (c as usize, r as usize);
+        if c < c0 || r < r0 || c >= c0 + rw || r >= r0 + rh {
+            continue;
+        }
+        if layer.weights[0][(r - r0) * rw + (c - c0)] == 0 {
+            continue;
+        }
+        for yy in y..(y + step).min(sh) {
+            data[yy * sw + x..yy * sw + (x + step).min(sw)].fill(255);
         }
     }
     RoiMask::new(sw, sh, data)
 }
 
-/// The overlap of cameras `i` and `j` on a `w × h` canvas and its patches:
-/// squares of `cell` canvas pixels of which at least the fraction
-/// `coverage` both cameras show; `centre` gives a canvas position's point
-/// (x, y) in the vehicle frame.
-pub(crate) fn overlap(
+/// The part of the canvas where cameras `i` and `j` may both show pixels:
+/// the intersection of their layers' rectangles (column, row, width,
+/// height), or `None`.
+pub(crate) fn shared_rect(layers: &[CameraLayer], i: usize, j: usize) -> Option<[usize; 4]> {
+    let ([a0, b0, aw, bh], [c0, d0, cw, dh]) = (layers.get(i)?.roi, layers.get(j)?.roi);
+    let (x0, y0) = (a0.max(c0), b0.max(d0));
+    let (x1, y1) = ((a0 + aw).min(c0 + cw), (b0 + bh).min(d0 + dh));
+    (x1 > x0 && y1 > y0).then(|| [x0, y0, x1 - x0, y1 - y0])
+}
+
+/// The overlaps of the neighbour pairs `pairs` on a `w × h` canvas and
+/// their patches: squares of `cell` canvas pixels (on a grid from the
+/// canvas's corner) of which at least the fraction `coverage` both cameras
+/// show; `centre` gives a canvas position's point (x, y) in the vehicle
+/// frame. One thread per pair.
+pub(crate) fn overlaps(
+    maps: &Maps,
+    layers: &[CameraLayer],
+    (w, h): (usize, usize),
+    pairs: &[(usize, usize)],
+    cell: usize,
+    coverage: f64,
+    centre: impl Fn(f64, f64) -> (f64, f64) + Sync,
+) -> Vec<Overlap> {
+    let centre = &centre;
+    std::thread::scope(|scope| {
+        let jobs: Vec<_> = pairs
+            .iter()
+            .map(|&pair| {
+                scope.spawn(move || overlap(maps, layers, (w, h), pair, cell, coverage, centre))
+            })
+            .collect();
+        jobs.into_iter()
+            .map(|job| job.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
+            .collect()
+    })
+}
+
+fn overlap(
     maps: &Maps,
     layers: &[CameraLayer],
     (w, h): (usize, usize),
@@ -589,16 +680,32 @@ pub(crate) fn overlap(
     coverage: f64,
     centre: impl Fn(f64, f64) -> (f64, f64),
 ) -> Overlap {
+    let none = Overlap {
+        i,
+        j,
+        pixels: 0,
+        patches: Vec::new(),
+    };
+    let Some([x0, y0, rw, rh]) = shared_rect(layers, i, j) else {
+        return none;
+    };
     let both = |p: usize| maps.sees(i, p) && maps.sees(j, p);
-    let pixels = (0..w * h).filter(|&p| both(p)).count();
+    let pixels = (y0..y0 + rh)
+        .map(|r| (x0..x0 + rw).filter(|&c| both(r * w + c)).count())
+        .sum();
     let need = (coverage * (cell * cell) as f64).ceil() as usize;
     let mut patches = Vec::new();
-    for r0 in (0..h.saturating_sub(cell - 1)).step_by(cell) {
-        for c0 in (0..w.saturating_sub(cell - 1)).step_by(cell) {
-            let cells: Vec<usize> = (r0..r0 + cell)
-                .flat_map(|r| (c0..c0 + cell).map(move |c| r * w + c))
-                .filter(|&p| both(p))
-                .collect();
+    // The patch grid's cells that meet the shared rectangle.
+    let (first_r, first_c) = (y0 / cell * cell, x0 / cell * cell);
+    let mut cells = Vec::with_capacity(cell * cell);
+    for r0 in (first_r..h.saturating_sub(cell - 1).min(y0 + rh)).step_by(cell) {
+        for c0 in (first_c..w.saturating_sub(cell - 1).min(x0 + rw)).step_by(cell) {
+            cells.clear();
+            cells.extend(
+                (r0..r0 + cell)
+                    .flat_map(|r| (c0..c0 + cell).map(move |c| r * w + c))
+                    .filter(|&p| both(p)),
+            );
             if cells.len() < need.max(1) {
                 continue;
             }

@@ -18,14 +18,7 @@ pub fn data() -> PathBuf {
 /// The source project's canvas (16 m × 12 m around the car, whose rectangle
 /// is 5 m × 2 m), at 50 px/m.
 pub fn spec() -> CanvasSpec {
-    CanvasSpec {
-        x_min_m: -8.0,
-        x_max_m: 8.0,
-        y_min_m: -6.0,
-        y_max_m: 6.0,
-        px_per_m: 50.0,
-        vehicle_m: [-2.5, 2.5, -1.0, 1.0],
-    }
+    CanvasSpec::around_car_16x12(50.0)
 }
 
 /// The real rig's frames, packed RGB: width, height, pixels.
