@@ -318,7 +318,8 @@ fn deterministic_run() -> (Vec<String>, Vec<Arc<Output>>, Telemetry) {
     };
     let render = Arc::new(SimRender::new(&config).unwrap());
     let cams = render.cameras().to_vec();
-    let (view, graph): (_, NeighbourGraph) = session::view_of(render.rig(), &cams).unwrap();
+    let (view, graph): (_, NeighbourGraph) =
+        session::view_for(render.rig(), &cams, &ProcessingSettings::default()).unwrap();
     let mut p = Processor::new(
         cams.clone(),
         Some(view),
