@@ -86,9 +86,10 @@ pub fn live_lines(names: &[String], output: &Output) -> Vec<String> {
     let px = |v: Option<f64>| v.map_or("-".into(), |v| format!("{v:.2} px"));
     let mut lines = vec![match report.matched_trigger {
         Some(t) => format!(
-            "panorama: matched on set {t} in {:.0} ms, {} refinements{}",
+            "panorama: matched on set {t} in {:.0} ms, {} refinements (the latest with the rebuild {:.0} ms){}",
             report.match_ms,
             report.refinements,
+            report.refine_ms,
             report
                 .problem
                 .as_deref()

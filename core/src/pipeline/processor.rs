@@ -19,7 +19,7 @@ use crate::source::{CameraInfo, ExposureCommand, FrameSet};
 use crate::surround::{Canvas, Composer, Mosaic, SeamBands, SurroundView};
 
 /// How far (canvas pixels) from a seam the seam gains compare the cameras.
-const SEAM_BAND_PX: usize = 3;
+pub(super) const SEAM_BAND_PX: usize = 3;
 /// At most this many pixels of each seam's band are compared per set.
 const SEAM_SAMPLES: usize = 512;
 
@@ -306,7 +306,8 @@ impl Processor {
             let taken: Vec<f64> = frames.iter().map(|f| f.meta.taken.exposure()).collect();
             panorama = Some((p.observations(&taken), p.report().clone()));
             if rebuilt {
-                self.seams = None;
+                // Built by the worker with the panorama.
+                self.seams = p.take_seams();
                 self.overlay = Arc::new(Overlay::of(
                     self.view.as_ref().map(View::mosaic),
                     self.cameras.len(),

@@ -44,7 +44,9 @@ use crate::panorama::{
     Refinement,
 };
 use crate::source::FrameSet;
-use crate::surround::{Mosaic, SurroundView};
+use crate::surround::{Mosaic, SeamBands, SurroundView};
+
+use super::processor::SEAM_BAND_PX;
 
 /// The corner detector of a live panorama's matching (see
 /// [`crate::panorama::Detector`]), shared with its worker thread. The app
@@ -192,6 +194,9 @@ pub struct PanoramaReport {
     pub pairs: Vec<PairMatchReport>,
     /// Refinements applied so far.
     pub refinements: u32,
+    /// How long the latest refinement took on the worker, with the
+    /// rebuild of the panorama, ms.
+    pub refine_ms: f64,
     /// Whether a refinement is running or waiting for matches.
     pub refining: bool,
     /// The latest problem of the matching or the refinement.
@@ -238,6 +243,8 @@ enum Done {
         refinement: Refinement,
         rig: Rig,
         panorama: Box<Panorama>,
+        seams: SeamBands,
+        ms: f64,
     },
     Failed {
         what: &'static str,
@@ -269,6 +276,7 @@ impl Worker {
         let handle = std::thread::Builder::new()
             .name("rigview-panorama".into())
             .spawn(move || {
+                lower_priority();
                 for job in rx {
                     if tx.send(work(job, &spec, &options, &*detector)).is_err() {
                         break;
@@ -295,6 +303,25 @@ impl Drop for Worker {
         if let Some(h) = self.handle.take() {
             let _ = h.join();
         }
+    }
+}
+
+/// The niceness the worker runs at: matching and rebuilding the panorama
+/// (which spreads over every core) give way to the per-set path.
+const WORKER_NICE: i32 = 10;
+
+/// Lowers the calling thread's scheduling priority by [`WORKER_NICE`]
+/// (threads it starts inherit it); where that is not possible it runs at
+/// the process's priority.
+fn lower_priority() {
+    #[cfg(target_os = "linux")]
+    {
+        // SAFETY: setpriority only reads its integer arguments; on Linux,
+        // PRIO_PROCESS with `who` 0 applies to the calling thread alone.
+        #[allow(unsafe_code)]
+        let current = unsafe { libc::getpriority(libc::PRIO_PROCESS, 0) };
+        #[allow(unsafe_code)]
+        let _ = unsafe { libc::setpriority(libc::PRIO_PROCESS, 0, current + WORKER_NICE) };
     }
 }
 
@@ -341,6 +368,7 @@ fn work(
             matches,
             options: refine_options,
         } => {
+            let t = Instant::now();
             let refined = panorama
                 .refine(&matches, &refine_options)
                 .and_then(|r| Ok((r.apply(&rig)?, r)))
@@ -350,7 +378,9 @@ fn work(
                     generation,
                     refinement,
                     rig,
+                    seams: SeamBands::new(panorama.mosaic(), SEAM_BAND_PX),
                     panorama: Box::new(panorama),
+                    ms: t.elapsed().as_secs_f64() * 1e3,
                 },
                 Err(e) => Done::Failed {
                     what: "refinement",
@@ -367,6 +397,9 @@ struct Held {
     matches: Arc<Vec<PairMatches>>,
     /// Per camera, the exposure of the matched frame.
     taken: Vec<f64>,
+    /// The panorama generation they were matched on: a refinement starts
+    /// from matches of the panorama in use only.
+    generation: u64,
 }
 
 /// The panorama in the pipeline: the view, its rig, and the matching and
@@ -385,7 +418,10 @@ pub struct LivePanorama {
     /// Bumped by every refinement: older matches are not refined from.
     generation: u64,
     held: Option<Held>,
-    sets: u64,
+    /// The seam bands of a panorama the worker rebuilt, until the
+    /// processor takes them.
+    seams: Option<SeamBands>,
+    sets_since_match: u64,
     sets_since_refine: u64,
     refine_wanted: bool,
     report: Arc<PanoramaReport>,
@@ -427,7 +463,8 @@ impl LivePanorama {
             busy: false,
             generation: 0,
             held: None,
-            sets: 0,
+            seams: None,
+            sets_since_match: 0,
             sets_since_refine: 0,
             refine_wanted: false,
             report: Arc::new(report),
@@ -502,6 +539,7 @@ impl LivePanorama {
                     self.held = Some(Held {
                         matches: Arc::new(matches),
                         taken,
+                        generation,
                     });
                 }
                 Done::Refined {
@@ -509,15 +547,19 @@ impl LivePanorama {
                     refinement,
                     rig,
                     panorama,
+                    seams,
+                    ms,
                 } => {
                     if generation != self.generation {
                         continue;
                     }
+                    self.seams = Some(seams);
                     self.generation += 1;
                     self.rig = Arc::new(rig);
                     self.panorama = Arc::from(panorama);
                     let report = Arc::make_mut(&mut self.report);
                     report.refinements += 1;
+                    report.refine_ms = ms;
                     report.refining = self.refine_wanted;
                     report.rig = Some(self.rig.clone());
                     report.problem = None;
@@ -540,6 +582,11 @@ impl LivePanorama {
         rebuilt
     }
 
+    /// The seam bands of the panorama the worker rebuilt last (once).
+    pub fn take_seams(&mut self) -> Option<SeamBands> {
+        self.seams.take()
+    }
+
     /// The worker's next finished job, if any.
     fn next_done(&mut self) -> Option<Done> {
         let w = self.worker.as_ref()?;
@@ -559,7 +606,7 @@ impl LivePanorama {
     /// matching of `set` when one is due. Never waits; a worker that
     /// cannot start or stopped is a problem in the report.
     pub fn schedule(&mut self, set: &FrameSet) {
-        self.sets += 1;
+        self.sets_since_match += 1;
         self.sets_since_refine += 1;
         if self.settings.refine_every > 0 && self.sets_since_refine >= self.settings.refine_every {
             self.sets_since_refine = 0;
@@ -585,7 +632,7 @@ impl LivePanorama {
             return;
         };
         let job = match &self.held {
-            Some(held) if self.refine_wanted => {
+            Some(held) if self.refine_wanted && held.generation == self.generation => {
                 self.refine_wanted = false;
                 Job::Refine {
                     generation: self.generation,
@@ -598,10 +645,10 @@ impl LivePanorama {
                     },
                 }
             }
-            // The first set is matched at once, then every match_every-th.
-            _ if self.held.is_none()
-                || (self.sets - 1).is_multiple_of(self.settings.match_every) =>
-            {
+            // The first set is matched at once, then one every
+            // `match_every` sets (the next free set after a busy worker).
+            _ if self.held.is_none() || self.sets_since_match >= self.settings.match_every => {
+                self.sets_since_match = 0;
                 Job::Match {
                     generation: self.generation,
                     panorama: self.panorama.clone(),
