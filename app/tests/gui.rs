@@ -53,11 +53,21 @@ fn app_recording(
     log: &LogBuffer,
     record: Option<RecordSpec>,
 ) -> RigviewApp {
+    app_on(dir, sim(frames), log, record)
+}
+
+/// The app on `source`, in lock step.
+fn app_on(
+    dir: &Path,
+    source: SourceSpec,
+    log: &LogBuffer,
+    record: Option<RecordSpec>,
+) -> RigviewApp {
     let ctx = egui::Context::default();
     RigviewApp::new(
         &ctx,
         AppOptions {
-            source: sim(frames),
+            source,
             settings: Some(dir.join("settings.yaml")),
             quit_after: None,
             screenshot: None,
@@ -746,27 +756,13 @@ fn view_panorama_shows_a_composed_panorama_with_match_counts() {
     let log = LogBuffer::new();
     let _events = logging::capture(&log);
     // The half-resolution rig: enough detail in the overlaps for matches.
-    let ctx = egui::Context::default();
-    let app = RigviewApp::new(
-        &ctx,
-        AppOptions {
-            source: SourceSpec::Sim(SimSpec {
-                scenario: "reference".into(),
-                scale: 0.5,
-                realtime: false,
-                frames: None,
-            }),
-            settings: Some(dir.path().join("settings.yaml")),
-            quit_after: None,
-            screenshot: None,
-            pipeline: PipelineOptions {
-                lockstep: true,
-                ..Default::default()
-            },
-            log: log.clone(),
-            record: None,
-        },
-    );
+    let source = SourceSpec::Sim(SimSpec {
+        scenario: "reference".into(),
+        scale: 0.5,
+        realtime: false,
+        frames: None,
+    });
+    let app = app_on(dir.path(), source, &log, None);
     let mut h = harness(app);
     step_until(&mut h, 120.0, "first sets", |a| a.shown() >= 2);
     assert!(h.state().latest().unwrap().panorama.is_none());
