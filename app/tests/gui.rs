@@ -784,7 +784,7 @@ fn view_panorama_shows_a_composed_panorama_with_match_counts() {
     let out = h.state().latest().unwrap().clone();
     // A composed panorama: the cylinder's canvas, not black.
     let canvas = out.canvas.as_ref().expect("no panorama canvas");
-    assert_eq!((canvas.width, canvas.height), (2048, 380));
+    assert_eq!((canvas.width, canvas.height), (2048, 270));
     let mean = canvas.data.iter().map(|&v| f64::from(v)).sum::<f64>() / canvas.data.len() as f64;
     assert!(mean > 10.0, "the panorama is black (mean {mean:.1})");
     let report = out.panorama.as_ref().unwrap();

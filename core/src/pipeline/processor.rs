@@ -19,7 +19,7 @@ use crate::source::{CameraInfo, ExposureCommand, FrameSet};
 use crate::surround::{Canvas, Composer, Mosaic, SeamBands, SurroundView};
 
 /// How far (canvas pixels) from a seam the seam gains compare the cameras.
-pub(super) const SEAM_BAND_PX: usize = 3;
+const SEAM_BAND_PX: usize = 3;
 /// At most this many pixels of each seam's band are compared per set.
 const SEAM_SAMPLES: usize = 512;
 
@@ -306,8 +306,6 @@ impl Processor {
             let taken: Vec<f64> = frames.iter().map(|f| f.meta.taken.exposure()).collect();
             panorama = Some((p.observations(&taken), p.report().clone()));
             if rebuilt {
-                // Built by the worker with the panorama.
-                self.seams = p.take_seams();
                 self.overlay = Arc::new(Overlay::of(
                     self.view.as_ref().map(View::mosaic),
                     self.cameras.len(),
@@ -411,7 +409,14 @@ impl Processor {
                         .find(|p| (p.i, p.j) == (i, j))
                         .and_then(|p| p.log2_r)
                 };
-                let ratios: Vec<_> = if self.settings.display.compensate {
+                // In the panorama the pixels either side of a seam show the
+                // same point only at the cylinder's radius (parallax
+                // elsewhere): its seam gains use the matched patches,
+                // which are correspondences.
+                let matched = report.is_some();
+                let ratios: Vec<_> = if self.settings.display.compensate && matched {
+                    pairs.iter().map(|p| (p.i, p.j, p.log2_r)).collect()
+                } else if self.settings.display.compensate {
                     self.seams
                         .get_or_insert_with(|| SeamBands::new(view, SEAM_BAND_PX))
                         .ratios(&views, SEAM_SAMPLES)?

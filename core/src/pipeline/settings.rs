@@ -131,13 +131,17 @@ pub struct PanoramaSettings {
 }
 
 impl Default for PanoramaSettings {
+    /// 2048 × 270 pixels (square at the horizon: 0.18° each), radius 10 m,
+    /// from 25° below the horizon to 20° above it: a rig of cameras
+    /// tilted down sees no higher all round (the offline `rigview
+    /// panorama` shows up to 35° by default).
     fn default() -> Self {
         Self {
             width: 2048,
-            height: 380,
+            height: 270,
             radius_m: 10.0,
             below_deg: 25.0,
-            above_deg: 35.0,
+            above_deg: 20.0,
             match_every: 10,
             refine_every: 0,
             refine_bound_deg: 3.0,

@@ -44,9 +44,7 @@ use crate::panorama::{
     Refinement,
 };
 use crate::source::FrameSet;
-use crate::surround::{Mosaic, SeamBands, SurroundView};
-
-use super::processor::SEAM_BAND_PX;
+use crate::surround::{Mosaic, SurroundView};
 
 /// The corner detector of a live panorama's matching (see
 /// [`crate::panorama::Detector`]), shared with its worker thread. The app
@@ -243,7 +241,6 @@ enum Done {
         refinement: Refinement,
         rig: Rig,
         panorama: Box<Panorama>,
-        seams: SeamBands,
         ms: f64,
     },
     Failed {
@@ -378,7 +375,6 @@ fn work(
                     generation,
                     refinement,
                     rig,
-                    seams: SeamBands::new(panorama.mosaic(), SEAM_BAND_PX),
                     panorama: Box::new(panorama),
                     ms: t.elapsed().as_secs_f64() * 1e3,
                 },
@@ -418,9 +414,6 @@ pub struct LivePanorama {
     /// Bumped by every refinement: older matches are not refined from.
     generation: u64,
     held: Option<Held>,
-    /// The seam bands of a panorama the worker rebuilt, until the
-    /// processor takes them.
-    seams: Option<SeamBands>,
     sets_since_match: u64,
     sets_since_refine: u64,
     refine_wanted: bool,
@@ -463,7 +456,6 @@ impl LivePanorama {
             busy: false,
             generation: 0,
             held: None,
-            seams: None,
             sets_since_match: 0,
             sets_since_refine: 0,
             refine_wanted: false,
@@ -547,13 +539,11 @@ impl LivePanorama {
                     refinement,
                     rig,
                     panorama,
-                    seams,
                     ms,
                 } => {
                     if generation != self.generation {
                         continue;
                     }
-                    self.seams = Some(seams);
                     self.generation += 1;
                     self.rig = Arc::new(rig);
                     self.panorama = Arc::from(panorama);
@@ -580,11 +570,6 @@ impl LivePanorama {
             }
         }
         rebuilt
-    }
-
-    /// The seam bands of the panorama the worker rebuilt last (once).
-    pub fn take_seams(&mut self) -> Option<SeamBands> {
-        self.seams.take()
     }
 
     /// The worker's next finished job, if any.
