@@ -28,7 +28,6 @@
 
 use std::sync::mpsc::{self, Receiver, Sender, TryRecvError};
 use std::sync::Arc;
-use std::thread::JoinHandle;
 use std::time::Instant;
 
 use rigview_calib::rig::Rig;
@@ -250,10 +249,13 @@ enum Done {
 }
 
 /// The worker thread of a live panorama.
+///
+/// Dropping it closes its queue: the thread ends after the job it is on,
+/// without anyone waiting for it (a rebuild takes up to a second, and the
+/// processing thread drops the view when the operator switches views).
 struct Worker {
-    jobs: Option<Sender<Job>>,
+    jobs: Sender<Job>,
     done: Receiver<Done>,
-    handle: Option<JoinHandle<()>>,
 }
 
 impl std::fmt::Debug for Worker {
@@ -270,7 +272,7 @@ impl Worker {
     ) -> Result<Self> {
         let (jobs, rx) = mpsc::channel::<Job>();
         let (tx, done) = mpsc::channel();
-        let handle = std::thread::Builder::new()
+        std::thread::Builder::new()
             .name("rigview-panorama".into())
             .spawn(move || {
                 lower_priority();
@@ -281,25 +283,11 @@ impl Worker {
                 }
             })
             .map_err(|e| Error::InvalidConfig(format!("cannot start the panorama worker: {e}")))?;
-        Ok(Self {
-            jobs: Some(jobs),
-            done,
-            handle: Some(handle),
-        })
+        Ok(Self { jobs, done })
     }
 
     fn send(&self, job: Job) -> bool {
-        self.jobs.as_ref().is_some_and(|j| j.send(job).is_ok())
-    }
-}
-
-impl Drop for Worker {
-    fn drop(&mut self) {
-        // Closing the queue ends the thread after its job.
-        self.jobs = None;
-        if let Some(h) = self.handle.take() {
-            let _ = h.join();
-        }
+        self.jobs.send(job).is_ok()
     }
 }
 
