@@ -481,6 +481,8 @@ impl RigviewApp {
     /// Sends the processing settings to the pipeline and marks them for
     /// saving.
     fn settings_changed(&mut self) {
+        // The view is the window's choice (Reset to defaults keeps it).
+        self.settings.processing.view = self.settings.window.view.kind();
         let processing: ProcessingSettings = self.settings.processing.clone();
         if let Err(e) = processing.validate() {
             self.note(format!("setting refused: {e}"), true);

@@ -197,6 +197,14 @@ mod tests {
     }
 
     #[test]
+    fn refinement_without_a_panorama_says_so() {
+        let (rig, view, graph) = small_rig(1);
+        let mut p = default_processor(&rig, view, graph);
+        let e = p.refine().err().map(|e| e.to_string()).unwrap_or_default();
+        assert!(e.contains("switch the view to the panorama"), "{e}");
+    }
+
+    #[test]
     fn a_view_of_another_rig_is_refused() {
         let (rig, view, graph) = small_rig(1);
         let mut cams = rig.cameras().to_vec();
