@@ -65,7 +65,7 @@ pub fn run(demo: &Demo, settings: &ProcessingSettings, out: &mut dyn Write) -> R
             ..Default::default()
         },
     )?;
-    let mut processor = Processor::new(cams.to_vec(), Some(view), graph, settings.clone())?;
+    let mut processor = Processor::new(cams.to_vec(), Some(view.into()), graph, settings.clone())?;
     processor.set_compose(false);
     let mut lp = LockStep::new(source, processor)?;
 

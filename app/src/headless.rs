@@ -179,6 +179,11 @@ pub fn run(
         out.join("exposure.png").display(),
         report::summary(&status, &telemetry)
     );
+    if let Some(o) = &last {
+        for line in crate::panorama::live_lines(telemetry.camera_names(), o) {
+            summary += &format!("\n{line}");
+        }
+    }
     if let Some(c) = cpu.cores() {
         summary += &format!("\nCPU use: {c:.2} cores");
     }

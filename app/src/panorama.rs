@@ -13,6 +13,7 @@ use rigview_core::exposure::BalanceParams;
 use rigview_core::panorama::{
     MatchOptions, MatchTimes, PairMatches, Panorama, PanoramaOptions, RefineOptions,
 };
+use rigview_core::pipeline::{Output, PairMatchRow};
 use rigview_core::surround::{Canvas, Composer};
 
 use crate::cli::panorama::PanoramaArgs;
@@ -23,6 +24,11 @@ use crate::stills;
 pub fn detect(gray: &[u8], w: usize, h: usize, mask: &[u8]) -> rigview_core::Result<Vec<[f32; 2]>> {
     harris_corners(gray, w, h, Some(mask), &HarrisParams::default())
         .map_err(|e| rigview_core::Error::InvalidConfig(format!("Harris corners: {e}")))
+}
+
+/// [`detect`] as the live panorama's detector.
+pub fn shared_detector() -> rigview_core::pipeline::SharedDetector {
+    std::sync::Arc::new(detect)
 }
 
 /// One line per pair: corners, matches, inliers, the median error before
@@ -62,6 +68,64 @@ pub fn pair_lines(rig: &Rig, pairs: &[PairMatches], params: &BalanceParams) -> V
             }
         })
         .collect()
+}
+
+/// The live panorama's state in `output`, a line per overlap: matches,
+/// inliers, the median reprojection error (before and after the latest
+/// refinement) and r_ij, or why there is none. Empty without a panorama.
+pub fn live_lines(names: &[String], output: &Output) -> Vec<String> {
+    let Some(report) = &output.panorama else {
+        return Vec::new();
+    };
+    let name = |k: usize| {
+        names
+            .get(k)
+            .cloned()
+            .unwrap_or_else(|| format!("camera{k}"))
+    };
+    let px = |v: Option<f64>| v.map_or("-".into(), |v| format!("{v:.2} px"));
+    let mut lines = vec![match report.matched_trigger {
+        Some(t) => format!(
+            "panorama: matched on set {t} in {:.0} ms, {} refinements (the latest with the rebuild {:.0} ms){}",
+            report.match_ms,
+            report.refinements,
+            report.refine_ms,
+            report
+                .problem
+                .as_deref()
+                .map(|p| format!("; {p}"))
+                .unwrap_or_default()
+        ),
+        None => "panorama: not matched yet".into(),
+    }];
+    for p in &output.pairs {
+        let Some(m) = report.pair(p.i, p.j) else {
+            continue;
+        };
+        let row = PairMatchRow::of(m, p.log2_r);
+        let mut line = format!(
+            "pair {}–{}: {} matches, {} inliers, median reprojection error {}",
+            name(p.i),
+            name(p.j),
+            row.matches,
+            row.inliers,
+            px(row.error_px)
+        );
+        if row.refined_before_px.is_some() {
+            line += &format!(
+                " (refined: {} before, {} after)",
+                px(row.refined_before_px),
+                px(row.refined_after_px)
+            );
+        }
+        match (p.log2_r, row.no_ratio) {
+            (Some(l), _) => line += &format!(", r = {:.3} ({l:+.2} EV)", l.exp2()),
+            (None, Some(why)) => line += &format!("; no ratio: {why}"),
+            (None, None) => {}
+        }
+        lines.push(line);
+    }
+    lines
 }
 
 /// The time split of the matching, as a line.

@@ -23,7 +23,7 @@ use rigview_record::{
     Compression, Recorder, RecorderOptions, RecorderStats, RecordingSetup, ReplaySource,
 };
 
-use crate::session::{view_of, Session};
+use crate::session::{view_for, Session};
 
 /// Where and how to record.
 #[derive(Clone, Debug, PartialEq)]
@@ -226,6 +226,7 @@ pub fn start_session<S: FrameSource + 'static>(
         source_name: origin.source_name,
         calibration: origin.calibration,
         camera_auto,
+        rig: origin.rig.cloned(),
     })
 }
 
@@ -304,8 +305,8 @@ pub fn start_replay(
     let rig = replay_rig(spec, &source)?;
     let (view, graph, calibration) = match &rig {
         Some((rig, name)) => {
-            let (v, g) =
-                view_of(rig, &cameras).with_context(|| format!("the surround view of {name}"))?;
+            let (v, g) = view_for(rig, &cameras, processing)
+                .with_context(|| format!("the view of {name}"))?;
             (Some(v), g, name.clone())
         }
         None => (
@@ -725,7 +726,7 @@ pub fn capture(run: &CaptureRun, out: &mut dyn std::io::Write) -> Result<String>
 #[cfg(feature = "aravis")]
 fn open_live(spec: &crate::live::LiveSpec) -> Result<Opened> {
     let crate::live::Opened { source, rig } = crate::live::open(spec)?;
-    let fits = view_of(&rig, source.cameras()).is_ok();
+    let fits = view_for(&rig, source.cameras(), &ProcessingSettings::default()).is_ok();
     Ok(Opened {
         source: Box::new(source),
         rig: fits.then_some(rig),

@@ -10,11 +10,12 @@ use anyhow::{Context, Result};
 use rigview_calib::rig::Rig;
 use rigview_core::exposure::NeighbourGraph;
 use rigview_core::pipeline::{
-    check_view, Notify, Pipeline, PipelineOptions, ProcessingSettings, Processor,
+    check_view, Notify, PanoramaSettings, Pipeline, PipelineOptions, ProcessingSettings, Processor,
+    View, ViewKind,
 };
 use rigview_core::sim::{Pacing, SimConfig, SimRender, SimRig, SimRigOptions};
 use rigview_core::source::{Budget, CameraInfo, FrameSource};
-use rigview_core::surround::{CanvasSpec, SurroundOptions, SurroundView};
+use rigview_core::surround::CanvasSpec;
 
 use crate::live::LiveSpec;
 use crate::recording::{start_session, Origin, RecordSlot, RecordSpec, ReplayControl};
@@ -85,6 +86,9 @@ pub struct Session {
     pub record_setup: rigview_record::RecordingSetup,
     /// The window's hold on a replay (a replay session only).
     pub replay: Option<ReplayControl>,
+    /// The calibration in use (`None`: none), from which another view is
+    /// built.
+    pub rig: Option<Rig>,
 }
 
 impl Session {
@@ -128,24 +132,52 @@ pub fn canvas_spec() -> CanvasSpec {
     CanvasSpec::default()
 }
 
-/// The surround view and neighbour graph of `rig` for `cameras`.
-pub fn view_of(rig: &Rig, cameras: &[CameraInfo]) -> Result<(SurroundView, NeighbourGraph)> {
-    let view = SurroundView::build(rig, &canvas_spec(), &SurroundOptions::default())?;
-    check_view(&view, cameras)?;
+/// A view built for a session: the view, the neighbour graph and the rig
+/// it was built from.
+pub type BuiltView = (View, NeighbourGraph, Rig);
+
+/// The view `kind` (the panorama as `panorama` says) and neighbour graph
+/// of `rig` for `cameras`.
+pub fn view_of(
+    rig: &Rig,
+    cameras: &[CameraInfo],
+    kind: ViewKind,
+    panorama: &PanoramaSettings,
+) -> Result<(View, NeighbourGraph)> {
+    let view = View::build(
+        kind,
+        rig,
+        &canvas_spec(),
+        panorama,
+        crate::panorama::shared_detector(),
+    )
+    .with_context(|| format!("building the {} view", kind.name()))?;
+    check_view(view.mosaic(), cameras)?;
     let graph = NeighbourGraph::new(cameras.len(), &rig.neighbours)?;
     Ok((view, graph))
 }
 
-/// Loads a calibration file (any supported format) and builds its view for
-/// `cameras`; errors name the file.
+/// The view `processing` asks for, of `rig` for `cameras`.
+pub fn view_for(
+    rig: &Rig,
+    cameras: &[CameraInfo],
+    processing: &ProcessingSettings,
+) -> Result<(View, NeighbourGraph)> {
+    view_of(rig, cameras, processing.view, &processing.panorama)
+}
+
+/// Loads a calibration file (any supported format) and builds the view
+/// `processing` asks for, for `cameras`; errors name the file.
 pub fn load_calibration(
     path: &Path,
     cameras: &[CameraInfo],
-) -> Result<(SurroundView, NeighbourGraph)> {
+    processing: &ProcessingSettings,
+) -> Result<BuiltView> {
     let loaded = rigview_calib::formats::load(path, None, None)
         .with_context(|| format!("cannot load the calibration {}", path.display()))?;
-    view_of(&loaded.rig, cameras)
-        .with_context(|| format!("cannot use the calibration {}", path.display()))
+    let (view, graph) = view_for(&loaded.rig, cameras, processing)
+        .with_context(|| format!("cannot use the calibration {}", path.display()))?;
+    Ok((view, graph, loaded.rig))
 }
 
 /// Starts a session.
@@ -194,7 +226,7 @@ fn start_brackets(
     let (source, rig) =
         crate::brackets::open_with_rig(&spec.dir, spec.rig.as_deref(), BRACKETS_START)?;
     let cameras = source.cameras().to_vec();
-    let (view, graph) = view_of(&rig, &cameras)
+    let (view, graph) = view_for(&rig, &cameras, processing)
         .with_context(|| format!("the calibration of the brackets {}", spec.dir.display()))?;
     let processor = Processor::new(cameras.clone(), Some(view), graph, processing.clone())?;
     let origin = Origin {
@@ -229,7 +261,7 @@ fn start_sim(
     tracing::info!("scene traced in {:.1} s", t.elapsed().as_secs_f64());
     let cameras = render.cameras().to_vec();
     let (view, graph) =
-        view_of(render.rig(), &cameras).context("the surround view of the simulated rig")?;
+        view_for(render.rig(), &cameras, processing).context("the view of the simulated rig")?;
     let source = SimRig::new(
         render.clone(),
         SimRigOptions {
@@ -283,12 +315,10 @@ fn start_live(
     let crate::live::Opened { source, rig } = crate::live::open(spec)?;
     let what = spec.describe();
     let cameras = source.cameras().to_vec();
-    let (view, graph, calibration) = match view_of(&rig, &cameras) {
+    let (view, graph, calibration) = match view_for(&rig, &cameras, processing) {
         Ok((v, g)) => (Some(v), g, what.clone()),
         Err(e) => {
-            tracing::warn!(
-                "no surround view: {e:#}; whole frames are metered (File, Open calibration)"
-            );
+            tracing::warn!("no view: {e:#}; whole frames are metered (File, Open calibration)");
             (
                 None,
                 NeighbourGraph::new(cameras.len(), &[])?,

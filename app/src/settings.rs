@@ -27,8 +27,18 @@ pub enum ViewMode {
     /// The bird's-eye surround view.
     #[default]
     Surround,
-    /// The cylindrical panorama (not built yet).
+    /// The cylindrical panorama.
     Panorama,
+}
+
+impl ViewMode {
+    /// The view the pipeline composes for this choice.
+    pub fn kind(self) -> rigview_core::pipeline::ViewKind {
+        match self {
+            Self::Surround => rigview_core::pipeline::ViewKind::Surround,
+            Self::Panorama => rigview_core::pipeline::ViewKind::Panorama,
+        }
+    }
 }
 
 /// The window's choices.
@@ -41,6 +51,9 @@ pub struct WindowSettings {
     pub show_roi: bool,
     /// Draw the overlap patches over the thumbnails.
     pub show_patches: bool,
+    /// Draw the panorama's matches (inliers green, outliers red) and its
+    /// overlap bands over it.
+    pub show_matches: bool,
     /// Seconds of history in the scrolling plots.
     pub plot_seconds: f64,
     /// The camera whose M(γ) curve is plotted.
@@ -55,6 +68,7 @@ impl Default for WindowSettings {
             view: ViewMode::Surround,
             show_roi: true,
             show_patches: true,
+            show_matches: true,
             plot_seconds: 20.0,
             selected_camera: 0,
             recent: Vec::new(),

@@ -53,11 +53,21 @@ fn app_recording(
     log: &LogBuffer,
     record: Option<RecordSpec>,
 ) -> RigviewApp {
+    app_on(dir, sim(frames), log, record)
+}
+
+/// The app on `source`, in lock step.
+fn app_on(
+    dir: &Path,
+    source: SourceSpec,
+    log: &LogBuffer,
+    record: Option<RecordSpec>,
+) -> RigviewApp {
     let ctx = egui::Context::default();
     RigviewApp::new(
         &ctx,
         AppOptions {
-            source: sim(frames),
+            source,
             settings: Some(dir.join("settings.yaml")),
             quit_after: None,
             screenshot: None,
@@ -318,7 +328,8 @@ fn deterministic_run() -> (Vec<String>, Vec<Arc<Output>>, Telemetry) {
     };
     let render = Arc::new(SimRender::new(&config).unwrap());
     let cams = render.cameras().to_vec();
-    let (view, graph): (_, NeighbourGraph) = session::view_of(render.rig(), &cams).unwrap();
+    let (view, graph): (_, NeighbourGraph) =
+        session::view_for(render.rig(), &cams, &ProcessingSettings::default()).unwrap();
     let mut p = Processor::new(
         cams.clone(),
         Some(view),
@@ -737,4 +748,83 @@ fn a_recording_that_stops_on_its_own_is_told_and_the_view_goes_on() {
         !a.is_finishing_recording() && a.recorder().is_none()
     });
     assert!(recorded_triggers(&file).is_empty());
+}
+
+#[test]
+fn view_panorama_shows_a_composed_panorama_with_match_counts() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = LogBuffer::new();
+    let _events = logging::capture(&log);
+    // The half-resolution rig: enough detail in the overlaps for matches.
+    let source = SourceSpec::Sim(SimSpec {
+        scenario: "reference".into(),
+        scale: 0.5,
+        realtime: false,
+        frames: None,
+    });
+    let app = app_on(dir.path(), source, &log, None);
+    let mut h = harness(app);
+    step_until(&mut h, 120.0, "first sets", |a| a.shown() >= 2);
+    assert!(h.state().latest().unwrap().panorama.is_none());
+    // View → Panorama.
+    h.get_by_label("View").click();
+    for _ in 0..3 {
+        h.step();
+    }
+    h.get_by_label("Panorama (cylindrical)").click();
+    // The window keeps showing sets while the panorama is built.
+    let before = h.state().shown();
+    step_until(&mut h, 120.0, "a matched panorama", |a| {
+        a.latest()
+            .and_then(|o| o.panorama.as_ref())
+            .is_some_and(|r| r.matched_trigger.is_some())
+    });
+    assert!(h.state().shown() > before, "the window froze");
+    h.step();
+    let out = h.state().latest().unwrap().clone();
+    // A composed panorama: the cylinder's canvas, not black.
+    let canvas = out.canvas.as_ref().expect("no panorama canvas");
+    assert_eq!((canvas.width, canvas.height), (2048, 270));
+    let mean = canvas.data.iter().map(|&v| f64::from(v)).sum::<f64>() / canvas.data.len() as f64;
+    assert!(mean > 10.0, "the panorama is black (mean {mean:.1})");
+    let report = out.panorama.as_ref().unwrap();
+    assert_eq!(report.pairs.len(), 4);
+    assert!(
+        report.pairs.iter().any(|p| p.inliers > 0),
+        "no pair has inliers: {:?}",
+        report.pairs
+    );
+    // The window shows each pair's matches and the Refine and Save rig
+    // actions.
+    assert_eq!(
+        h.query_all_by_label_contains(" matches, ").count(),
+        4,
+        "the pairs' match counts are not shown"
+    );
+    assert!(h.query_by_label_contains("front–left: ").is_some());
+    assert!(h.query_by_label("Refine").is_some());
+    assert!(h.query_by_label("Save rig…").is_some());
+    // Refine: the rotations are refined in the background and the
+    // panorama rebuilt; the refined rig saves as a rig file.
+    h.get_by_label("Refine").click();
+    step_until(&mut h, 120.0, "a refinement", |a| {
+        a.latest()
+            .and_then(|o| o.panorama.as_ref())
+            .is_some_and(|r| r.refinements >= 1)
+    });
+    let saved = dir.path().join("refined.rig.yaml");
+    h.state_mut().save_rig(&saved);
+    let rig = rigview_calib::formats::load(&saved, None, None)
+        .unwrap()
+        .rig;
+    assert_eq!(rig.cameras.len(), 4);
+    h.step();
+    assert!(h.query_all_by_label_contains("(refined: ").count() >= 1);
+    // The choice persists.
+    h.state_mut().finish();
+    let again = app_recording(dir.path(), Some(1), &log, None);
+    assert_eq!(
+        again.settings().window.view,
+        rigview::settings::ViewMode::Panorama
+    );
 }

@@ -195,3 +195,80 @@ fn the_cameras_own_auto_exposure_is_switched_on_and_rigview_sends_no_commands() 
     let g = header.iter().position(|h| h == "front.gamma_hat").unwrap();
     assert!(rows.iter().all(|r| !r[g].is_empty()), "no estimate to show");
 }
+
+#[test]
+fn a_headless_panorama_run_writes_panoramas_and_each_pairs_matches() {
+    let dir = tempfile::tempdir().unwrap();
+    // At the trigger rate, so that the matching (on its worker thread)
+    // keeps up with the sets as it does live.
+    let stdout = run(
+        &[
+            "--view",
+            "panorama",
+            "--scale",
+            "0.5",
+            "--realtime",
+            "--frames",
+            "40",
+            "--every",
+            "20",
+            "--match-every",
+            "5",
+        ],
+        dir.path(),
+    );
+    let out = dir.path().join("out");
+    // At the trigger rate a loaded machine may drop a set.
+    assert!(stdout.contains("of 40 sets processed"), "{stdout}");
+    let mut views: Vec<_> = std::fs::read_dir(out.join("views"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    views.sort();
+    assert!(views.len() >= 2, "{views:?}");
+    // The panorama: 2048×270 (the live default), the cylinder seen all
+    // round its horizon (a few black pixels are dark things: shadows under
+    // the cars), and not black.
+    let img = image::open(views.last().unwrap()).unwrap().to_luma8();
+    assert_eq!(img.dimensions(), (2048, 270));
+    let horizon_black = (0..2048)
+        .filter(|&x| img.get_pixel(x, 135).0[0] == 0)
+        .count();
+    assert!(
+        horizon_black < 2048 / 20,
+        "{horizon_black} black pixels on the horizon"
+    );
+    let mean = img.pixels().map(|p| f64::from(p.0[0])).sum::<f64>() / (2048.0 * 270.0);
+    assert!(mean > 20.0, "the panorama is black (mean {mean:.1})");
+
+    // Per pair: matches, inliers, the reprojection error and r_ij, or why
+    // there is no ratio.
+    let (header, rows) = csv(&out.join("telemetry.csv"));
+    assert!(rows.len() >= 30, "{} rows", rows.len());
+    assert!(rows.iter().all(|r| r.len() == header.len()));
+    let col = |name: &str| {
+        header
+            .iter()
+            .position(|h| h == name)
+            .unwrap_or_else(|| panic!("no column {name} in {header:?}"))
+    };
+    let last = &rows[rows.len() - 1];
+    let pairs = ["front-left", "front-right", "left-back", "back-right"];
+    let mut with_inliers = 0;
+    for p in pairs {
+        let matches: usize = last[col(&format!("matches.{p}"))].parse().unwrap();
+        let inliers: usize = last[col(&format!("inliers.{p}"))].parse().unwrap();
+        let ratio = &last[col(&format!("log2_r.{p}"))];
+        let why = &last[col(&format!("no_ratio.{p}"))];
+        println!("{p}: {matches} matches, {inliers} inliers, log2 r {ratio:?}, {why:?}");
+        assert!(inliers <= matches);
+        // A pair has a ratio or says why it has none.
+        assert!(ratio.is_empty() != why.is_empty(), "{p}: {ratio:?} {why:?}");
+        if inliers > 0 {
+            with_inliers += 1;
+            assert!(!last[col(&format!("error_px.{p}"))].is_empty(), "{p}");
+        }
+    }
+    assert!(with_inliers >= 2, "{with_inliers} pairs with inliers");
+    assert!(stdout.contains("pair front–left:"), "{stdout}");
+}

@@ -49,7 +49,7 @@ fn bench(c: &mut Criterion) {
 
     let mut p = Processor::new(
         cams.clone(),
-        Some(build()),
+        Some(build().into()),
         graph(),
         ProcessingSettings::default(),
     )
@@ -67,7 +67,7 @@ fn bench(c: &mut Criterion) {
     // light against a reference frame.
     let mut fast = ProcessingSettings::default();
     fast.controller.law.kind = LawKind::Fast;
-    let mut p = Processor::new(cams.clone(), Some(build()), graph(), fast).unwrap();
+    let mut p = Processor::new(cams.clone(), Some(build().into()), graph(), fast).unwrap();
     g.bench_function("processor_fast_law", |b| {
         b.iter(|| {
             black_box(

@@ -29,7 +29,7 @@ pub fn sim_loop(
 ) -> std::result::Result<LockStep<SimRig>, SourceError> {
     let cameras = render.cameras().to_vec();
     let graph = NeighbourGraph::new(cameras.len(), edges)?;
-    let mut processor = Processor::new(cameras, Some(view), graph, settings)?;
+    let mut processor = Processor::new(cameras, Some(view.into()), graph, settings)?;
     processor.set_compose(false);
     let source = SimRig::new(render.clone(), SimRigOptions::default())?;
     LockStep::new(source, processor)

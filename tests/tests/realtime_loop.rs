@@ -50,7 +50,7 @@ fn the_default_mode_holds_every_camera_still_in_real_time() {
     .unwrap();
     let processor = Processor::new(
         render.cameras().to_vec(),
-        Some(view),
+        Some(view.into()),
         graph,
         ProcessingSettings::default(),
     )

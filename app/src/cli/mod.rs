@@ -17,7 +17,7 @@ use std::time::Duration;
 use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
 use rigview_core::exposure::{LawKind, ProbeParams, Simulation};
-use rigview_core::pipeline::{MeterRoi, PipelineOptions, ProcessingSettings, Strategy};
+use rigview_core::pipeline::{MeterRoi, PipelineOptions, ProcessingSettings, Strategy, ViewKind};
 use rigview_core::surround::BlendMode;
 
 use crate::gui::AppOptions;
@@ -134,6 +134,12 @@ impl ViewArgs {
             tracing::warn!("{e:#}");
         } else {
             overrides.apply(&mut settings.processing);
+            if let Some(v) = overrides.view {
+                settings.window.view = match v {
+                    ViewKind::Surround => crate::settings::ViewMode::Surround,
+                    ViewKind::Panorama => crate::settings::ViewMode::Panorama,
+                };
+            }
             store.save(&settings)?;
         }
         crate::gui::run(AppOptions {
@@ -182,6 +188,22 @@ pub struct ProcessingArgs {
     /// choice).
     #[arg(long, value_enum)]
     pub blend: Option<BlendMode>,
+    /// The view composed (and what is metered, and where the overlap
+    /// ratios come from): the bird's-eye surround view, or the
+    /// cylindrical panorama with ratios from matched features.
+    #[arg(long, value_enum)]
+    pub view: Option<ViewKind>,
+    /// The panorama's radius, metres: what stands this far from the rig's
+    /// centre lines up across the seams; nearer things show parallax.
+    #[arg(long, value_name = "M")]
+    pub radius_m: Option<f64>,
+    /// Match the panorama's features on every N-th set (in the background).
+    #[arg(long, value_name = "N")]
+    pub match_every: Option<u64>,
+    /// Refine the panorama's rotations in the background every N sets (0:
+    /// never).
+    #[arg(long, value_name = "N")]
+    pub refine_every: Option<u64>,
 }
 
 /// A setting switched on or off on the command line.
@@ -224,6 +246,18 @@ impl ProcessingArgs {
         self.control.apply(p);
         if let Some(b) = self.blend {
             p.blend = b;
+        }
+        if let Some(v) = self.view {
+            p.view = v;
+        }
+        if let Some(r) = self.radius_m {
+            p.panorama.radius_m = r;
+        }
+        if let Some(n) = self.match_every {
+            p.panorama.match_every = n;
+        }
+        if let Some(n) = self.refine_every {
+            p.panorama.refine_every = n;
         }
     }
 }

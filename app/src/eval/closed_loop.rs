@@ -120,7 +120,7 @@ pub fn run_source<S: FrameSource>(
     let cameras = source.cameras().to_vec();
     let n = cameras.len();
     let graph = NeighbourGraph::new(n, &rig.neighbours)?;
-    let mut processor = Processor::new(cameras, Some(rig_view(rig)?), graph, settings)?;
+    let mut processor = Processor::new(cameras, Some(rig_view(rig)?.into()), graph, settings)?;
     processor.set_compose(options.view);
     let seams = match (options.view, processor.view()) {
         (true, Some(v)) => Some(SeamBands::new(v, SEAM_BAND_PX)),

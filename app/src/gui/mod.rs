@@ -18,11 +18,9 @@ use std::time::{Duration, Instant};
 
 use anyhow::Result;
 use egui::{Color32, ColorImage, TextureHandle, TextureOptions};
-use rigview_core::exposure::NeighbourGraph;
 use rigview_core::pipeline::{
-    Control, Notify, Output, PipelineOptions, PipelineStatus, ProcessingSettings,
+    Control, Notify, Output, PipelineOptions, PipelineStatus, ProcessingSettings, ViewKind,
 };
-use rigview_core::surround::SurroundView;
 use rigview_record::Recorder;
 
 use crate::logging::{self, LogBuffer, StatusLog};
@@ -43,13 +41,24 @@ pub struct Message {
 /// Messages the window keeps.
 const MESSAGES: usize = 20;
 
-type Loaded = Result<(SurroundView, NeighbourGraph)>;
+type Loaded = Result<session::BuiltView>;
+
+/// What is being built in the background.
+#[derive(Clone, Debug, PartialEq)]
+enum Loading {
+    /// A calibration file and its view.
+    Calibration(PathBuf),
+    /// Another view of the calibration in use.
+    View(ViewKind),
+}
 
 /// What a file dialog is picking.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Pick {
     Calibration,
     Recording,
+    /// Where to save the panorama's refined rig.
+    SaveRig,
 }
 
 /// The recording in progress, as the window shows it.
@@ -101,7 +110,7 @@ pub struct RigviewApp {
     canvas_tex: Option<TextureHandle>,
     thumb_tex: Vec<Option<TextureHandle>>,
     messages: Vec<Message>,
-    loading: Option<(PathBuf, Receiver<Loaded>)>,
+    loading: Option<(Loading, Receiver<Loaded>)>,
     dialog: Option<(Pick, Receiver<Option<PathBuf>>)>,
     open_path: String,
     recording_path: String,
@@ -160,10 +169,12 @@ impl RigviewApp {
     pub fn new(ctx: &egui::Context, options: AppOptions) -> Self {
         let log_seen = options.log.next_seq();
         let mut store = SettingsStore::new(options.settings);
-        let (settings, settings_error) = store.load();
+        let (mut settings, settings_error) = store.load();
         if let Some(e) = settings_error {
             tracing::warn!("{e:#}");
         }
+        // The window's view choice is the view the pipeline composes.
+        settings.processing.view = settings.window.view.kind();
         let repaint = ctx.clone();
         let notify: Notify = Arc::new(move || repaint.request_repaint());
         let start = |record| {
@@ -264,6 +275,14 @@ impl RigviewApp {
     /// The session, if it started.
     pub fn session(&self) -> Option<&Session> {
         self.session.as_ref()
+    }
+
+    /// The cameras' names, in rig order (none without a session).
+    pub fn camera_names(&self) -> Vec<String> {
+        self.session
+            .as_ref()
+            .map(Session::camera_names)
+            .unwrap_or_default()
     }
 
     /// Where the calibration came from.
@@ -462,6 +481,8 @@ impl RigviewApp {
     /// Sends the processing settings to the pipeline and marks them for
     /// saving.
     fn settings_changed(&mut self) {
+        // The view is the window's choice (Reset to defaults keeps it).
+        self.settings.processing.view = self.settings.window.view.kind();
         let processing: ProcessingSettings = self.settings.processing.clone();
         if let Err(e) = processing.validate() {
             self.note(format!("setting refused: {e}"), true);
@@ -497,16 +518,90 @@ impl RigviewApp {
             return;
         };
         let cameras = s.pipeline.cameras().to_vec();
-        let (tx, rx) = mpsc::channel();
+        let processing = self.settings.processing.clone();
         let p = path.to_path_buf();
+        self.build_in_background(Loading::Calibration(path.to_path_buf()), move || {
+            session::load_calibration(&p, &cameras, &processing)
+        });
+    }
+
+    /// Switches the big view to `mode`: the pipeline goes on with the view
+    /// it has while the new one is built in the background.
+    pub fn switch_view(&mut self, mode: crate::settings::ViewMode) {
+        self.settings.window.view = mode;
+        self.settings.processing.view = mode.kind();
+        self.settings_changed();
+        let Some(s) = &self.session else {
+            return;
+        };
+        let Some(rig) = s.rig.clone() else {
+            self.note(
+                format!(
+                    "no calibration in use: the {} view needs one (File, Open calibration)",
+                    mode.kind().name()
+                ),
+                true,
+            );
+            return;
+        };
+        let cameras = s.pipeline.cameras().to_vec();
+        let processing = self.settings.processing.clone();
+        self.build_in_background(Loading::View(mode.kind()), move || {
+            let (view, graph) = session::view_for(&rig, &cameras, &processing)?;
+            Ok((view, graph, rig))
+        });
+    }
+
+    /// Asks the panorama for a refinement of its rotations (in the
+    /// background; the view changes when it is done).
+    pub fn refine(&mut self) {
+        if let Some(s) = &self.session {
+            match s.pipeline.send(Control::Refine) {
+                Ok(()) => self.note("refining the panorama's rotations…".into(), false),
+                Err(e) => self.note(format!("{e}"), true),
+            }
+        }
+    }
+
+    /// Saves the rig the panorama is built from (refined rotations
+    /// included) to `path`, in the format its extension says.
+    pub fn save_rig(&mut self, path: &Path) {
+        let rig = self
+            .latest
+            .as_ref()
+            .and_then(|o| o.panorama.as_ref())
+            .and_then(|r| r.rig.clone());
+        let Some(rig) = rig else {
+            self.note("no panorama: there is no refined rig to save".into(), true);
+            return;
+        };
+        match rigview_calib::formats::save(&rig, path, None) {
+            Ok(written) => {
+                for p in written {
+                    self.note(format!("wrote the rig to {}", p.display()), false);
+                }
+            }
+            Err(e) => self.note(
+                format!("cannot save the rig to {}: {e}", path.display()),
+                true,
+            ),
+        }
+    }
+
+    fn build_in_background(
+        &mut self,
+        what: Loading,
+        build: impl FnOnce() -> Loaded + Send + 'static,
+    ) {
+        let (tx, rx) = mpsc::channel();
         let spawned = std::thread::Builder::new()
-            .name("rigview-calibration".into())
+            .name("rigview-view-build".into())
             .spawn(move || {
-                let _ = tx.send(session::load_calibration(&p, &cameras));
+                let _ = tx.send(build());
             });
         match spawned {
-            Ok(_) => self.loading = Some((path.to_path_buf(), rx)),
-            Err(e) => self.note(format!("cannot start loading: {e}"), true),
+            Ok(_) => self.loading = Some((what, rx)),
+            Err(e) => self.note(format!("cannot start building the view: {e}"), true),
         }
     }
 
@@ -516,15 +611,22 @@ impl RigviewApp {
         let spawned = std::thread::Builder::new()
             .name("rigview-dialog".into())
             .spawn(move || {
-                let picked = match pick {
+                let dialog = match pick {
                     Pick::Calibration => rfd::FileDialog::new()
                         .set_title("Open a rig or calibration file")
                         .add_filter("calibration", &["yaml", "yml", "xml", "json"]),
                     Pick::Recording => rfd::FileDialog::new()
                         .set_title("Open a recording")
                         .add_filter("recording (MCAP)", &["mcap"]),
-                }
-                .pick_file();
+                    Pick::SaveRig => rfd::FileDialog::new()
+                        .set_title("Save the refined rig")
+                        .set_file_name("refined.rig.yaml")
+                        .add_filter("rig", &["yaml", "yml", "xml", "json"]),
+                };
+                let picked = match pick {
+                    Pick::SaveRig => dialog.save_file(),
+                    _ => dialog.pick_file(),
+                };
                 let _ = tx.send(picked);
             });
         match spawned {
@@ -542,6 +644,7 @@ impl RigviewApp {
                     match pick {
                         Pick::Calibration => self.open_calibration(&path),
                         Pick::Recording => self.open_recording(&path),
+                        Pick::SaveRig => self.save_rig(&path),
                     }
                 }
                 Ok(None) => self.dialog = None,
@@ -556,43 +659,53 @@ impl RigviewApp {
             }
         }
         let done = match &self.loading {
-            Some((path, rx)) => match rx.try_recv() {
-                Ok(r) => Some((path.clone(), Some(r))),
+            Some((what, rx)) => match rx.try_recv() {
+                Ok(r) => Some((what.clone(), Some(r))),
                 Err(mpsc::TryRecvError::Empty) => None,
-                Err(mpsc::TryRecvError::Disconnected) => Some((path.clone(), None)),
+                Err(mpsc::TryRecvError::Disconnected) => Some((what.clone(), None)),
             },
             None => None,
         };
-        if let Some((path, result)) = done {
+        if let Some((what, result)) = done {
             self.loading = None;
-            match result {
-                Some(Ok((view, graph))) => {
-                    let sent = self.session.as_ref().map(|s| {
-                        s.pipeline.send(Control::Calibration {
-                            view: Some(Box::new(view)),
-                            graph,
-                        })
-                    });
-                    match sent {
-                        Some(Ok(())) => {
-                            self.calibration = path.display().to_string();
-                            self.note(format!("calibration {} in use", path.display()), false);
-                            let recent = &mut self.settings.window.recent;
-                            recent.retain(|p| p != &path);
-                            recent.insert(0, path);
-                            recent.truncate(8);
-                            self.window_changed();
-                        }
-                        Some(Err(e)) => self.note(format!("{e}"), true),
-                        None => {}
-                    }
-                }
-                Some(Err(e)) => self.note(format!("{e:#}"), true),
-                None => self.note(
-                    format!("loading {} stopped without a result", path.display()),
+            self.view_built(what, result);
+        }
+    }
+
+    /// Hands a view built in the background to the pipeline.
+    fn view_built(&mut self, what: Loading, result: Option<Loaded>) {
+        let (view, graph, rig) = match result {
+            Some(Ok(built)) => built,
+            Some(Err(e)) => return self.note(format!("{e:#}"), true),
+            None => {
+                return self.note(
+                    format!("building the view ({what:?}) stopped without a result"),
                     true,
-                ),
+                )
             }
+        };
+        let Some(s) = self.session.as_mut() else {
+            return;
+        };
+        let kind = view.kind();
+        if let Err(e) = s.pipeline.send(Control::Calibration {
+            view: Some(Box::new(view)),
+            graph,
+        }) {
+            return self.note(format!("{e}"), true);
+        }
+        s.rig = Some(rig);
+        match what {
+            Loading::Calibration(path) => {
+                self.calibration = path.display().to_string();
+                self.note(format!("calibration {} in use", path.display()), false);
+                let recent = &mut self.settings.window.recent;
+                recent.retain(|p| p != &path);
+                recent.insert(0, path);
+                recent.truncate(8);
+                self.window_changed();
+            }
+            Loading::View(_) => self.note(format!("the {} view is in use", kind.name()), false),
         }
     }
 

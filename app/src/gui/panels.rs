@@ -100,20 +100,21 @@ pub(super) fn menu_bar(app: &mut RigviewApp, ui: &mut Ui) {
                 }
             });
             ui.menu_button("View", |ui| {
+                let mut view = app.settings.window.view;
+                let picked = ui
+                    .radio_value(&mut view, ViewMode::Surround, "Surround view (bird's eye)")
+                    .changed()
+                    | ui.radio_value(&mut view, ViewMode::Panorama, "Panorama (cylindrical)")
+                        .changed();
+                if picked {
+                    app.switch_view(view);
+                    ui.close();
+                }
                 let w = &mut app.settings.window;
-                let mut changed = ui
-                    .radio_value(
-                        &mut w.view,
-                        ViewMode::Surround,
-                        "Surround view (bird's eye)",
-                    )
-                    .changed();
-                ui.add_enabled(
-                    false,
-                    egui::RadioButton::new(false, "Panorama (cylindrical)"),
-                )
-                .on_disabled_hover_text("the panorama view is not built yet");
                 ui.separator();
+                let mut changed = ui
+                    .checkbox(&mut w.show_matches, "Matches and overlaps on the panorama")
+                    .changed();
                 changed |= ui
                     .checkbox(&mut w.show_roi, "Metering ROI on the cameras")
                     .changed();
@@ -141,7 +142,7 @@ pub(super) fn menu_bar(app: &mut RigviewApp, ui: &mut Ui) {
             });
             if app.is_loading() {
                 ui.spinner();
-                ui.label("loading the calibration…");
+                ui.label("building the view…");
             }
         });
     });
@@ -716,11 +717,7 @@ pub(super) fn cameras_panel(app: &mut RigviewApp, ui: &mut Ui) {
                 ui.label("waiting for the first frame set…");
                 return;
             };
-            let names: Vec<String> = app
-                .session
-                .as_ref()
-                .map(Session::camera_names)
-                .unwrap_or_default();
+            let names = app.camera_names();
             let n = out.cameras.len().max(1) as f32;
             let width = ((ui.available_width() - 12.0 * n) / n).clamp(80.0, 360.0);
             egui::ScrollArea::horizontal().show(ui, |ui| {
@@ -744,45 +741,164 @@ pub(super) fn cameras_panel(app: &mut RigviewApp, ui: &mut Ui) {
 }
 
 pub(super) fn central(app: &mut RigviewApp, ui: &mut Ui) {
-    egui::CentralPanel::default_margins().show(ui, |ui| match app.settings.window.view {
-        ViewMode::Surround => {
-            let Some(t) = &app.canvas_tex else {
-                let msg = match &app.latest {
-                    Some(out) => match &out.compose_error {
-                        Some(e) => format!("no surround view: {e}"),
-                        None => "no surround view: open a calibration whose poses are in the vehicle frame (File, Open calibration)".to_owned(),
-                    },
-                    None => "waiting for the first frame set…".to_owned(),
-                };
-                ui.centered_and_justified(|ui| ui.label(msg));
-                return;
-            };
-            // The caption is a line of its own above the view, never over
-            // its pixels.
-            let caption = app.latest.as_ref().map(|out| {
-                format!(
-                    "set {} · {} · {}",
-                    out.trigger,
-                    out.settings.strategy.label(),
-                    out.settings.blend.name()
-                )
-            });
-            let caption_h =
-                ui.text_style_height(&egui::TextStyle::Body) + ui.spacing().item_spacing.y;
-            let avail = ui.available_size() - Vec2::new(0.0, caption_h);
-            let [w, h] = t.size();
-            let scale = (avail.x / w as f32).min(avail.y / h as f32).max(0.05);
-            let size = Vec2::new(w as f32 * scale, h as f32 * scale);
-            ui.vertical_centered(|ui| {
-                ui.add(egui::Label::new(caption.unwrap_or_default()).truncate());
-                let (rect, _) = ui.allocate_exact_size(size, Sense::hover());
-                egui::Image::new(egui::load::SizedTexture::new(t.id(), size)).paint_at(ui, rect);
-            });
+    egui::CentralPanel::default_margins().show(ui, |ui| {
+        let panorama = app.settings.window.view == ViewMode::Panorama;
+        if panorama {
+            panorama_bar(app, ui);
         }
-        ViewMode::Panorama => {
-            ui.centered_and_justified(|ui| ui.label("the panorama view is not built yet"));
+        let what = if panorama {
+            "panorama"
+        } else {
+            "surround view"
+        };
+        // The output shows the view the pipeline composed: while the
+        // chosen one is being built, the other one goes on.
+        let shown = app.latest.as_ref().map(|o| o.panorama.is_some());
+        let Some(t) = app.canvas_tex.as_ref().filter(|_| shown == Some(panorama)) else {
+            let msg = match &app.latest {
+                _ if app.is_loading() => format!("building the {what}…"),
+                Some(out) => match &out.compose_error {
+                    Some(e) => format!("no {what}: {e}"),
+                    None => format!("no {what}: open a calibration whose poses are in the vehicle frame (File, Open calibration)"),
+                },
+                None => "waiting for the first frame set…".to_owned(),
+            };
+            ui.centered_and_justified(|ui| ui.label(msg));
+            return;
+        };
+        // The caption is a line of its own above the view, never over
+        // its pixels.
+        let caption = app.latest.as_ref().map(|out| {
+            format!(
+                "set {} · {} · {}",
+                out.trigger,
+                out.settings.strategy.label(),
+                out.settings.blend.name()
+            )
+        });
+        let caption_h =
+            ui.text_style_height(&egui::TextStyle::Body) + ui.spacing().item_spacing.y;
+        let avail = ui.available_size() - Vec2::new(0.0, caption_h);
+        let [w, h] = t.size();
+        let scale = (avail.x / w as f32).min(avail.y / h as f32).max(0.05);
+        let size = Vec2::new(w as f32 * scale, h as f32 * scale);
+        let id = t.id();
+        ui.vertical_centered(|ui| {
+            ui.add(egui::Label::new(caption.unwrap_or_default()).truncate());
+            let (rect, _) = ui.allocate_exact_size(size, Sense::hover());
+            egui::Image::new(egui::load::SizedTexture::new(id, size)).paint_at(ui, rect);
+            if panorama && app.settings.window.show_matches {
+                if let Some(out) = &app.latest {
+                    draw_matches(ui, rect, scale, out);
+                }
+            }
+        });
+    });
+}
+
+/// The panorama's line above it: the overlay switch, Refine and Save rig,
+/// and per overlap its matches, inliers, reprojection error (before and
+/// after the latest refinement) and r_ij, or why it has none.
+fn panorama_bar(app: &mut RigviewApp, ui: &mut Ui) {
+    let out = app.latest.clone();
+    let report = out.as_ref().and_then(|o| o.panorama.clone());
+    ui.horizontal(|ui| {
+        if ui
+            .checkbox(
+                &mut app.settings.window.show_matches,
+                "matches and overlaps",
+            )
+            .changed()
+        {
+            app.window_changed();
+        }
+        let refining = report.as_ref().is_some_and(|r| r.refining);
+        if ui
+            .add_enabled(report.is_some() && !refining, egui::Button::new("Refine"))
+            .on_hover_text(
+                "refine every camera's rotation but the first from the latest matches, \
+                 in the background (at most 3° each); the panorama is rebuilt with them",
+            )
+            .clicked()
+        {
+            app.refine();
+        }
+        if refining {
+            ui.spinner();
+            ui.label("refining…");
+        }
+        if ui
+            .add_enabled(
+                report.as_ref().is_some_and(|r| r.rig.is_some()),
+                egui::Button::new("Save rig…"),
+            )
+            .on_hover_text("save the rig with the refined rotations")
+            .clicked()
+        {
+            app.open_dialog(Pick::SaveRig);
+        }
+        if let Some(r) = &report {
+            ui.label(match r.matched_trigger {
+                Some(t) => format!(
+                    "matched on set {t} in {:.0} ms · {} refinements",
+                    r.match_ms, r.refinements
+                ),
+                None => "matching…".into(),
+            });
+            if let Some(p) = &r.problem {
+                ui.colored_label(Color32::from_rgb(240, 80, 70), p);
+            }
         }
     });
+    let Some(out) = out else {
+        return;
+    };
+    // The first line (when the matching ran) is in the bar above.
+    let lines = crate::panorama::live_lines(&app.camera_names(), &out);
+    ui.horizontal_wrapped(|ui| {
+        for line in lines.iter().skip(1) {
+            ui.label(RichText::new(line).small());
+            ui.separator();
+        }
+    });
+}
+
+/// Each overlap's band outlined (its seam lies inside, where the cameras
+/// hand over) and its matches: a line from camera i's corner to camera
+/// j's, green for inliers and red for outliers.
+fn draw_matches(ui: &Ui, rect: Rect, scale: f32, out: &rigview_core::pipeline::Output) {
+    let Some(report) = &out.panorama else {
+        return;
+    };
+    let painter = ui.painter_at(rect);
+    let at = |p: [f64; 2]| rect.min + Vec2::new(p[0] as f32 * scale, p[1] as f32 * scale);
+    for p in &report.pairs {
+        if let Some([x, y, w, h]) = p.band {
+            let band = Rect::from_min_size(
+                at([x as f64, y as f64]),
+                Vec2::new(w as f32 * scale, h as f32 * scale),
+            );
+            painter.rect_stroke(
+                band,
+                0.0,
+                Stroke::new(1.0, Color32::from_rgb(250, 210, 60)),
+                StrokeKind::Inside,
+            );
+        }
+        for m in &p.lines {
+            // A match across the canvas's ends is not drawn.
+            if (m.at_i[0] - m.at_j[0]).abs() * f64::from(scale) > f64::from(rect.width()) / 2.0 {
+                continue;
+            }
+            let colour = if m.inlier {
+                Color32::from_rgb(60, 230, 60)
+            } else {
+                Color32::from_rgb(240, 60, 50)
+            };
+            painter.line_segment([at(m.at_i), at(m.at_j)], Stroke::new(1.0, colour));
+            painter.circle_filled(at(m.at_i), 1.5, colour);
+        }
+    }
 }
 
 #[cfg(test)]

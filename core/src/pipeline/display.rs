@@ -29,7 +29,10 @@
 //!   the overlap patches' `r_ij` (the balancing's) is a median over the
 //!   whole overlap (gains that evened the patches out to 0.02 EV left
 //!   0.11 EV at a seam); a seam with no usable pixel falls back to its
-//!   patches. Pixels either camera
+//!   patches. The panorama uses its matched patches' ratios instead: its
+//!   seams join the same point only at the cylinder's radius, and the
+//!   pixels either side of a seam show different things elsewhere
+//!   (parallax). Pixels either camera
 //!   clips are left out (Eq. 5's rule), so clipped areas do not pull the
 //!   gains, and the gains only brighten, so what a camera clipped stays
 //!   white. The gains move `smoothing` of the way to the

@@ -36,6 +36,7 @@
 //! | `threads.rs` | [`Pipeline`]: the capture and processing threads |
 //! | `queue.rs` | [`DropOldest`]: the queues between the threads |
 //! | `telemetry.rs` | [`Telemetry`]: the history the plots and CSV read |
+//! | `view.rs` | [`View`]: the surround view or the live panorama, with its matching and refinement |
 
 mod display;
 mod lockstep;
@@ -46,16 +47,18 @@ mod settings;
 mod sink;
 mod telemetry;
 mod threads;
+mod view;
 
 pub use display::{DisplayGain, DisplayGains, DisplayInput, DisplaySettings};
 pub use lockstep::{LockStep, LoopStep};
 pub use output::{CameraOutput, Output, Overlay, PairOutput, PatchBox};
 pub use processor::{check_view, Processor};
 pub use queue::{DropOldest, QueueStats};
-pub use settings::{Control, MeterRoi, ProcessingSettings, Strategy};
+pub use settings::{Control, MeterRoi, PanoramaSettings, ProcessingSettings, Strategy, ViewKind};
 pub use sink::{Processed, SetSink};
-pub use telemetry::{CameraRow, StageTimes, Telemetry, TelemetryRow};
+pub use telemetry::{CameraRow, PairMatchRow, StageTimes, Telemetry, TelemetryRow, MATCH_COLUMNS};
 pub use threads::{Notify, Pipeline, PipelineOptions, PipelineStatus};
+pub use view::{LivePanorama, PairMatchReport, PanoramaReport, SharedDetector, View};
 
 #[cfg(test)]
 mod tests {
@@ -95,7 +98,7 @@ mod tests {
     fn default_processor(rig: &SimRig, view: SurroundView, graph: NeighbourGraph) -> Processor {
         Processor::new(
             rig.cameras().to_vec(),
-            Some(view),
+            Some(view.into()),
             graph,
             ProcessingSettings::default(),
         )
@@ -194,11 +197,24 @@ mod tests {
     }
 
     #[test]
+    fn refinement_without_a_panorama_says_so() {
+        let (rig, view, graph) = small_rig(1);
+        let mut p = default_processor(&rig, view, graph);
+        let e = p.refine().err().map(|e| e.to_string()).unwrap_or_default();
+        assert!(e.contains("switch the view to the panorama"), "{e}");
+    }
+
+    #[test]
     fn a_view_of_another_rig_is_refused() {
         let (rig, view, graph) = small_rig(1);
         let mut cams = rig.cameras().to_vec();
         cams[1].width += 2;
-        let e = Processor::new(cams, Some(view), graph, ProcessingSettings::default());
+        let e = Processor::new(
+            cams,
+            Some(view.into()),
+            graph,
+            ProcessingSettings::default(),
+        );
         let msg = e
             .map(|_| ())
             .err()

@@ -5,7 +5,7 @@ use std::time::Instant;
 
 use super::{ProcessingSettings, StageTimes};
 use crate::exposure::{Estimate, ExposureSetting, ProbeEvent, RigStep};
-use crate::surround::{Canvas, SurroundView};
+use crate::surround::{Canvas, Mosaic};
 
 /// An overlap patch drawn over a camera's thumbnail: its bounding box in
 /// the source image, as fractions of the width and height.
@@ -27,7 +27,7 @@ pub struct Overlay {
 }
 
 impl Overlay {
-    pub(super) fn of(view: Option<&SurroundView>, cameras: usize) -> Self {
+    pub(super) fn of(view: Option<&Mosaic>, cameras: usize) -> Self {
         let mut o = Overlay {
             pairs: Vec::new(),
             patches: vec![Vec::new(); cameras],
@@ -150,4 +150,7 @@ pub struct Output {
     /// What the controller did with the set: per camera its estimate,
     /// target, command and probe event, and every measured ratio.
     pub step: RigStep,
+    /// The panorama's latest matching and refinement (the panorama view
+    /// only).
+    pub panorama: Option<Arc<super::PanoramaReport>>,
 }

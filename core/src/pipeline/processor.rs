@@ -6,8 +6,8 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use super::{
-    CameraOutput, DisplayGains, DisplayInput, MeterRoi, Output, Overlay, PairOutput,
-    ProcessingSettings, StageTimes, Strategy,
+    CameraOutput, DisplayGains, DisplayInput, Output, Overlay, PairOutput, ProcessingSettings,
+    StageTimes, Strategy, View,
 };
 use crate::error::{Error, Result};
 use crate::exposure::{
@@ -16,16 +16,16 @@ use crate::exposure::{
 };
 use crate::image::scale_8bit;
 use crate::source::{CameraInfo, ExposureCommand, FrameSet};
-use crate::surround::{Canvas, Composer, SeamBands, SurroundView};
+use crate::surround::{Canvas, Composer, Mosaic, SeamBands, SurroundView};
 
 /// How far (canvas pixels) from a seam the seam gains compare the cameras.
 const SEAM_BAND_PX: usize = 3;
 /// At most this many pixels of each seam's band are compared per set.
 const SEAM_SAMPLES: usize = 512;
 
-/// Checks that a surround view fits the source's cameras (count and image
-/// sizes).
-pub fn check_view(view: &SurroundView, cameras: &[CameraInfo]) -> Result<()> {
+/// Checks that a view (its mosaic) fits the source's cameras (count and
+/// image sizes).
+pub fn check_view(view: &Mosaic, cameras: &[CameraInfo]) -> Result<()> {
     if view.layers().len() != cameras.len() {
         return Err(Error::InvalidConfig(format!(
             "the calibration has {} cameras, the source {}",
@@ -54,7 +54,7 @@ pub struct Processor {
     meter: Meter,
     controller: RigController,
     display_estimators: Vec<Estimator>,
-    view: Option<SurroundView>,
+    view: Option<View>,
     masks: CameraMasks,
     overlay: Arc<Overlay>,
     composer: Composer,
@@ -68,17 +68,17 @@ pub struct Processor {
 }
 
 impl Processor {
-    /// A processor for `cameras`, with an optional surround view (checked
-    /// with [`check_view`]) and the cameras' neighbour graph.
+    /// A processor for `cameras`, with an optional view (checked with
+    /// [`check_view`]) and the cameras' neighbour graph.
     pub fn new(
         cameras: Vec<CameraInfo>,
-        view: Option<SurroundView>,
+        view: Option<View>,
         graph: NeighbourGraph,
         settings: ProcessingSettings,
     ) -> Result<Self> {
         settings.validate()?;
         if let Some(v) = &view {
-            check_view(v, &cameras)?;
+            check_view(v.mosaic(), &cameras)?;
         }
         let ranges: Vec<_> = cameras.iter().map(|c| c.range).collect();
         let mut controller = RigController::new(settings.controller_config(), &ranges, graph)?;
@@ -94,7 +94,7 @@ impl Processor {
             meter: Meter::new(settings.metering)?,
             controller,
             display_estimators,
-            overlay: Arc::new(Overlay::of(view.as_ref(), n)),
+            overlay: Arc::new(Overlay::of(view.as_ref().map(View::mosaic), n)),
             view,
             masks: CameraMasks::none(n),
             composer: Composer::new(),
@@ -112,12 +112,16 @@ impl Processor {
     }
 
     fn update_masks(&mut self) {
-        self.masks = match (&self.view, self.settings.roi) {
-            (Some(v), MeterRoi::Ground) => {
+        self.masks = match self
+            .view
+            .as_ref()
+            .and_then(|v| v.meter_masks(self.settings.roi))
+        {
+            Some(masks) => {
                 let formats: Vec<_> = self.cameras.iter().map(|c| c.format).collect();
-                CameraMasks::new(&self.meter, v.ground_masks(), &formats)
+                CameraMasks::new(&self.meter, masks, &formats)
             }
-            _ => CameraMasks::none(self.cameras.len()),
+            None => CameraMasks::none(self.cameras.len()),
         };
     }
 
@@ -126,9 +130,28 @@ impl Processor {
         &self.settings
     }
 
-    /// The surround view, if any.
+    /// The surround view, if that is the view.
     pub fn view(&self) -> Option<&SurroundView> {
+        self.view.as_ref().and_then(View::surround)
+    }
+
+    /// The view, whichever it is.
+    pub fn live_view(&self) -> Option<&View> {
         self.view.as_ref()
+    }
+
+    /// Asks the panorama (if that is the view) for a refinement of its
+    /// rotations in the background; an error without a panorama.
+    pub fn refine(&mut self) -> Result<()> {
+        match self.view.as_mut().and_then(View::panorama_mut) {
+            Some(p) => {
+                p.request_refine();
+                Ok(())
+            }
+            None => Err(Error::InvalidConfig(
+                "refinement is for the panorama: switch the view to the panorama first".into(),
+            )),
+        }
     }
 
     /// The controller.
@@ -172,6 +195,9 @@ impl Processor {
                 .collect::<Result<_>>()?;
         }
         let roi_changed = settings.roi != self.settings.roi;
+        if let Some(p) = self.view.as_mut().and_then(View::panorama_mut) {
+            p.set_settings(&settings.panorama);
+        }
         self.shared_settings = Arc::new(settings.clone());
         self.settings = settings;
         if roi_changed || metering_changed {
@@ -225,13 +251,9 @@ impl Processor {
     }
 
     /// Uses a new calibration (see [`Control::Calibration`]).
-    pub fn set_calibration(
-        &mut self,
-        view: Option<SurroundView>,
-        graph: NeighbourGraph,
-    ) -> Result<()> {
+    pub fn set_calibration(&mut self, view: Option<View>, graph: NeighbourGraph) -> Result<()> {
         if let Some(v) = &view {
-            check_view(v, &self.cameras)?;
+            check_view(v.mosaic(), &self.cameras)?;
         }
         let ranges: Vec<_> = self.cameras.iter().map(|c| c.range).collect();
         let mut controller = RigController::new(self.settings.controller_config(), &ranges, graph)?;
@@ -246,7 +268,10 @@ impl Processor {
         }
         self.controller = controller;
         self.display.reset();
-        self.overlay = Arc::new(Overlay::of(view.as_ref(), self.cameras.len()));
+        self.overlay = Arc::new(Overlay::of(
+            view.as_ref().map(View::mosaic),
+            self.cameras.len(),
+        ));
         self.view = view;
         self.seams = None;
         self.update_masks();
@@ -276,14 +301,31 @@ impl Processor {
             });
         }
         let t0 = Instant::now();
+        // The panorama takes in what its worker finished (a refined view
+        // changes the maps and masks) and hands it its next job.
+        let mut panorama = None;
+        if let Some(p) = self.view.as_mut().and_then(View::panorama_mut) {
+            let rebuilt = p.poll();
+            p.schedule(set);
+            let taken: Vec<f64> = frames.iter().map(|f| f.meta.taken.exposure()).collect();
+            panorama = Some((p.observations(&taken), p.report().clone()));
+            if rebuilt {
+                self.overlay = Arc::new(Overlay::of(
+                    self.view.as_ref().map(View::mosaic),
+                    self.cameras.len(),
+                ));
+                self.update_masks();
+            }
+        }
         let views = frames
             .iter()
             .map(|f| f.view())
             .collect::<Result<Vec<FrameView<'_>>>>()?;
         let metered = self.masks.meter(&self.meter, &views)?;
-        let observations = match &self.view {
-            Some(v) => v.pair_observations(&views)?,
-            None => Vec::new(),
+        let (observations, report) = match (&self.view, panorama) {
+            (_, Some((observations, report))) => (observations, Some(report)),
+            (Some(v), None) => (v.mosaic().pair_observations(&views)?, None),
+            (None, None) => (Vec::new(), None),
         };
         let t1 = Instant::now();
         let step = self
@@ -351,6 +393,7 @@ impl Processor {
                 } else {
                     1
                 };
+                let view = view.mosaic();
                 let (w, h) = view.size();
                 let mut canvas = Canvas::new(w, h, channels);
                 let inputs: Vec<DisplayInput> = cameras
@@ -370,7 +413,14 @@ impl Processor {
                         .find(|p| (p.i, p.j) == (i, j))
                         .and_then(|p| p.log2_r)
                 };
-                let ratios: Vec<_> = if self.settings.display.compensate {
+                // In the panorama the pixels either side of a seam show the
+                // same point only at the cylinder's radius (parallax
+                // elsewhere): its seam gains use the matched patches,
+                // which are correspondences.
+                let matched = report.is_some();
+                let ratios: Vec<_> = if self.settings.display.compensate && matched {
+                    pairs.iter().map(|p| (p.i, p.j, p.log2_r)).collect()
+                } else if self.settings.display.compensate {
                     self.seams
                         .get_or_insert_with(|| SeamBands::new(view, SEAM_BAND_PX))
                         .ratios(&views, SEAM_SAMPLES)?
@@ -441,6 +491,7 @@ impl Processor {
             times,
             settings: self.shared_settings.clone(),
             step,
+            panorama: report,
         };
         Ok((output, commands))
     }

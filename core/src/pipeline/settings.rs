@@ -3,11 +3,14 @@
 use serde::{Deserialize, Serialize};
 
 use super::DisplaySettings;
+use crate::error::check_range;
 use crate::error::Result;
 use crate::exposure::{
     BalanceParams, ControlMode, ControllerConfig, MeteringConfig, NeighbourGraph,
 };
-use crate::surround::{BlendMode, SurroundView};
+use crate::surround::BlendMode;
+
+use super::View;
 
 /// How exposure is decided: the choices the app offers.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -78,6 +81,107 @@ pub enum MeterRoi {
     Full,
 }
 
+/// Which view the pipeline composes.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+pub enum ViewKind {
+    /// The bird's-eye surround view (the ground around the vehicle).
+    #[default]
+    Surround,
+    /// The cylindrical panorama (the surroundings at a chosen radius).
+    Panorama,
+}
+
+impl ViewKind {
+    /// The name used in settings and on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Surround => "surround",
+            Self::Panorama => "panorama",
+        }
+    }
+}
+
+/// The live panorama: its cylinder, and how often its features are
+/// matched and its rotations refined (see [`super::LivePanorama`]).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct PanoramaSettings {
+    /// Canvas width, pixels (360° of azimuth).
+    pub width: usize,
+    /// Canvas height, pixels.
+    pub height: usize,
+    /// The cylinder's radius, metres: what stands this far from the rig's
+    /// centre lines up across the seams, nearer and farther things show
+    /// parallax.
+    pub radius_m: f64,
+    /// Degrees shown below the horizon.
+    pub below_deg: f64,
+    /// Degrees shown above the horizon.
+    pub above_deg: f64,
+    /// Features are matched on every `match_every`-th set (on a worker
+    /// thread; the ratios of the last matching are held in between).
+    pub match_every: u64,
+    /// The rotations are refined in the background every `refine_every`
+    /// sets (0: only when asked).
+    pub refine_every: u64,
+    /// The largest rotation a refinement may give a camera, degrees.
+    pub refine_bound_deg: f64,
+}
+
+impl Default for PanoramaSettings {
+    /// 2048 × 270 pixels (square at the horizon: 0.18° each), radius 10 m,
+    /// from 25° below the horizon to 20° above it: a rig of cameras
+    /// tilted down sees no higher all round (the offline `rigview
+    /// panorama` shows up to 35° by default).
+    fn default() -> Self {
+        Self {
+            width: 2048,
+            height: 270,
+            radius_m: 10.0,
+            below_deg: 25.0,
+            above_deg: 20.0,
+            match_every: 10,
+            refine_every: 0,
+            refine_bound_deg: 3.0,
+        }
+    }
+}
+
+impl PanoramaSettings {
+    /// The cylinder these settings ask for.
+    pub fn spec(&self) -> crate::panorama::CylinderSpec {
+        crate::panorama::CylinderSpec {
+            width: self.width,
+            height: self.height,
+            radius_m: self.radius_m,
+            below_deg: self.below_deg,
+            above_deg: self.above_deg,
+        }
+    }
+
+    /// Checks the cylinder and the schedule.
+    pub fn validate(&self) -> Result<()> {
+        self.spec().validate()?;
+        if !(1..=10_000).contains(&self.match_every) {
+            return Err(crate::error::Error::InvalidParameter {
+                name: "panorama.match_every",
+                value: self.match_every as f64,
+                expected: "1 to 10000 sets",
+            });
+        }
+        check_range(
+            "panorama.refine_bound_deg",
+            self.refine_bound_deg,
+            0.01,
+            20.0,
+            "0.01° to 20°",
+        )?;
+        Ok(())
+    }
+}
+
 /// What the processing does; every part can change live.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -98,6 +202,11 @@ pub struct ProcessingSettings {
     /// How the view shows the cameras (display gains; the cameras'
     /// exposures are not touched).
     pub display: DisplaySettings,
+    /// Which view is composed (a change applies when the view is next
+    /// built: [`Control::Calibration`]).
+    pub view: ViewKind,
+    /// The live panorama.
+    pub panorama: PanoramaSettings,
 }
 
 impl Default for ProcessingSettings {
@@ -110,6 +219,8 @@ impl Default for ProcessingSettings {
             roi: MeterRoi::Ground,
             blend: BlendMode::Linear,
             display: DisplaySettings::default(),
+            view: ViewKind::Surround,
+            panorama: PanoramaSettings::default(),
         }
     }
 }
@@ -137,6 +248,7 @@ impl ProcessingSettings {
         self.controller_config().validate()?;
         self.balance.validate()?;
         self.display.validate()?;
+        self.panorama.validate()?;
         self.metering.validate()
     }
 }
@@ -153,13 +265,16 @@ pub enum Control {
         /// The level, `None` to release.
         exposure: Option<f64>,
     },
-    /// A new calibration: its surround view (`None`: none; whole frames
+    /// A new calibration or view: the view (`None`: none; whole frames
     /// are metered and no view is composed) and its neighbour graph. Check
-    /// it with [`check_view`] first.
+    /// it with [`super::check_view`] first.
     Calibration {
         /// The view.
-        view: Option<Box<SurroundView>>,
+        view: Option<Box<View>>,
         /// Which cameras overlap.
         graph: NeighbourGraph,
     },
+    /// Refine the panorama's rotations from its latest matches, in the
+    /// background (nothing without a panorama).
+    Refine,
 }

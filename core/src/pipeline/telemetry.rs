@@ -41,6 +41,16 @@ impl StageTimes {
     }
 }
 
+/// The panorama's columns per overlap (after the ratios), in order.
+pub const MATCH_COLUMNS: [&str; 6] = [
+    "matches",
+    "inliers",
+    "error_px",
+    "refined_before_px",
+    "refined_after_px",
+    "no_ratio",
+];
+
 /// One camera in one frame set.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct CameraRow {
@@ -62,6 +72,47 @@ pub struct CameraRow {
     pub probe: bool,
 }
 
+/// One overlap of the panorama in one frame set: what its latest matching
+/// found.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct PairMatchRow {
+    /// Mutual matches.
+    pub matches: usize,
+    /// RANSAC's inliers (0 when fewer than needed).
+    pub inliers: usize,
+    /// The inliers' median reprojection error with the rotations in use,
+    /// panorama pixels.
+    pub error_px: Option<f64>,
+    /// The latest refinement's median error before it.
+    pub refined_before_px: Option<f64>,
+    /// The same after it.
+    pub refined_after_px: Option<f64>,
+    /// Why the pair has no ratio, if it has none.
+    pub no_ratio: Option<String>,
+}
+
+impl PairMatchRow {
+    /// The row of pair `p`, whose ratio is `log2_r`.
+    pub fn of(p: &super::PairMatchReport, log2_r: Option<f64>) -> Self {
+        let no_ratio = match (log2_r, &p.problem) {
+            (Some(_), _) => None,
+            (None, Some(problem)) => Some(problem.clone()),
+            (None, None) => Some(format!(
+                "none of the {} patches around its inliers is usable (saturated or near black)",
+                p.patches
+            )),
+        };
+        Self {
+            matches: p.matches,
+            inliers: p.inliers,
+            error_px: p.error_px,
+            refined_before_px: p.refined_before_px,
+            refined_after_px: p.refined_after_px,
+            no_ratio,
+        }
+    }
+}
+
 /// One frame set.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct TelemetryRow {
@@ -79,6 +130,8 @@ pub struct TelemetryRow {
     pub times: StageTimes,
     /// Sets dropped before processing so far.
     pub dropped: u64,
+    /// Per overlap, the panorama's matches (empty for the surround view).
+    pub matches: Vec<PairMatchRow>,
 }
 
 impl TelemetryRow {
@@ -106,6 +159,21 @@ impl TelemetryRow {
             set_rate_hz,
             times: output.times,
             dropped,
+            matches: output
+                .panorama
+                .as_ref()
+                .map(|r| {
+                    output
+                        .pairs
+                        .iter()
+                        .map(|p| {
+                            r.pair(p.i, p.j)
+                                .map(|m| PairMatchRow::of(m, p.log2_r))
+                                .unwrap_or_default()
+                        })
+                        .collect()
+                })
+                .unwrap_or_default(),
         }
     }
 }
@@ -119,6 +187,9 @@ pub struct Telemetry {
     rows: VecDeque<TelemetryRow>,
     capacity: usize,
     total: u64,
+    /// Whether a row has the panorama's matches (the CSV then has their
+    /// columns).
+    matched: bool,
 }
 
 impl Telemetry {
@@ -132,6 +203,7 @@ impl Telemetry {
             rows: VecDeque::new(),
             capacity: capacity.max(1),
             total: 0,
+            matched: false,
         };
         t.set_pairs(pairs);
         t
@@ -174,6 +246,7 @@ impl Telemetry {
         if self.rows.len() >= self.capacity {
             self.rows.pop_front();
         }
+        self.matched |= !row.matches.is_empty();
         self.rows.push_back(row);
         self.total += 1;
     }
@@ -221,6 +294,13 @@ impl Telemetry {
         for p in &self.pair_names {
             cols.push(format!("log2_r.{p}"));
         }
+        if self.matched {
+            for p in &self.pair_names {
+                for f in MATCH_COLUMNS {
+                    cols.push(format!("{f}.{p}"));
+                }
+            }
+        }
         writeln!(out, "{}", cols.join(","))
     }
 
@@ -249,6 +329,27 @@ impl Telemetry {
         }
         for k in 0..self.pair_names.len() {
             f.push(opt(row.log2_r.get(k).copied().flatten()));
+        }
+        if self.matched {
+            for k in 0..self.pair_names.len() {
+                match row.matches.get(k) {
+                    Some(m) => {
+                        f.push(m.matches.to_string());
+                        f.push(m.inliers.to_string());
+                        f.push(opt(m.error_px));
+                        f.push(opt(m.refined_before_px));
+                        f.push(opt(m.refined_after_px));
+                        // A reason is one field: no commas or quotes.
+                        f.push(
+                            m.no_ratio
+                                .as_deref()
+                                .unwrap_or_default()
+                                .replace([',', '"', '\n'], ";"),
+                        );
+                    }
+                    None => f.extend(std::iter::repeat_n(String::new(), MATCH_COLUMNS.len())),
+                }
+            }
         }
         writeln!(out, "{}", f.join(","))
     }
@@ -310,5 +411,36 @@ mod tests {
         assert_eq!(at("left.probe").map(|k| fields[k]), Some("1"));
         assert_eq!(at("log2_r.front-left").map(|k| fields[k]), Some("-0.5"));
         assert_eq!(fields[0], "7");
+        assert!(!header.iter().any(|h| h.starts_with("inliers.")));
+    }
+
+    #[test]
+    fn the_panoramas_matches_have_columns_and_a_reason_is_one_field() {
+        let mut t = Telemetry::new(vec!["front".into(), "left".into()], &[(0, 1)], 3);
+        let mut r = row(3);
+        r.matches = vec![PairMatchRow {
+            matches: 40,
+            inliers: 31,
+            error_px: Some(0.4),
+            no_ratio: Some("3 matches, 2 inliers: too few".into()),
+            ..Default::default()
+        }];
+        t.push(r.clone());
+        let mut out = Vec::new();
+        t.write_csv_header(&mut out).ok();
+        t.write_csv_row(&mut out, &r).ok();
+        let text = String::from_utf8(out).unwrap_or_default();
+        let lines: Vec<&str> = text.lines().collect();
+        let header: Vec<&str> = lines[0].split(',').collect();
+        let fields: Vec<&str> = lines[1].split(',').collect();
+        assert_eq!(header.len(), fields.len());
+        let at = |name: &str| header.iter().position(|h| *h == name).map(|k| fields[k]);
+        assert_eq!(at("matches.front-left"), Some("40"));
+        assert_eq!(at("inliers.front-left"), Some("31"));
+        assert_eq!(at("error_px.front-left"), Some("0.4"));
+        assert_eq!(
+            at("no_ratio.front-left"),
+            Some("3 matches; 2 inliers: too few")
+        );
     }
 }

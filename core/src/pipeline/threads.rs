@@ -467,6 +467,7 @@ impl ProcessingLoop<'_> {
                     Err(e) => Err(e),
                 },
                 Control::Manual { camera, exposure } => self.processor.set_manual(camera, exposure),
+                Control::Refine => self.processor.refine(),
                 Control::Calibration { view, graph } => {
                     let r = self.processor.set_calibration(view.map(|v| *v), graph);
                     if r.is_ok() {

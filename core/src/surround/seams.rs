@@ -10,7 +10,7 @@
 //! scaled by its display gain `g`. Pixels that either camera shows clipped
 //! (black or white after the gain) say nothing and are left out.
 
-use super::{BlendMode, SurroundView};
+use super::{BlendMode, Mosaic};
 use crate::error::{Error, Result};
 use crate::exposure::metering::SATURATED_LEVEL;
 use crate::exposure::FrameView;
@@ -51,7 +51,7 @@ pub struct SeamBands {
 impl SeamBands {
     /// The bands within `band` canvas pixels of each seam of `view`
     /// (overlap pixels only: both cameras must see them).
-    pub fn new(view: &SurroundView, band: usize) -> Self {
+    pub fn new(view: &Mosaic, band: usize) -> Self {
         let (w, h) = view.size();
         let layers = view.layers();
         // Per canvas pixel, the camera the hard seams show, and each

@@ -1,0 +1,761 @@
+//! The view a [`super::Processor`] composes: the bird's-eye surround view
+//! or the cylindrical panorama. Both are a [`Mosaic`] the same composer,
+//! display gains and seam bands work on; they differ in what is metered
+//! and where the overlap ratios `r_ij` come from.
+//!
+//! | | surround | panorama |
+//! | --- | --- | --- |
+//! | metered ([`MeterRoi::Ground`]) | the ground that reaches the canvas | every pixel that reaches the cylinder |
+//! | overlap patches | fixed by the calibration, measured every set | around matched features (Harris + BRIEF + RANSAC) |
+//!
+//! # The live panorama
+//!
+//! Matching the four overlaps takes longer than a set period at 20 Hz, so
+//! a [`LivePanorama`] matches on a worker thread of its own, on every
+//! [`PanoramaSettings::match_every`]-th set while the worker is free, and
+//! holds the last matches in between. Their patches were measured at the
+//! exposures of the matched set; each set sees them at its own exposures,
+//! scaled by `E_now / E_matched` per camera as a linear sensor's brightness
+//! scales (a patch scaled into saturation counts as saturated, one
+//! saturated when matched stays so), so that the balancing never acts on
+//! ratios of exposures that have since changed.
+//!
+//! Refinement ([`Panorama::refine`]) runs on the same worker, when asked
+//! ([`super::Control::Refine`]) or every
+//! [`PanoramaSettings::refine_every`] sets, from the latest matches; the
+//! worker also builds the refined panorama, which the processor takes in
+//! at the start of a later set. Neither ever waits on the per-set path.
+
+use std::sync::mpsc::{self, Receiver, Sender, TryRecvError};
+use std::sync::Arc;
+use std::time::Instant;
+
+use rigview_calib::rig::Rig;
+
+use super::{MeterRoi, PanoramaSettings, ViewKind};
+use crate::error::{Error, Result};
+use crate::exposure::controller::PairObservation;
+use crate::exposure::metering::SATURATED_LEVEL;
+use crate::exposure::{FrameView, PatchPair};
+use crate::image::RoiMask;
+use crate::panorama::{
+    Detector, FeatureMatch, MatchOptions, PairMatches, Panorama, PanoramaOptions, RefineOptions,
+    Refinement,
+};
+use crate::source::FrameSet;
+use crate::surround::{Mosaic, SurroundView};
+
+/// The corner detector of a live panorama's matching (see
+/// [`crate::panorama::Detector`]), shared with its worker thread. The app
+/// hands in OpenCV's Harris corners.
+pub type SharedDetector =
+    Arc<dyn Fn(&[u8], usize, usize, &[u8]) -> Result<Vec<[f32; 2]>> + Send + Sync>;
+
+/// The view the processor composes.
+#[derive(Debug)]
+pub enum View {
+    /// The bird's-eye surround view.
+    Surround(Box<SurroundView>),
+    /// The cylindrical panorama, with its matching and refinement.
+    Panorama(Box<LivePanorama>),
+}
+
+impl From<SurroundView> for View {
+    fn from(v: SurroundView) -> Self {
+        Self::Surround(Box::new(v))
+    }
+}
+
+impl From<LivePanorama> for View {
+    fn from(p: LivePanorama) -> Self {
+        Self::Panorama(Box::new(p))
+    }
+}
+
+impl View {
+    /// Builds the view `kind` of `rig` (poses in the vehicle frame); the
+    /// surround view on `canvas`, the panorama as `panorama` says.
+    pub fn build(
+        kind: ViewKind,
+        rig: &Rig,
+        canvas: &crate::surround::CanvasSpec,
+        panorama: &PanoramaSettings,
+        detector: SharedDetector,
+    ) -> Result<Self> {
+        Ok(match kind {
+            ViewKind::Surround => Self::Surround(Box::new(SurroundView::build(
+                rig,
+                canvas,
+                &crate::surround::SurroundOptions::default(),
+            )?)),
+            ViewKind::Panorama => Self::Panorama(Box::new(LivePanorama::new(
+                rig.clone(),
+                panorama,
+                detector,
+            )?)),
+        })
+    }
+
+    /// Which view this is.
+    pub fn kind(&self) -> ViewKind {
+        match self {
+            Self::Surround(_) => ViewKind::Surround,
+            Self::Panorama(_) => ViewKind::Panorama,
+        }
+    }
+
+    /// The maps, weights and plans the composer works on.
+    pub fn mosaic(&self) -> &Mosaic {
+        match self {
+            Self::Surround(v) => v,
+            Self::Panorama(p) => p.panorama.mosaic(),
+        }
+    }
+
+    /// Per camera, the pixels [`MeterRoi::Ground`] meters: the ground that
+    /// reaches the bird's-eye view, or everything that reaches the
+    /// panorama.
+    pub fn meter_masks(&self, roi: MeterRoi) -> Option<&[RoiMask]> {
+        match (self, roi) {
+            (_, MeterRoi::Full) => None,
+            (Self::Surround(v), MeterRoi::Ground) => Some(v.ground_masks()),
+            (Self::Panorama(p), MeterRoi::Ground) => Some(p.panorama.source_masks()),
+        }
+    }
+
+    /// The surround view, if this is it.
+    pub fn surround(&self) -> Option<&SurroundView> {
+        match self {
+            Self::Surround(v) => Some(v),
+            Self::Panorama(_) => None,
+        }
+    }
+
+    /// The live panorama, if this is it.
+    pub fn panorama(&self) -> Option<&LivePanorama> {
+        match self {
+            Self::Surround(_) => None,
+            Self::Panorama(p) => Some(p),
+        }
+    }
+
+    /// The live panorama, to change.
+    pub fn panorama_mut(&mut self) -> Option<&mut LivePanorama> {
+        match self {
+            Self::Surround(_) => None,
+            Self::Panorama(p) => Some(p),
+        }
+    }
+}
+
+/// One overlap of the live panorama as its latest matching and
+/// refinement saw it.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct PairMatchReport {
+    /// Camera `i`.
+    pub i: usize,
+    /// Camera `j`.
+    pub j: usize,
+    /// Mutual matches found.
+    pub matches: usize,
+    /// Those RANSAC kept (0 when fewer than needed).
+    pub inliers: usize,
+    /// The inliers' median reprojection error with the rotations in use,
+    /// panorama pixels.
+    pub error_px: Option<f64>,
+    /// The median error of the inliers the latest refinement used, before
+    /// it.
+    pub refined_before_px: Option<f64>,
+    /// The same after it.
+    pub refined_after_px: Option<f64>,
+    /// The brightness patches around the inliers.
+    pub patches: usize,
+    /// Why the pair gives no rotation and no ratio, if it does not.
+    pub problem: Option<String>,
+    /// The matches, canvas positions (inliers marked), for the overlay.
+    pub lines: Vec<FeatureMatch>,
+    /// The overlap's band of the canvas (column, row, width, height):
+    /// where the two cameras blend and their seam lies.
+    pub band: Option<[usize; 4]>,
+}
+
+/// What the live panorama's matching and refinement found, as the latest
+/// output shows it.
+#[derive(Clone, Debug, Default)]
+pub struct PanoramaReport {
+    /// The set the latest matches come from (`None`: none yet).
+    pub matched_trigger: Option<u64>,
+    /// How long the latest matching took on its worker, ms.
+    pub match_ms: f64,
+    /// Per rig neighbour pair.
+    pub pairs: Vec<PairMatchReport>,
+    /// Refinements applied so far.
+    pub refinements: u32,
+    /// How long the latest refinement took on the worker, with the
+    /// rebuild of the panorama, ms.
+    pub refine_ms: f64,
+    /// Whether a refinement is running or waiting for matches.
+    pub refining: bool,
+    /// The latest problem of the matching or the refinement.
+    pub problem: Option<String>,
+    /// The rig the panorama is built from (refined rotations included):
+    /// what "save rig" writes.
+    pub rig: Option<Arc<Rig>>,
+}
+
+impl PanoramaReport {
+    /// The report's line for pair `(i, j)`.
+    pub fn pair(&self, i: usize, j: usize) -> Option<&PairMatchReport> {
+        self.pairs.iter().find(|p| (p.i, p.j) == (i, j))
+    }
+}
+
+enum Job {
+    Match {
+        generation: u64,
+        panorama: Arc<Panorama>,
+        set: FrameSet,
+        options: MatchOptions,
+    },
+    Refine {
+        generation: u64,
+        panorama: Arc<Panorama>,
+        rig: Arc<Rig>,
+        matches: Arc<Vec<PairMatches>>,
+        options: RefineOptions,
+    },
+}
+
+enum Done {
+    Matched {
+        generation: u64,
+        trigger: u64,
+        /// Per camera, the exposure its frame was taken with.
+        taken: Vec<f64>,
+        matches: Vec<PairMatches>,
+        ms: f64,
+    },
+    Refined {
+        generation: u64,
+        refinement: Refinement,
+        rig: Rig,
+        panorama: Box<Panorama>,
+        ms: f64,
+    },
+    Failed {
+        what: &'static str,
+        error: String,
+    },
+}
+
+/// The worker thread of a live panorama.
+///
+/// Dropping it closes its queue: the thread ends after the job it is on,
+/// without anyone waiting for it (a rebuild takes up to a second, and the
+/// processing thread drops the view when the operator switches views).
+struct Worker {
+    jobs: Sender<Job>,
+    done: Receiver<Done>,
+}
+
+impl std::fmt::Debug for Worker {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Worker").finish_non_exhaustive()
+    }
+}
+
+impl Worker {
+    fn start(
+        spec: crate::panorama::CylinderSpec,
+        options: PanoramaOptions,
+        detector: SharedDetector,
+    ) -> Result<Self> {
+        let (jobs, rx) = mpsc::channel::<Job>();
+        let (tx, done) = mpsc::channel();
+        std::thread::Builder::new()
+            .name("rigview-panorama".into())
+            .spawn(move || {
+                lower_priority();
+                for job in rx {
+                    if tx.send(work(job, &spec, &options, &*detector)).is_err() {
+                        break;
+                    }
+                }
+            })
+            .map_err(|e| Error::InvalidConfig(format!("cannot start the panorama worker: {e}")))?;
+        Ok(Self { jobs, done })
+    }
+
+    fn send(&self, job: Job) -> bool {
+        self.jobs.send(job).is_ok()
+    }
+}
+
+/// The niceness the worker runs at: matching and rebuilding the panorama
+/// (which spreads over every core) give way to the per-set path.
+const WORKER_NICE: i32 = 10;
+
+/// Lowers the calling thread's scheduling priority by [`WORKER_NICE`]
+/// (threads it starts inherit it); where that is not possible it runs at
+/// the process's priority.
+fn lower_priority() {
+    #[cfg(target_os = "linux")]
+    {
+        // SAFETY: setpriority only reads its integer arguments; on Linux,
+        // PRIO_PROCESS with `who` 0 applies to the calling thread alone.
+        #[allow(unsafe_code)]
+        let current = unsafe { libc::getpriority(libc::PRIO_PROCESS, 0) };
+        #[allow(unsafe_code)]
+        let _ = unsafe { libc::setpriority(libc::PRIO_PROCESS, 0, current + WORKER_NICE) };
+    }
+}
+
+fn work(
+    job: Job,
+    spec: &crate::panorama::CylinderSpec,
+    options: &PanoramaOptions,
+    detector: &Detector<'_>,
+) -> Done {
+    match job {
+        Job::Match {
+            generation,
+            panorama,
+            set,
+            options: match_options,
+        } => {
+            let t = Instant::now();
+            let frames: Result<Vec<FrameView<'_>>> =
+                set.frames.iter().flatten().map(|f| f.view()).collect();
+            let taken = set
+                .frames
+                .iter()
+                .flatten()
+                .map(|f| f.meta.taken.exposure())
+                .collect();
+            match frames.and_then(|f| panorama.match_pairs(&f, detector, &match_options)) {
+                Ok((matches, _)) => Done::Matched {
+                    generation,
+                    trigger: set.trigger,
+                    taken,
+                    matches,
+                    ms: t.elapsed().as_secs_f64() * 1e3,
+                },
+                Err(e) => Done::Failed {
+                    what: "matching",
+                    error: e.to_string(),
+                },
+            }
+        }
+        Job::Refine {
+            generation,
+            panorama,
+            rig,
+            matches,
+            options: refine_options,
+        } => {
+            let t = Instant::now();
+            let refined = panorama
+                .refine(&matches, &refine_options)
+                .and_then(|r| Ok((r.apply(&rig)?, r)))
+                .and_then(|(rig, r)| Ok((Panorama::build(&rig, spec, options)?, rig, r)));
+            match refined {
+                Ok((panorama, rig, refinement)) => Done::Refined {
+                    generation,
+                    refinement,
+                    rig,
+                    panorama: Box::new(panorama),
+                    ms: t.elapsed().as_secs_f64() * 1e3,
+                },
+                Err(e) => Done::Failed {
+                    what: "refinement",
+                    error: e.to_string(),
+                },
+            }
+        }
+    }
+}
+
+/// The latest matches and what they give each set.
+#[derive(Debug)]
+struct Held {
+    matches: Arc<Vec<PairMatches>>,
+    /// Per camera, the exposure of the matched frame.
+    taken: Vec<f64>,
+    /// The panorama generation they were matched on: a refinement starts
+    /// from matches of the panorama in use only.
+    generation: u64,
+}
+
+/// The panorama in the pipeline: the view, its rig, and the matching and
+/// refinement that run beside the per-set path (see the module
+/// documentation).
+pub struct LivePanorama {
+    panorama: Arc<Panorama>,
+    rig: Arc<Rig>,
+    settings: PanoramaSettings,
+    options: PanoramaOptions,
+    match_options: MatchOptions,
+    detector: SharedDetector,
+    worker: Option<Worker>,
+    /// Whether a job is on the worker.
+    busy: bool,
+    /// Bumped by every refinement: older matches are not refined from.
+    generation: u64,
+    held: Option<Held>,
+    sets_since_match: u64,
+    sets_since_refine: u64,
+    refine_wanted: bool,
+    report: Arc<PanoramaReport>,
+}
+
+impl std::fmt::Debug for LivePanorama {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("LivePanorama")
+            .field("spec", self.panorama.spec())
+            .field("generation", &self.generation)
+            .field("busy", &self.busy)
+            .field("report", &self.report)
+            .finish_non_exhaustive()
+    }
+}
+
+impl LivePanorama {
+    /// Builds the panorama of `rig` (poses in the vehicle frame) as
+    /// `settings` say. A rig whose neighbours share no pixel of the
+    /// cylinder is an error naming them.
+    pub fn new(rig: Rig, settings: &PanoramaSettings, detector: SharedDetector) -> Result<Self> {
+        settings.validate()?;
+        let options = PanoramaOptions::default();
+        let panorama = Panorama::build(&rig, &settings.spec(), &options)?;
+        let rig = Arc::new(rig);
+        let report = PanoramaReport {
+            pairs: pair_reports(&rig, &panorama, None),
+            rig: Some(rig.clone()),
+            ..PanoramaReport::default()
+        };
+        Ok(Self {
+            panorama: Arc::new(panorama),
+            rig,
+            settings: settings.clone(),
+            options,
+            match_options: MatchOptions::default(),
+            detector,
+            worker: None,
+            busy: false,
+            generation: 0,
+            held: None,
+            sets_since_match: 0,
+            sets_since_refine: 0,
+            refine_wanted: false,
+            report: Arc::new(report),
+        })
+    }
+
+    /// The panorama in use.
+    pub fn panorama(&self) -> &Panorama {
+        &self.panorama
+    }
+
+    /// The rig in use (refined rotations included).
+    pub fn rig(&self) -> &Arc<Rig> {
+        &self.rig
+    }
+
+    /// The latest matching and refinement.
+    pub fn report(&self) -> &Arc<PanoramaReport> {
+        &self.report
+    }
+
+    /// New schedule settings (a new cylinder applies when the view is
+    /// next built).
+    pub fn set_settings(&mut self, settings: &PanoramaSettings) {
+        self.settings = settings.clone();
+    }
+
+    /// Asks for a refinement from the latest matches (at once if there are
+    /// any and the worker is free, otherwise as soon as they are).
+    pub fn request_refine(&mut self) {
+        self.refine_wanted = true;
+        Arc::make_mut(&mut self.report).refining = true;
+    }
+
+    /// Takes what the worker finished. Returns whether the panorama was
+    /// rebuilt (a refinement), which changes its maps and masks.
+    pub fn poll(&mut self) -> bool {
+        let mut rebuilt = false;
+        while let Some(done) = self.next_done() {
+            self.busy = false;
+            match done {
+                Done::Matched {
+                    generation,
+                    trigger,
+                    taken,
+                    matches,
+                    ms,
+                } => {
+                    if generation != self.generation {
+                        continue;
+                    }
+                    let report = Arc::make_mut(&mut self.report);
+                    report.matched_trigger = Some(trigger);
+                    report.match_ms = ms;
+                    let refined: Vec<_> = report
+                        .pairs
+                        .iter()
+                        .map(|p| (p.i, p.j, p.refined_before_px, p.refined_after_px))
+                        .collect();
+                    report.pairs = pair_reports(&self.rig, &self.panorama, Some(&matches));
+                    for (p, (_, _, before, after)) in report.pairs.iter_mut().zip(refined) {
+                        p.refined_before_px = before;
+                        p.refined_after_px = after;
+                    }
+                    if report
+                        .problem
+                        .as_deref()
+                        .is_some_and(|p| p.starts_with("matching"))
+                    {
+                        report.problem = None;
+                    }
+                    self.held = Some(Held {
+                        matches: Arc::new(matches),
+                        taken,
+                        generation,
+                    });
+                }
+                Done::Refined {
+                    generation,
+                    refinement,
+                    rig,
+                    panorama,
+                    ms,
+                } => {
+                    if generation != self.generation {
+                        continue;
+                    }
+                    self.generation += 1;
+                    self.rig = Arc::new(rig);
+                    self.panorama = Arc::from(panorama);
+                    let report = Arc::make_mut(&mut self.report);
+                    report.refinements += 1;
+                    report.refine_ms = ms;
+                    report.refining = self.refine_wanted;
+                    report.rig = Some(self.rig.clone());
+                    report.problem = None;
+                    for p in &mut report.pairs {
+                        let r = refinement.pairs.iter().find(|r| (r.i, r.j) == (p.i, p.j));
+                        p.refined_before_px = r.and_then(|r| r.error_before_px);
+                        p.refined_after_px = r.and_then(|r| r.error_after_px);
+                    }
+                    rebuilt = true;
+                }
+                Done::Failed { what, error } => {
+                    let report = Arc::make_mut(&mut self.report);
+                    report.problem = Some(format!("{what}: {error}"));
+                    if what == "refinement" {
+                        report.refining = self.refine_wanted;
+                    }
+                }
+            }
+        }
+        rebuilt
+    }
+
+    /// The worker's next finished job, if any.
+    fn next_done(&mut self) -> Option<Done> {
+        let w = self.worker.as_ref()?;
+        match w.done.try_recv() {
+            Ok(d) => Some(d),
+            Err(TryRecvError::Empty) => None,
+            Err(TryRecvError::Disconnected) => {
+                self.worker = None;
+                self.busy = false;
+                None
+            }
+        }
+    }
+
+    /// Counts a set and starts the worker's next job if it is free: a
+    /// refinement if one is wanted and there are matches, otherwise a
+    /// matching of `set` when one is due. Never waits; a worker that
+    /// cannot start or stopped is a problem in the report.
+    pub fn schedule(&mut self, set: &FrameSet) {
+        self.sets_since_match += 1;
+        self.sets_since_refine += 1;
+        if self.settings.refine_every > 0 && self.sets_since_refine >= self.settings.refine_every {
+            self.sets_since_refine = 0;
+            self.request_refine();
+        }
+        if self.busy {
+            return;
+        }
+        if self.worker.is_none() {
+            match Worker::start(
+                self.panorama.spec().clone(),
+                self.options.clone(),
+                self.detector.clone(),
+            ) {
+                Ok(w) => self.worker = Some(w),
+                Err(e) => {
+                    Arc::make_mut(&mut self.report).problem = Some(e.to_string());
+                    return;
+                }
+            }
+        }
+        let Some(worker) = &self.worker else {
+            return;
+        };
+        let job = match &self.held {
+            Some(held) if self.refine_wanted && held.generation == self.generation => {
+                self.refine_wanted = false;
+                Job::Refine {
+                    generation: self.generation,
+                    panorama: self.panorama.clone(),
+                    rig: self.rig.clone(),
+                    matches: held.matches.clone(),
+                    options: RefineOptions {
+                        bound_deg: self.settings.refine_bound_deg,
+                        ..RefineOptions::default()
+                    },
+                }
+            }
+            // The first set is matched at once, then one every
+            // `match_every` sets (the next free set after a busy worker).
+            _ if self.held.is_none() || self.sets_since_match >= self.settings.match_every => {
+                self.sets_since_match = 0;
+                Job::Match {
+                    generation: self.generation,
+                    panorama: self.panorama.clone(),
+                    set: set.clone(),
+                    options: self.match_options.clone(),
+                }
+            }
+            _ => return,
+        };
+        self.busy = worker.send(job);
+        if !self.busy {
+            // A new worker is started on the next set.
+            self.worker = None;
+            Arc::make_mut(&mut self.report).problem =
+                Some("the panorama worker stopped; it is restarted".into());
+        }
+    }
+
+    /// The held matches' patches as seen at the exposures `taken` (per
+    /// camera, the set's), one observation per pair with matches.
+    pub fn observations(&self, taken: &[f64]) -> Vec<PairObservation> {
+        let Some(held) = &self.held else {
+            return Vec::new();
+        };
+        let scale = |k: usize| -> f32 {
+            match (taken.get(k), held.taken.get(k)) {
+                (Some(&now), Some(&then)) if now > 0.0 && then > 0.0 => (now / then) as f32,
+                _ => 1.0,
+            }
+        };
+        held.matches
+            .iter()
+            .filter(|p| p.problem.is_none())
+            .map(|p| {
+                let (si, sj) = (scale(p.i), scale(p.j));
+                PairObservation {
+                    i: p.i,
+                    j: p.j,
+                    patches: p.patches.iter().map(|q| rescaled(q, si, sj)).collect(),
+                }
+            })
+            .collect()
+    }
+}
+
+/// One patch pair as seen with each camera's exposure scaled by `si` and
+/// `sj`: means scale, a mean scaled into saturation counts as saturated
+/// and a saturated patch stays so.
+fn rescaled(p: &PatchPair, si: f32, sj: f32) -> PatchPair {
+    let one = |mean: f32, saturated: f32, s: f32| {
+        let m = mean * s;
+        if m >= SATURATED_LEVEL {
+            (m.min(1.0), 1.0)
+        } else {
+            (m, saturated)
+        }
+    };
+    let (mean_i, saturated_i) = one(p.mean_i, p.saturated_i, si);
+    let (mean_j, saturated_j) = one(p.mean_j, p.saturated_j, sj);
+    PatchPair {
+        mean_i,
+        saturated_i,
+        mean_j,
+        saturated_j,
+    }
+}
+
+/// Per rig neighbour pair, its report from `matches` (none yet: no
+/// matches).
+fn pair_reports(
+    rig: &Rig,
+    panorama: &Panorama,
+    matches: Option<&[PairMatches]>,
+) -> Vec<PairMatchReport> {
+    rig.neighbours
+        .iter()
+        .map(|&(i, j)| {
+            let band = panorama
+                .bands()
+                .iter()
+                .find(|b| (b.i, b.j) == (i, j))
+                .map(|b| b.rect);
+            let found = matches.and_then(|m| m.iter().find(|p| (p.i, p.j) == (i, j)));
+            match found {
+                Some(p) => PairMatchReport {
+                    i,
+                    j,
+                    matches: p.matches.len(),
+                    inliers: p.inliers,
+                    error_px: p.error_before_px,
+                    refined_before_px: None,
+                    refined_after_px: None,
+                    patches: p.patches.len(),
+                    problem: p.problem.clone(),
+                    lines: p.matches.clone(),
+                    band,
+                },
+                None => PairMatchReport {
+                    i,
+                    j,
+                    problem: Some(match matches {
+                        Some(_) => "the cameras share no band of the cylinder".into(),
+                        None => "not matched yet".into(),
+                    }),
+                    band,
+                    ..PairMatchReport::default()
+                },
+            }
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn held_patches_follow_the_exposures_and_saturate() {
+        let p = PatchPair {
+            mean_i: 0.2,
+            saturated_i: 0.0,
+            mean_j: 0.4,
+            saturated_j: 0.0,
+        };
+        let q = rescaled(&p, 2.0, 0.5);
+        assert!((q.mean_i - 0.4).abs() < 1e-6 && (q.mean_j - 0.2).abs() < 1e-6);
+        assert!(q.saturated_i.abs() < 1e-6 && q.saturated_j.abs() < 1e-6);
+        let q = rescaled(&p, 1.0, 3.0);
+        assert!((q.saturated_j - 1.0).abs() < 1e-6);
+        assert!(q.mean_j <= 1.0);
+        let sat = PatchPair {
+            saturated_i: 0.5,
+            ..p
+        };
+        assert!((rescaled(&sat, 0.5, 1.0).saturated_i - 0.5).abs() < 1e-6);
+    }
+}
