@@ -317,17 +317,6 @@ pub struct CameraController {
     intended: Option<(f64, f64)>,
 }
 
-/// The frame the camera's own law passed (scale-and-clip) is read only by
-/// frames at least this much brighter (EV). Samples saturated in both
-/// frames count at the kept frame's clip, a lower bound that biases the
-/// estimate the more the closer the two frames are: on the `steps` preset
-/// the front camera's estimate, reading a frame 0.3–0.55 EV darker, asked
-/// for 0.01–0.03 EV less on every frame and crept 0.25 EV below the fixed
-/// point that the plain estimate and frames 0.6 EV or more darker agree on
-/// (within 0.02 EV). A probe's frame, about 1 EV darker, is read from
-/// [`DARKER_MIN_EV`] on.
-const PASSED_MIN_EV: f64 = 0.6;
-
 /// A kept frame as the estimator reads it, when it is at least
 /// [`DARKER_MIN_EV`] darker than a frame taken at `taken`.
 fn usable_darker(kept: Option<&ProbeFrame>, taken: f64) -> Option<Darker<'_>> {
@@ -609,12 +598,7 @@ impl CameraController {
             self.repeller.reset();
         }
         let from_probe = usable_darker(self.darker.as_ref(), taken);
-        let darker = from_probe.or_else(|| {
-            usable_darker(
-                self.passed.as_ref(),
-                taken * (PASSED_MIN_EV - DARKER_MIN_EV).exp2(),
-            )
-        });
+        let darker = from_probe.or_else(|| usable_darker(self.passed.as_ref(), taken));
         let estimate = if needs_estimate {
             let e = self.estimator.estimate_with(
                 metered,

@@ -162,7 +162,8 @@ impl LawParams {
     ///   that already go further that way stand.
     /// - [`LawStep::Predicted`]: the best exposure is `taken · ratio`; the
     ///   command moves `damping` of the way there from `base`, in log
-    ///   exposure (times [`FAST_SMALL_DAMPING`] within [`FAST_SMALL_EV`]
+    ///   exposure (times [`FAST_SMALL_DAMPING`] between [`FAST_SMALL_MIN_EV`]
+    ///   and [`FAST_SMALL_EV`]
     ///   when `damp_small`: a camera under its own law; balancing damps
     ///   its own moves), bounded to `max_step` per command, and stays at
     ///   `base` when that is within [`FAST_REST_EV`].
@@ -186,7 +187,9 @@ impl LawParams {
                 }
                 // A small correction is the size of the estimate's own
                 // frame-to-frame noise: go half of it.
-                let damping = if damp_small && (best / base).log2().abs() < FAST_SMALL_EV {
+                let damping = if damp_small
+                    && (FAST_SMALL_MIN_EV..FAST_SMALL_EV).contains(&(best / base).log2().abs())
+                {
                     self.damping * FAST_SMALL_DAMPING
                 } else {
                     self.damping
@@ -270,6 +273,12 @@ pub const FAST_REST_EV: f64 = 0.01;
 /// fixed point varies by up to ±0.15 EV, and following it in full made the
 /// camera wander by as much after a change of light.
 pub const FAST_SMALL_EV: f64 = 0.2;
+
+/// Corrections smaller than this (EV) the fast law makes in full: so close
+/// to its fixed point, following the estimate frame by frame averages its
+/// noise out, and halving them left a camera up to 0.03 EV from the
+/// estimator's fixed point.
+pub const FAST_SMALL_MIN_EV: f64 = 0.03;
 
 /// The share of a small correction ([`FAST_SMALL_EV`]) the fast law makes.
 pub const FAST_SMALL_DAMPING: f64 = 0.5;
