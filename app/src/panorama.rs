@@ -200,10 +200,11 @@ pub fn run_stills(args: &PanoramaArgs, out: &mut dyn Write) -> Result<()> {
             let px = |v: Option<f64>| v.map_or("-".into(), |v| format!("{v:.2} px"));
             writeln!(
                 out,
-                "refined pair {}–{}: {} inliers, median reprojection error {} before, {} after",
+                "refined pair {}–{}: {} inliers ({} on the ground), median reprojection error {} before, {} after",
                 rig.cameras[p.i].name,
                 rig.cameras[p.j].name,
                 p.inliers,
+                p.on_ground,
                 px(p.error_before_px),
                 px(p.error_after_px)
             )?;

@@ -154,3 +154,15 @@ pub fn harris(gray: &[u8], w: usize, h: usize, mask: &[u8]) -> Result<Vec<[f32; 
     harris_corners(gray, w, h, Some(mask), &HarrisParams::default())
         .map_err(|e| rigview_core::Error::InvalidConfig(e.to_string()))
 }
+
+/// [`harris`] with positions refined to a fraction of a pixel (the Harris
+/// response's parabola at each corner).
+pub fn harris_subpixel(gray: &[u8], w: usize, h: usize, mask: &[u8]) -> Result<Vec<[f32; 2]>> {
+    use rigview_calib::tools::corners::{harris_corners, HarrisParams};
+    let params = HarrisParams {
+        subpixel: true,
+        ..HarrisParams::default()
+    };
+    harris_corners(gray, w, h, Some(mask), &params)
+        .map_err(|e| rigview_core::Error::InvalidConfig(e.to_string()))
+}

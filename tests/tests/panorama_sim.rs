@@ -12,12 +12,14 @@
 //!   fits turns it back towards the truth.
 //! - A camera twice as exposed as its neighbours gives ratios of about 2
 //!   (or ½) from the matched patches.
-//! - Every camera turned by 1° to 2° (seeded): the refinement of the
+//! - Every camera turned by 1° to 2° (seeded), matched on a cylinder with
+//!   a floor (the ground inside the radius): the refinement of the
 //!   rotations brings every pair's inliers within a pixel of their
-//!   epipolar planes, and the two cameras seen through well-matched pairs
-//!   to within a quarter of their error; the third, seen through 8 inliers
-//!   of one pair, is not recovered. Issue 18's goal (every camera within
-//!   0.15°) is a test of its own, ignored while it is not met.
+//!   epipolar planes and every camera to within a fifth of its error and
+//!   0.35° of the truth; from the true calibration it stays within 0.15°.
+//!   The corners of these tests are refined to a fraction of a pixel.
+//!   Issue 18's goal (every camera within 0.15°) is met in four rounds of
+//!   matching and refinement, each on the rig the last one refined.
 //!
 //! Run with `--nocapture` for the counts of corners, matches and inliers.
 
@@ -27,7 +29,9 @@ use nalgebra::{Rotation3, Vector3};
 use rigview_calib::{Pose, Rig};
 use rigview_core::exposure::balance::pair_ratio;
 use rigview_core::exposure::{BalanceParams, FrameView, PixelFormat};
-use rigview_core::panorama::{CylinderSpec, MatchOptions, PairMatches, Panorama, PanoramaOptions};
+use rigview_core::panorama::{
+    CylinderSpec, Detector, MatchOptions, PairMatches, Panorama, PanoramaOptions,
+};
 use rigview_core::sim::{SimConfig, SimRender};
 
 fn render() -> SimRender {
@@ -46,6 +50,16 @@ fn spec() -> CylinderSpec {
     }
 }
 
+/// The same cylinder with a floor: the ground inside the radius, where the
+/// two cameras of an overlap see the ground's features alike, and the
+/// refinement takes them for points of known depth.
+fn floor_spec() -> CylinderSpec {
+    CylinderSpec {
+        floor: true,
+        ..spec()
+    }
+}
+
 fn stills(r: &SimRender, shutter_us: &[f64]) -> Vec<Vec<u8>> {
     (0..r.cameras().len())
         .map(|k| surround_common::still(r, k, shutter_us[k]))
@@ -53,14 +67,24 @@ fn stills(r: &SimRender, shutter_us: &[f64]) -> Vec<Vec<u8>> {
 }
 
 fn matches(rig: &Rig, r: &SimRender, buffers: &[Vec<u8>]) -> Vec<PairMatches> {
-    let pano = Panorama::build(rig, &spec(), &PanoramaOptions::default()).unwrap();
+    matches_on(&spec(), &rigview_tests::harris, rig, r, buffers)
+}
+
+fn matches_on(
+    spec: &CylinderSpec,
+    detect: &Detector<'_>,
+    rig: &Rig,
+    r: &SimRender,
+    buffers: &[Vec<u8>],
+) -> Vec<PairMatches> {
+    let pano = Panorama::build(rig, spec, &PanoramaOptions::default()).unwrap();
     let frames: Vec<FrameView<'_>> = buffers
         .iter()
         .zip(r.cameras())
         .map(|(b, c)| FrameView::new(PixelFormat::Mono8, c.width, c.height, b).unwrap())
         .collect();
     let (pairs, times) = pano
-        .match_pairs(&frames, &rigview_tests::harris, &MatchOptions::default())
+        .match_pairs(&frames, detect, &MatchOptions::default())
         .unwrap();
     println!("{times:?}");
     for p in &pairs {
@@ -191,21 +215,38 @@ fn off(rig: &Rig, truth: &Rig, k: usize) -> f64 {
 
 /// Refines the perturbed rig from one frame set: the refined rig, with
 /// each pair's inliers and median errors before and after printed and
-/// checked (below a pixel after, and not worse than before).
+/// checked (below a pixel after, and not worse than before unless within a
+/// pixel before).
 fn refine_perturbed(r: &SimRender, perturbed: &Rig) -> Rig {
     use rigview_core::panorama::RefineOptions;
     let buffers = stills(r, &[4000.0; 4]);
-    let pano = Panorama::build(perturbed, &spec(), &PanoramaOptions::default()).unwrap();
-    let pairs = matches(perturbed, r, &buffers);
+    let pano = Panorama::build(perturbed, &floor_spec(), &PanoramaOptions::default()).unwrap();
+    let pairs = matches_on(
+        &floor_spec(),
+        &rigview_tests::harris_subpixel,
+        perturbed,
+        r,
+        &buffers,
+    );
     let refined = pano.refine(&pairs, &RefineOptions::default()).unwrap();
     for p in &refined.pairs {
         let (e0, e1) = (p.error_before_px.unwrap(), p.error_after_px.unwrap());
         println!(
-            "{}–{}: {} inliers, median error {e0:.2} -> {e1:.2} px",
-            p.i, p.j, p.inliers
+            "{}–{}: {} inliers ({} on the ground), median error {e0:.2} -> {e1:.2} px",
+            p.i, p.j, p.inliers, p.on_ground
         );
-        assert!(e1 < 1.0 && e1 <= e0, "{}–{}: {e0} -> {e1}", p.i, p.j);
+        // (From the true calibration, already within a pixel, the errors
+        // may grow a little as the ground's matches move the cameras.)
+        assert!(
+            e1 < 1.0 && (e1 <= e0 || e0 < 1.0),
+            "{}–{}: {e0} -> {e1}",
+            p.i,
+            p.j
+        );
     }
+    // The floor gives the second stage its matches on the ground.
+    let on_ground: usize = refined.pairs.iter().map(|p| p.on_ground).sum();
+    assert!(on_ground >= 12, "{on_ground} matches on the ground");
     refined.apply(perturbed).unwrap()
 }
 
@@ -222,32 +263,42 @@ fn refinement_brings_perturbed_cameras_back() {
             off(&after, &truth, k)
         );
     }
-    // Cameras 1 and 2 (the left and back), seen through pairs with many
-    // inliers, come back to within a quarter of their error; camera 3 (the
-    // right), seen through 8 inliers of one pair, is not recovered.
-    for k in [1, 2] {
-        assert!(
-            off(&after, &truth, k) < 0.25 * off(&perturbed, &truth, k),
-            "camera {k}"
-        );
+    // Every camera comes back to within a fifth of its error and 0.35°
+    // (the matches on the ground see every rotation; the epipolar errors
+    // alone left the right camera 3.1° off).
+    for k in 1..4 {
+        let (before, left) = (off(&perturbed, &truth, k), off(&after, &truth, k));
+        assert!(left < 0.2 * before && left < 0.35, "camera {k}: {left}°");
     }
-    assert!(off(&after, &truth, 3) < 3.5);
+    // From the true calibration, the refinement stays within 0.15°.
+    let still = refine_perturbed(&r, &truth);
+    for k in 1..4 {
+        let left = off(&still, &truth, k);
+        println!("from the truth, camera {k}: {left:.3}°");
+        assert!(left < 0.15, "camera {k}: {left}°");
+    }
 }
 
 /// Issue 18's goal: every camera within 0.15° of the truth after the
-/// refinement. Not met: the epipolar errors of matches in 30° overlaps
-/// hardly see a turn that moves the matches along their epipolar curves
-/// (about the vertical, where the curves run level), so that even from
-/// the true calibration the refinement wanders by 0.2° to 0.4°.
+/// refinement, in rounds: each round matches again on the rig the last one
+/// refined, whose floor then lines the ground up better, and refines it.
+/// One round leaves the back camera 0.28° off (the left–back pair has few
+/// matches on the ground until its cameras are nearly right); four end
+/// within 0.06°.
 #[test]
-#[ignore = "issue 18's 0.15° goal is not met (cameras end 0.3° to 3.1° off); run with --ignored"]
 fn refinement_recovers_every_camera_within_the_goal() {
     let r = render();
     let truth = r.rig().clone();
-    let after = refine_perturbed(&r, &perturbed(&truth, 18));
+    let mut rig = perturbed(&truth, 18);
+    for round in 1..=4 {
+        println!("round {round}:");
+        rig = refine_perturbed(&r, &rig);
+        for k in 1..4 {
+            println!("camera {k}: {:.3}° from the truth", off(&rig, &truth, k));
+        }
+    }
     for k in 1..4 {
-        let left = off(&after, &truth, k);
-        println!("camera {k}: {left:.3}° from the truth");
+        let left = off(&rig, &truth, k);
         assert!(left < 0.15, "camera {k}: {left}°");
     }
 }

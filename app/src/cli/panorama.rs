@@ -62,6 +62,7 @@ impl PanoramaArgs {
             radius_m: self.radius_m,
             below_deg: self.below_deg,
             above_deg: self.above_deg,
+            ..CylinderSpec::default()
         }
     }
 }

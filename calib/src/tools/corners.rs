@@ -25,6 +25,11 @@ pub struct HarrisParams {
     pub cell: usize,
     /// The most corners a cell keeps.
     pub per_cell: usize,
+    /// Whether positions are refined to a fraction of a pixel: the peak of
+    /// a parabola through the Harris response at the corner's pixel and its
+    /// two neighbours, along each axis (by at most half a pixel). Off by
+    /// default.
+    pub subpixel: bool,
 }
 
 impl Default for HarrisParams {
@@ -35,6 +40,7 @@ impl Default for HarrisParams {
             min_distance: 5.0,
             cell: 64,
             per_cell: 12,
+            subpixel: false,
         }
     }
 }
@@ -102,6 +108,23 @@ pub fn harris_corners(
             0.04,
         ),
     )?;
+    let response = if params.subpixel && !found.is_empty() {
+        let mut r = Mat::default();
+        cv(
+            "computing the Harris response",
+            opencv::imgproc::corner_harris(
+                &image,
+                &mut r,
+                3,
+                3,
+                0.04,
+                opencv::core::BORDER_DEFAULT,
+            ),
+        )?;
+        Some(r)
+    } else {
+        None
+    };
     // OpenCV gives them strongest first.
     let cells_x = width.div_ceil(params.cell);
     let mut taken = vec![0usize; cells_x * height.div_ceil(params.cell)];
@@ -116,10 +139,36 @@ pub fn harris_corners(
         };
         if *n < params.per_cell {
             *n += 1;
-            out.push([p.x, p.y]);
+            out.push(match &response {
+                Some(r) => subpixel(r, p.x, p.y),
+                None => [p.x, p.y],
+            });
         }
     }
     Ok(out)
+}
+
+/// The peak near pixel (`x`, `y`) of the Harris response `r`: along each
+/// axis, the vertex of the parabola through the pixel and its two
+/// neighbours, within half a pixel (the pixel itself at the border or where
+/// the response is not a peak).
+fn subpixel(r: &Mat, x: f32, y: f32) -> [f32; 2] {
+    let (xi, yi) = (x.round() as i32, y.round() as i32);
+    let at = |dx: i32, dy: i32| r.at_2d::<f32>(yi + dy, xi + dx).ok().map(|v| f64::from(*v));
+    let vertex = |a: Option<f64>, b: Option<f64>, c: Option<f64>| match (a, b, c) {
+        (Some(a), Some(b), Some(c)) if a - 2.0 * b + c < 0.0 => {
+            (0.5 * (a - c) / (a - 2.0 * b + c)).clamp(-0.5, 0.5) as f32
+        }
+        _ => 0.0,
+    };
+    let inside = xi >= 1 && yi >= 1 && xi + 1 < r.cols() && yi + 1 < r.rows();
+    if !inside {
+        return [x, y];
+    }
+    [
+        xi as f32 + vertex(at(-1, 0), at(0, 0), at(1, 0)),
+        yi as f32 + vertex(at(0, -1), at(0, 0), at(0, 1)),
+    ]
 }
 
 #[cfg(test)]
@@ -138,6 +187,31 @@ mod tests {
                 }
             })
             .collect()
+    }
+
+    #[test]
+    fn subpixel_positions_find_corners_between_pixels() {
+        // The squares' corners lie between pixels (x + ½ a multiple of 8):
+        // whole pixels are half a pixel off along each axis, the refined
+        // positions within a tenth.
+        let (w, h) = (128, 64);
+        let img = board(w, h);
+        let off = |p: &[f32; 2]| {
+            let d = |v: f32| {
+                let r = (v + 0.5).rem_euclid(8.0);
+                r.min(8.0 - r)
+            };
+            d(p[0]).max(d(p[1]))
+        };
+        let refined = HarrisParams {
+            subpixel: true,
+            ..HarrisParams::default()
+        };
+        let refined = harris_corners(&img, w, h, None, &refined).unwrap();
+        let whole = harris_corners(&img, w, h, None, &HarrisParams::default()).unwrap();
+        assert!(refined.len() > 20 && refined.len() == whole.len());
+        assert!(refined.iter().all(|p| off(p) < 0.1), "{refined:?}");
+        assert!(whole.iter().all(|p| off(p) >= 0.4), "{whole:?}");
     }
 
     #[test]

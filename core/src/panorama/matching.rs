@@ -505,6 +505,31 @@ impl PairGeometry {
         Some(n.dot(f_j).clamp(-1.0, 1.0).asin() * self.px_per_rad)
     }
 
+    /// The two-dimensional errors of rays `f_i` and `f_j` as a point on the
+    /// ground (z = 0): where each meets the ground, seen from the other
+    /// camera, against the other's ray (`f × d`, canvas pixels per
+    /// radian). `None` unless both rays meet the ground within
+    /// [`GROUND_REACH_M`].
+    pub(super) fn ground_errors_px(
+        &self,
+        f_i: &Vector3<f64>,
+        f_j: &Vector3<f64>,
+    ) -> Option<[Vector3<f64>; 2]> {
+        let x_i = ground_hit(&self.o_i, f_i)?;
+        let x_j = ground_hit(&self.o_j, f_j)?;
+        let seen = |f: &Vector3<f64>, o: &Vector3<f64>, x: &Vector3<f64>| {
+            f.cross(&(x - o).normalize()) * self.px_per_rad
+        };
+        Some([seen(f_j, &self.o_j, &x_i), seen(f_i, &self.o_i, &x_j)])
+    }
+
+    /// The larger of [`PairGeometry::ground_errors_px`]'s two errors'
+    /// lengths.
+    pub(super) fn ground_error_px(&self, f_i: &Vector3<f64>, f_j: &Vector3<f64>) -> Option<f64> {
+        let [a, b] = self.ground_errors_px(f_i, f_j)?;
+        Some(a.norm().max(b.norm()))
+    }
+
     /// Whether the rays' closest points lie ahead of both cameras (rays
     /// parallel within 10⁻⁹, or meeting beyond 1 km, count as ahead: a
     /// point at infinity).
@@ -521,6 +546,20 @@ impl PairGeometry {
         let far = |v: f64| v.abs() > 1e3;
         (s > 0.0 || far(s)) && (u > 0.0 || far(u))
     }
+}
+
+/// How far from its camera (metres) a ray may meet the ground to be taken
+/// for a point on it.
+pub(super) const GROUND_REACH_M: f64 = 30.0;
+
+/// Where ray `f` from `o` meets the ground (z = 0), within
+/// [`GROUND_REACH_M`] ahead.
+fn ground_hit(o: &Vector3<f64>, f: &Vector3<f64>) -> Option<Vector3<f64>> {
+    if f.z >= 0.0 || o.z <= 0.0 {
+        return None;
+    }
+    let s = -o.z / f.z;
+    (s <= GROUND_REACH_M).then(|| o + f * s)
 }
 
 /// The prior's standard deviation on a pair's rotation, degrees.
@@ -715,6 +754,29 @@ mod tests {
             })
             .collect();
         (g, rays)
+    }
+
+    #[test]
+    fn a_point_on_the_ground_has_no_ground_error_until_a_camera_turns() {
+        let g = PairGeometry {
+            o_i: Vector3::new(2.3, 0.0, 0.9),
+            o_j: Vector3::new(1.0, 1.0, 1.0),
+            px_per_rad: 2048.0 / std::f64::consts::TAU,
+        };
+        let p = Vector3::new(5.0, 4.0, 0.0);
+        let (f_i, f_j) = ((p - g.o_i).normalize(), (p - g.o_j).normalize());
+        assert!(g.ground_error_px(&f_i, &f_j).unwrap() < 1e-9);
+        // A turn of camera j about the vertical, which the epipolar error
+        // hardly sees, is a ground error of about its angle.
+        let turn = Rotation3::from_axis_angle(&Vector3::z_axis(), 0.5f64.to_radians());
+        let e = g.ground_error_px(&f_i, &(turn * f_j)).unwrap();
+        let want = 0.5f64.to_radians() * g.px_per_rad;
+        assert!(e > 0.5 * want, "{e} px for {want} px");
+        // A ray that goes up, or meets the ground too far, is not on it.
+        let up = Vector3::new(1.0, 0.0, 0.1).normalize();
+        assert!(g.ground_error_px(&up, &f_j).is_none());
+        let far = Vector3::new(1.0, 0.0, -0.01).normalize();
+        assert!(g.ground_error_px(&far, &f_j).is_none());
     }
 
     #[test]

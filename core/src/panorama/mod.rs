@@ -19,7 +19,11 @@
 //! ```
 //!
 //! so that the front is in the middle, the left side left of it, and the
-//! back at both ends; rows are linear in `tan`, as on a cylinder. Each
+//! back at both ends; rows are linear in `tan`, as on a cylinder. With a
+//! floor ([`CylinderSpec::floor`]) a row below the horizon whose ray from
+//! `o` meets the ground (z = 0) nearer than `R` shows that point of the
+//! ground instead: the surface is a bowl, and what lies on the ground
+//! lines up across the seams at any distance. Each
 //! canvas pixel is that 3-D point projected into the cameras with their
 //! full pose (translation included). The cameras stand metres apart, so a
 //! single cylinder cannot show the whole scene without parallax: what
@@ -73,6 +77,11 @@ pub struct CylinderSpec {
     pub below_deg: f64,
     /// The highest elevation shown, degrees above the horizon.
     pub above_deg: f64,
+    /// Whether the surface has a floor: the ground (z = 0) inside the
+    /// cylinder, where a row below the horizon meets it nearer than the
+    /// radius (a bowl); otherwise the cylinder alone.
+    #[serde(default)]
+    pub floor: bool,
 }
 
 impl Default for CylinderSpec {
@@ -85,6 +94,7 @@ impl Default for CylinderSpec {
             radius_m: 10.0,
             below_deg: 25.0,
             above_deg: 35.0,
+            floor: false,
         }
     }
 }
@@ -297,6 +307,11 @@ impl Panorama {
             .collect();
         let slopes: Vec<f64> = (0..h).map(|r| spec.slope(r as f64 + 0.5)).collect();
         let radius = spec.radius_m;
+        let surface = Surface {
+            centre,
+            radius,
+            floor: spec.floor,
+        };
         let (mut mosaic, maps) = Mosaic::build(
             what,
             (w, h),
@@ -304,7 +319,7 @@ impl Panorama {
             grid,
             |c, r, found| {
                 let (co, s, shows) = &columns[c];
-                let p = centre + radius * Vector3::new(*co, *s, slopes[r]);
+                let p = surface.point(*co, *s, slopes[r]);
                 for &k in shows {
                     if let Some(px) = projectors[k].project_rig(&p) {
                         found.push((k, px));
@@ -326,8 +341,8 @@ impl Panorama {
         let masks =
             mosaic::source_masks(&mosaic, projectors, (options.mask_step, grid), |p, px| {
                 let (o, d) = p.ray_rig(px)?;
-                let q = cylinder_hit(&(o - centre), &d, radius)?;
-                Some(spec.canvas(q.y.atan2(q.x), q.z / radius))
+                let q = surface.hit(&o, &d)?;
+                Some(spec.canvas(q.y.atan2(q.x), q.z / q.x.hypot(q.y)))
             })?;
         let overlaps = mosaic::overlaps(
             &maps,
@@ -388,7 +403,16 @@ impl Panorama {
     /// shows.
     pub fn point(&self, col: f64, row: f64) -> Vector3<f64> {
         let phi = self.spec.azimuth(col);
-        self.centre + self.spec.radius_m * Vector3::new(phi.cos(), phi.sin(), self.spec.slope(row))
+        self.surface()
+            .point(phi.cos(), phi.sin(), self.spec.slope(row))
+    }
+
+    fn surface(&self) -> Surface {
+        Surface {
+            centre: self.centre,
+            radius: self.spec.radius_m,
+            floor: self.spec.floor,
+        }
     }
 
     /// The canvas position of a 3-D point (vehicle frame) as seen from the
@@ -407,14 +431,52 @@ impl Panorama {
         px: &Point2<f64>,
     ) -> Option<(f64, f64)> {
         let (o, d) = projector.ray_rig(px)?;
-        let q = cylinder_hit(&(o - self.centre), &d, self.spec.radius_m)?;
-        Some(self.spec.canvas(q.y.atan2(q.x), q.z / self.spec.radius_m))
+        let q = self.surface().hit(&o, &d)?;
+        Some(self.spec.canvas(q.y.atan2(q.x), q.z / q.x.hypot(q.y)))
     }
 
     /// Each camera's source mask (the pixels that reach the panorama), in
     /// rig order: meter these.
     pub fn source_masks(&self) -> &[RoiMask] {
         self.mosaic.masks()
+    }
+}
+
+/// The surface the canvas shows: the cylinder of `radius` around the
+/// vertical through `centre`, and with `floor` the ground (z = 0) inside it.
+#[derive(Clone, Copy, Debug)]
+struct Surface {
+    centre: Vector3<f64>,
+    radius: f64,
+    floor: bool,
+}
+
+impl Surface {
+    /// The point of the surface seen from the centre in the direction of
+    /// azimuth cosine and sine (`co`, `si`) and slope `t`.
+    fn point(&self, co: f64, si: f64, t: f64) -> Vector3<f64> {
+        let h = self.centre.z;
+        // The floor: where the centre's ray meets the ground nearer than
+        // the radius.
+        if self.floor && h > 0.0 && t < 0.0 && -h / t < self.radius {
+            let rho = -h / t;
+            return self.centre + Vector3::new(rho * co, rho * si, -h);
+        }
+        self.centre + self.radius * Vector3::new(co, si, t)
+    }
+
+    /// Where the ray `o + s·d` (vehicle frame, `o` inside the cylinder)
+    /// meets the surface, relative to the centre.
+    fn hit(&self, o: &Vector3<f64>, d: &Vector3<f64>) -> Option<Vector3<f64>> {
+        let rel = o - self.centre;
+        let h = self.centre.z;
+        if self.floor && h > 0.0 && d.z < 0.0 && o.z > 0.0 {
+            let q = rel + d * (-o.z / d.z);
+            if q.x.hypot(q.y) < self.radius {
+                return Some(q);
+            }
+        }
+        cylinder_hit(&rel, d, self.radius)
     }
 }
 

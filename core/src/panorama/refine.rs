@@ -1,16 +1,37 @@
 //! Refinement of the cameras' rotations from the panorama's matches.
 //!
-//! Every camera but one (the fixed one) gets a small rotation about its
-//! centre, `f → exp(ω_k) f` for its rays in the vehicle frame; translations
-//! stay the calibration's. Levenberg–Marquardt
-//! (`rigview_calib::lm::minimise`) minimises the inlier matches' epipolar
-//! errors (see [`super::matching`]: the angle of camera `j`'s ray from the
-//! plane through both centres and camera `i`'s ray, in canvas pixels) with
-//! the Cauchy loss `s²·ln(1 + (e/s)²)` (scale `s`, one pixel by default),
-//! and a prior of σ = `bound_deg` on each rotation, which keeps the
-//! rotations the matches hardly see near none. A step that would turn a
-//! camera by more than `bound_deg` (3° by default) is refused, so that one
-//! bad frame set cannot throw the calibration away.
+//! Every camera gets a small rotation about its centre, `f → exp(ω_k) f`
+//! for its rays in the vehicle frame; translations stay the calibration's.
+//! Levenberg–Marquardt (`rigview_calib::lm::minimise`) minimises the
+//! inliers' errors under the Cauchy loss `s²·ln(1 + (e/s)²)` (scale `s`,
+//! one pixel by default), with a prior of σ = `bound_deg` on each rotation,
+//! which keeps the rotations the matches hardly see near none. A step that
+//! would turn a camera by more than `bound_deg` (3° by default) is refused,
+//! so that one bad frame set cannot throw the calibration away. Two stages:
+//!
+//! 1. **Epipolar errors.** Every camera but the fixed one turns, and each
+//!    inlier's error is its epipolar error (see [`super::matching`]: the
+//!    angle of camera `j`'s ray from the plane through both centres and
+//!    camera `i`'s ray, in canvas pixels). A point's depth is unknown, so a
+//!    turn that moves a match along its epipolar curve costs nothing; in a
+//!    narrow overlap whose curves run nearly level, a camera's turn about
+//!    the vertical is hardly seen.
+//! 2. **Points on the ground.** A match whose two rays meet the ground
+//!    (z = 0) within [`RefineOptions::ground_px`] of each other is taken for
+//!    a point on it: where one camera's ray meets the ground, seen from
+//!    the other camera, must lie on the other's ray, an error of two
+//!    dimensions (both ways) that sees every rotation. Every camera turns,
+//!    the fixed one too: with the cameras' positions known, the ground
+//!    fixes the rig's tilt and heading (relative to the vehicle frame).
+//!    The other inliers keep their epipolar errors. The matches on the
+//!    ground are chosen again after each solution, with a limit of 8, 4, 2
+//!    and 1 times `ground_px`, so that the first stage's error about the
+//!    vertical does not hide them. With fewer than 12 such matches the
+//!    first stage's rotations stand.
+//!
+//! Matches on the ground are many where the canvas shows the ground as
+//! such: on a cylinder with a floor ([`super::CylinderSpec::floor`]), both
+//! cameras of an overlap warp the ground's features to the same place.
 
 use nalgebra::{Rotation3, Vector3};
 use rigview_calib::rig::Rig;
@@ -23,7 +44,9 @@ use crate::error::{check_range, Error, Result};
 /// Options of [`Panorama::refine`].
 #[derive(Clone, Debug, PartialEq)]
 pub struct RefineOptions {
-    /// The camera that keeps its rotation.
+    /// The camera that keeps its rotation in the first stage (epipolar
+    /// errors), and whenever too few matches lie on the ground for the
+    /// second.
     pub fixed: usize,
     /// The largest rotation of a camera, degrees.
     pub bound_deg: f64,
@@ -31,6 +54,9 @@ pub struct RefineOptions {
     pub loss_px: f64,
     /// Levenberg–Marquardt iterations at most.
     pub iterations: usize,
+    /// The largest two-dimensional error (canvas pixels), after the
+    /// epipolar refinement, of a match taken for a point on the ground.
+    pub ground_px: f64,
 }
 
 impl Default for RefineOptions {
@@ -40,6 +66,7 @@ impl Default for RefineOptions {
             bound_deg: 3.0,
             loss_px: 1.0,
             iterations: 50,
+            ground_px: 3.0,
         }
     }
 }
@@ -53,6 +80,8 @@ pub struct PairRefinement {
     pub j: usize,
     /// The inliers the refinement used.
     pub inliers: usize,
+    /// How many of them it took for points on the ground.
+    pub on_ground: usize,
     /// Their median epipolar error with the calibration, canvas pixels.
     pub error_before_px: Option<f64>,
     /// The same with the refined rotations.
@@ -63,7 +92,8 @@ pub struct PairRefinement {
 #[derive(Clone, Debug, PartialEq)]
 pub struct Refinement {
     /// Per camera, its rotation about its centre (vehicle frame): the new
-    /// orientation is `rotation · R`.
+    /// orientation is `rotation · R`. The fixed camera's is none unless the
+    /// ground's matches turned it (the second stage).
     pub rotations: Vec<Rotation3<f64>>,
     /// Per pair with inliers.
     pub pairs: Vec<PairRefinement>,
@@ -112,6 +142,13 @@ impl Panorama {
             100.0,
             "0.01 to 100 canvas pixels",
         )?;
+        check_range(
+            "refine.ground_px",
+            options.ground_px,
+            0.1,
+            100.0,
+            "0.1 to 100 canvas pixels",
+        )?;
         // Per pair: its geometry and its inliers' rays.
         let data: Vec<(&PairMatches, PairGeometry, Vec<RayPair>)> = pairs
             .iter()
@@ -131,41 +168,66 @@ impl Panorama {
                 "panorama refinement: no pair has inliers to refine the rotations with".into(),
             ));
         }
-        // The parameters: ω of every camera but the fixed one.
-        let free: Vec<usize> = (0..n).filter(|&k| k != options.fixed).collect();
-        let rotations = |x: &[f64]| -> Option<Vec<Rotation3<f64>>> {
-            let mut out = vec![Rotation3::identity(); n];
-            for (slot, &k) in free.iter().enumerate() {
-                let w = Vector3::new(x[3 * slot], x[3 * slot + 1], x[3 * slot + 2]);
-                if w.norm() > bound {
-                    return None;
-                }
-                out[k] = Rotation3::new(w);
-            }
-            Some(out)
+        // First the epipolar errors alone, every camera but the fixed one
+        // turning (about its three axes; the fixed one about none).
+        let fixed: Vec<usize> = (0..n)
+            .map(|k| if k == options.fixed { 0 } else { 3 })
+            .collect();
+        let epipolar_only: Vec<Vec<bool>> = data
+            .iter()
+            .map(|(_, _, rays)| vec![false; rays.len()])
+            .collect();
+        let first = self
+            .solve(
+                &data,
+                &epipolar_only,
+                &fixed,
+                (bound, scale, options.iterations),
+                &vec![Rotation3::identity(); n],
+            )
+            .ok_or_else(|| {
+                Error::InvalidConfig("panorama refinement: the solution left its bound".into())
+            })?;
+        // Then the matches on the ground, whose depth the ground gives, with
+        // their full two-dimensional errors, and every camera turning: with
+        // the cameras' positions known, the ground sees every rotation.
+        let classify = |q: &[Rotation3<f64>], limit: f64| -> Vec<Vec<bool>> {
+            data.iter()
+                .map(|(p, g, rays)| {
+                    rays.iter()
+                        .map(|(f_i, f_j)| {
+                            g.ground_error_px(&(q[p.i] * f_i), &(q[p.j] * f_j))
+                                .is_some_and(|e| e <= limit)
+                        })
+                        .collect()
+                })
+                .collect()
         };
-        let prior = 1.0 / bound;
-        let residuals = |x: &[f64]| -> Option<Vec<f64>> {
-            let q = rotations(x)?;
-            let mut out = Vec::new();
-            for (p, g, rays) in &data {
-                for (f_i, f_j) in rays {
-                    let e = g.signed_error_px(&(q[p.i] * f_i), &(q[p.j] * f_j))?;
-                    out.push(e.signum() * scale * (1.0 + (e / scale).powi(2)).ln().sqrt());
-                }
+        // The matches within a loose limit first, then tighter ones, each
+        // solution telling the next which matches lie on the ground.
+        let every = vec![3; n];
+        let mut current = first;
+        let mut ground = epipolar_only.clone();
+        for factor in GROUND_SCHEDULE {
+            let taken = classify(&current, factor * options.ground_px);
+            if taken.iter().flatten().filter(|&&b| b).count() < MIN_GROUND {
+                break;
             }
-            out.extend(x.iter().map(|v| v * prior));
-            Some(out)
-        };
-        let (x, _) =
-            rigview_calib::lm::minimise(&vec![0.0; 3 * free.len()], residuals, options.iterations);
-        let q = rotations(&x).ok_or_else(|| {
-            Error::InvalidConfig("panorama refinement: the solution left its bound".into())
-        })?;
+            let limits = (bound, scale, options.iterations);
+            match self.solve(&data, &taken, &every, limits, &current) {
+                Some(all) => {
+                    current = all;
+                    ground = taken;
+                }
+                None => break,
+            }
+        }
+        let q = current;
         let pairs = data
             .iter()
-            .filter(|(_, _, rays)| !rays.is_empty())
-            .map(|(p, g, rays)| {
+            .zip(&ground)
+            .filter(|((_, _, rays), _)| !rays.is_empty())
+            .map(|((p, g, rays), on_ground)| {
                 let errors = |qi: &Rotation3<f64>, qj: &Rotation3<f64>| {
                     median(
                         rays.iter()
@@ -177,6 +239,7 @@ impl Panorama {
                     i: p.i,
                     j: p.j,
                     inliers: rays.len(),
+                    on_ground: on_ground.iter().filter(|&&b| b).count(),
                     error_before_px: errors(&Rotation3::identity(), &Rotation3::identity()),
                     error_after_px: errors(&q[p.i], &q[p.j]),
                 }
@@ -186,5 +249,82 @@ impl Panorama {
             rotations: q,
             pairs,
         })
+    }
+}
+
+/// The fewest matches on the ground that the second stage needs.
+const MIN_GROUND: usize = 12;
+
+/// The limits on a match on the ground, in turn, as multiples of
+/// [`RefineOptions::ground_px`].
+const GROUND_SCHEDULE: [f64; 4] = [8.0, 4.0, 2.0, 1.0];
+
+impl Panorama {
+    /// Levenberg–Marquardt (at most `iterations`) from `start` over the
+    /// rotations of the cameras, each about its first `axes[k]` axes (0 to
+    /// 3): the inliers of `data` with their epipolar errors, or where
+    /// `ground` says so their two-dimensional errors as points on the
+    /// ground, under the Cauchy loss of scale `scale`, with a prior of
+    /// σ = `bound` on each rotation, which may not exceed `bound`. `None` if
+    /// the start is not defined.
+    fn solve(
+        &self,
+        data: &[(&PairMatches, PairGeometry, Vec<RayPair>)],
+        ground: &[Vec<bool>],
+        axes: &[usize],
+        (bound, scale, iterations): (f64, f64, usize),
+        start: &[Rotation3<f64>],
+    ) -> Option<Vec<Rotation3<f64>>> {
+        let n = self.origins.len();
+        let rotations = |x: &[f64]| -> Option<Vec<Rotation3<f64>>> {
+            let mut out = vec![Rotation3::identity(); n];
+            let mut at = 0;
+            for (k, &m) in axes.iter().enumerate().take(n) {
+                let mut w = Vector3::zeros();
+                for c in 0..m {
+                    w[c] = x[at + c];
+                }
+                at += m;
+                if w.norm() > bound {
+                    return None;
+                }
+                out[k] = Rotation3::new(w);
+            }
+            Some(out)
+        };
+        let robust = |e: f64| scale * (1.0 + (e / scale).powi(2)).ln().sqrt();
+        let prior = 1.0 / bound;
+        let residuals = |x: &[f64]| -> Option<Vec<f64>> {
+            let q = rotations(x)?;
+            let mut out = Vec::new();
+            for ((p, g, rays), on_ground) in data.iter().zip(ground) {
+                for ((f_i, f_j), &flat) in rays.iter().zip(on_ground) {
+                    let (a, b) = (q[p.i] * f_i, q[p.j] * f_j);
+                    if flat {
+                        for e in g.ground_errors_px(&a, &b)? {
+                            let norm = e.norm();
+                            let w = if norm > 1e-12 {
+                                robust(norm) / norm
+                            } else {
+                                1.0
+                            };
+                            out.extend((e * w).iter());
+                        }
+                    } else {
+                        let e = g.signed_error_px(&a, &b)?;
+                        out.push(e.signum() * robust(e.abs()));
+                    }
+                }
+            }
+            out.extend(x.iter().map(|v| v * prior));
+            Some(out)
+        };
+        let x0: Vec<f64> = axes
+            .iter()
+            .zip(start)
+            .flat_map(|(&m, q)| q.scaled_axis().iter().take(m).copied().collect::<Vec<_>>())
+            .collect();
+        let (x, _) = rigview_calib::lm::minimise(&x0, residuals, iterations);
+        rotations(&x)
     }
 }

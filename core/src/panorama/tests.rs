@@ -112,33 +112,39 @@ fn every_map_position_sees_its_canvas_pixel() {
     // cylinder's points with the full pose. Every pixel projected exactly
     // (grid 1): the interpolation of the default build is bounded against
     // these maps in `surround::grid`'s tests.
+    // With a floor too: the ground inside the radius.
     let rig = rig(160, 120, [0.0, 90.0, 180.0, -90.0]);
-    let pano =
-        Panorama::build_on_grid(&rig, &small_spec(), &PanoramaOptions::default(), 1).unwrap();
-    let (w, _) = pano.size();
-    let mut checked = 0;
-    for (k, layer) in pano.layers().iter().enumerate() {
-        let projector = rig.cameras[k].projector().unwrap();
-        let [c0, r0, rw, _] = layer.roi;
-        for (j, &[x, y]) in layer.map.iter().enumerate().step_by(7) {
-            if x < 0.0 {
-                continue;
+    for floor in [false, true] {
+        let spec = CylinderSpec {
+            floor,
+            ..small_spec()
+        };
+        let pano = Panorama::build_on_grid(&rig, &spec, &PanoramaOptions::default(), 1).unwrap();
+        let (w, _) = pano.size();
+        let mut checked = 0;
+        for (k, layer) in pano.layers().iter().enumerate() {
+            let projector = rig.cameras[k].projector().unwrap();
+            let [c0, r0, rw, _] = layer.roi;
+            for (j, &[x, y]) in layer.map.iter().enumerate().step_by(7) {
+                if x < 0.0 {
+                    continue;
+                }
+                let (col, row) = ((c0 + j % rw) as f64 + 0.5, (r0 + j / rw) as f64 + 0.5);
+                let px = Point2::new(f64::from(x), f64::from(y));
+                let (c, r) = pano.canvas_of_pixel(&projector, &px).unwrap();
+                // f32 positions: within a few thousandths of a pixel, the
+                // column modulo the width.
+                let dc = (c - col).rem_euclid(w as f64);
+                let dc = dc.min(w as f64 - dc);
+                assert!(
+                    dc < 0.01 && (r - row).abs() < 0.01,
+                    "{k}: {col},{row} -> {c},{r}"
+                );
+                checked += 1;
             }
-            let (col, row) = ((c0 + j % rw) as f64 + 0.5, (r0 + j / rw) as f64 + 0.5);
-            let px = Point2::new(f64::from(x), f64::from(y));
-            let (c, r) = pano.canvas_of_pixel(&projector, &px).unwrap();
-            // f32 positions: within a few thousandths of a pixel, the
-            // column modulo the width.
-            let dc = (c - col).rem_euclid(w as f64);
-            let dc = dc.min(w as f64 - dc);
-            assert!(
-                dc < 0.01 && (r - row).abs() < 0.01,
-                "{k}: {col},{row} -> {c},{r}"
-            );
-            checked += 1;
         }
+        assert!(checked > 1000, "{checked}");
     }
-    assert!(checked > 1000, "{checked}");
 }
 
 #[test]
@@ -216,4 +222,36 @@ fn cylinder_hits_are_on_the_cylinder_ahead_of_the_ray() {
         assert!((q - o).dot(&d) > 0.0);
     }
     assert!(cylinder_hit(&o, &Vector3::new(0.0, 0.0, -1.0), 10.0).is_none());
+}
+
+#[test]
+fn the_floor_is_the_ground_inside_the_radius_and_rays_find_it_again() {
+    let surface = |floor| Surface {
+        centre: Vector3::new(0.2, 0.0, 1.0),
+        radius: 10.0,
+        floor,
+    };
+    let (co, si) = (0.6f64, 0.8f64);
+    // 20° below the horizon: the ground 2.75 m out with a floor, the
+    // cylinder under the ground without.
+    let t = -20f64.to_radians().tan();
+    let p = surface(true).point(co, si, t);
+    assert!(p.z.abs() < 1e-12, "{p}");
+    assert!(((p - surface(true).centre).xy().norm() - 1.0 / 20f64.to_radians().tan()).abs() < 1e-9);
+    assert!(surface(false).point(co, si, t).z < -2.0);
+    // 3° below: the centre's ray meets the ground beyond the radius, so the
+    // wall shows it, above the ground.
+    let wall = surface(true).point(co, si, -3f64.to_radians().tan());
+    assert!(wall.z > 0.0 && ((wall - surface(true).centre).xy().norm() - 10.0).abs() < 1e-9);
+    // A ray from a camera through a point of the surface finds it again.
+    let camera = Vector3::new(2.3, 0.4, 0.9);
+    for q in [p, wall, surface(true).point(co, si, 0.2)] {
+        let hit = surface(true)
+            .hit(&camera, &(q - camera).normalize())
+            .unwrap();
+        assert!(
+            (hit + surface(true).centre - q).norm() < 1e-9,
+            "{q} -> {hit}"
+        );
+    }
 }
