@@ -158,6 +158,7 @@ impl PanoramaSettings {
             radius_m: self.radius_m,
             below_deg: self.below_deg,
             above_deg: self.above_deg,
+            floor: false,
         }
     }
 
