@@ -121,6 +121,13 @@ fn frames() -> Vec<Vec<u8>> {
         .collect()
 }
 
+/// [`frames`] as RGB8 views.
+fn rgb_views(data: &[Vec<u8>]) -> Vec<FrameView<'_>> {
+    data.iter()
+        .map(|d| FrameView::new(PixelFormat::Rgb8, W, H, d).unwrap())
+        .collect()
+}
+
 /// One camera's part of [`OpencvRemap`]: the fixed-point maps of its ROI,
 /// and its runs of ROI pixels (row, first column, length, blended with
 /// other cameras).
@@ -577,10 +584,7 @@ fn compose(c: &mut Criterion) {
     let spec = CanvasSpec::default();
     let view = SurroundView::build(&rig, &spec, &SurroundOptions::default()).unwrap();
     let data = frames();
-    let views: Vec<FrameView<'_>> = data
-        .iter()
-        .map(|d| FrameView::new(PixelFormat::Rgb8, W, H, d).unwrap())
-        .collect();
+    let views = rgb_views(&data);
     let mut composer = Composer::new();
     let mut canvas = Canvas::new(0, 0, 3);
     let mut reference = Reference::new(&rig, &spec, &view);
@@ -823,10 +827,7 @@ fn panorama(c: &mut Criterion) {
     };
     let pano = Panorama::build(&rig, &spec, &PanoramaOptions::default()).unwrap();
     let data = frames();
-    let views: Vec<FrameView<'_>> = data
-        .iter()
-        .map(|d| FrameView::new(PixelFormat::Rgb8, W, H, d).unwrap())
-        .collect();
+    let views = rgb_views(&data);
     let mut composer = Composer::new();
     let mut canvas = Canvas::new(0, 0, 3);
     composer

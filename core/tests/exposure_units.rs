@@ -324,6 +324,17 @@ fn scale_clip_holds_saturated_edges_and_invents_none_at_smooth_contours() {
     assert!(est.score(&Metered::from_luma(w, h, stepped, None).unwrap()) > 0.0);
 }
 
+/// Frame `id`, taken at `us` microseconds and 0 dB.
+fn at(id: u64, us: f64) -> FrameInfo {
+    FrameInfo {
+        frame_id: id,
+        taken: ExposureSetting {
+            shutter_us: us,
+            gain_db: 0.0,
+        },
+    }
+}
+
 fn metered_scene(exposure: f64) -> Metered {
     let scene = HdrScene::generate(640, 480, 3, &Illumination::Uniform(1.0)).unwrap();
     let frame = LinearCamera::default().render_mono8(scene.radiance(), exposure, 0);
@@ -871,13 +882,6 @@ fn the_controller_commands_every_frame_and_never_reacts_twice() {
     };
     let dark = metered_scene(2000.0);
     let mut cam = CameraController::new(&config, ExposureRange::default()).unwrap();
-    let at = |id: u64, us: f64| FrameInfo {
-        frame_id: id,
-        taken: ExposureSetting {
-            shutter_us: us,
-            gain_db: 0.0,
-        },
-    };
     let u = cam.unary(&config, &at(0, 2000.0), &dark).unwrap();
     assert_eq!(u.hold, None);
     let (cmd, _) = cam.command(u.desired, at(0, 2000.0).taken);
@@ -914,13 +918,6 @@ fn a_frame_still_at_the_old_setting_shows_no_command_that_leads_back_towards_it(
         ..Default::default()
     };
     let scene = metered_scene(2000.0);
-    let at = |id: u64, us: f64| FrameInfo {
-        frame_id: id,
-        taken: ExposureSetting {
-            shutter_us: us,
-            gain_db: 0.0,
-        },
-    };
     let mut cam = CameraController::new(&config, ExposureRange::default()).unwrap();
     cam.unary(&config, &at(0, 2000.0), &scene).unwrap();
     assert!(cam.command(1000.0, at(0, 2000.0).taken).0.is_some());
@@ -946,13 +943,6 @@ fn a_frame_that_shows_a_change_of_light_is_answered_before_the_last_command_show
         balancing: None,
         probe: None,
         ..Default::default()
-    };
-    let at = |id: u64, us: f64| FrameInfo {
-        frame_id: id,
-        taken: ExposureSetting {
-            shutter_us: us,
-            gain_db: 0.0,
-        },
     };
     let mut cam = CameraController::new(&config, ExposureRange::default()).unwrap();
     // A bright frame: the controller asks for less.
@@ -986,13 +976,6 @@ fn a_command_the_camera_quantises_counts_as_shown() {
         ..Default::default()
     };
     let dark = metered_scene(40.0);
-    let at = |id: u64, us: f64| FrameInfo {
-        frame_id: id,
-        taken: ExposureSetting {
-            shutter_us: us,
-            gain_db: 0.0,
-        },
-    };
     // Cameras apply exposure on their own grid: whole microseconds, or
     // sensor rows (here 14.6 µs); either can be well over 0.2 % off at short
     // exposures.

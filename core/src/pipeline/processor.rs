@@ -44,6 +44,21 @@ pub fn check_view(view: &Mosaic, cameras: &[CameraInfo]) -> Result<()> {
     Ok(())
 }
 
+/// The rig controller for `cameras`: their ranges, and the fixed exposure
+/// levels of those that have them.
+fn rig_controller(
+    settings: &ProcessingSettings,
+    cameras: &[CameraInfo],
+    graph: NeighbourGraph,
+) -> Result<RigController> {
+    let ranges: Vec<_> = cameras.iter().map(|c| c.range).collect();
+    let mut controller = RigController::new(settings.controller_config(), &ranges, graph)?;
+    for (k, cam) in cameras.iter().enumerate() {
+        controller.camera_mut(k)?.set_levels(cam.levels.clone());
+    }
+    Ok(controller)
+}
+
 /// Does the per-set work; the processing thread owns one. Usable on its own
 /// (tests, offline tools).
 #[derive(Debug)]
@@ -80,11 +95,7 @@ impl Processor {
         if let Some(v) = &view {
             check_view(v.mosaic(), &cameras)?;
         }
-        let ranges: Vec<_> = cameras.iter().map(|c| c.range).collect();
-        let mut controller = RigController::new(settings.controller_config(), &ranges, graph)?;
-        for (k, cam) in cameras.iter().enumerate() {
-            controller.camera_mut(k)?.set_levels(cam.levels.clone());
-        }
+        let controller = rig_controller(&settings, &cameras, graph)?;
         let display_estimators = cameras
             .iter()
             .map(|_| Estimator::new(settings.controller.estimator.clone()))
@@ -255,13 +266,11 @@ impl Processor {
         if let Some(v) = &view {
             check_view(v.mosaic(), &self.cameras)?;
         }
-        let ranges: Vec<_> = self.cameras.iter().map(|c| c.range).collect();
-        let mut controller = RigController::new(self.settings.controller_config(), &ranges, graph)?;
+        let mut controller = rig_controller(&self.settings, &self.cameras, graph)?;
         for i in 0..self.cameras.len() {
             let manual = self.controller.camera_mut(i)?.manual();
             let c = controller.camera_mut(i)?;
             c.set_manual(manual);
-            c.set_levels(self.cameras[i].levels.clone());
             if let Some(Some(t)) = self.last_taken.get(i) {
                 c.sync(*t);
             }
