@@ -18,8 +18,10 @@
 //!   epipolar planes and every camera to within a fifth of its error and
 //!   0.35° of the truth; from the true calibration it stays within 0.15°.
 //!   The corners of these tests are refined to a fraction of a pixel.
-//!   Issue 18's goal (every camera within 0.15°) is met in four rounds of
-//!   matching and refinement, each on the rig the last one refined.
+//! - The product's refinement in rounds (each matching on the rig the last
+//!   one refined, the rounds' inliers pooled), from nine such
+//!   perturbations: every camera within 0.15° of the truth on at least
+//!   eight, within 0.2° on all.
 //!
 //! Run with `--nocapture` for the counts of corners, matches and inliers.
 
@@ -279,26 +281,67 @@ fn refinement_brings_perturbed_cameras_back() {
     }
 }
 
-/// Issue 18's goal: every camera within 0.15° of the truth after the
-/// refinement, in rounds: each round matches again on the rig the last one
-/// refined, whose floor then lines the ground up better, and refines it.
-/// One round leaves the back camera 0.28° off (the left–back pair has few
-/// matches on the ground until its cameras are nearly right); four end
-/// within 0.06°.
+/// The product's refinement ([`refine_in_rounds`], 4 rounds on a cylinder
+/// with a floor, the inliers of the rounds pooled) from nine seeded
+/// perturbations of 1° to 2° per camera, on the view's default cylinder:
+/// every pair's inliers end within a pixel of their epipolar planes and
+/// closer than with the perturbed calibration; the goal (every camera
+/// within 0.15° of the truth, relative to camera 0) holds on at least eight
+/// of the nine, and no camera ends 0.2° off. (The estimate's own spread is
+/// about 0.1°: from the true calibration it moves cameras by 0.06° to
+/// 0.09°.)
 #[test]
-fn refinement_recovers_every_camera_within_the_goal() {
+fn refinement_in_rounds_recovers_the_cameras() {
+    use rigview_core::panorama::{refine_in_rounds, RoundsOptions};
     let r = render();
     let truth = r.rig().clone();
-    let mut rig = perturbed(&truth, 18);
-    for round in 1..=4 {
-        println!("round {round}:");
-        rig = refine_perturbed(&r, &rig);
-        for k in 1..4 {
-            println!("camera {k}: {:.3}° from the truth", off(&rig, &truth, k));
-        }
-    }
-    for k in 1..4 {
-        let left = off(&rig, &truth, k);
-        assert!(left < 0.15, "camera {k}: {left}°");
-    }
+    let buffers = stills(&r, &[4000.0; 4]);
+    let seeds = [1, 2, 3, 4, 5, 6, 7, 8, 18];
+    // Two seeds at a time.
+    let worst: Vec<(u64, f64)> = std::thread::scope(|s| {
+        let chunks: Vec<_> = seeds
+            .chunks(seeds.len().div_ceil(2))
+            .map(|chunk| {
+                let (r, truth, buffers) = (&r, &truth, &buffers);
+                s.spawn(move || {
+                    let frames: Vec<FrameView<'_>> = buffers
+                        .iter()
+                        .zip(r.cameras())
+                        .map(|(b, c)| {
+                            FrameView::new(PixelFormat::Mono8, c.width, c.height, b).unwrap()
+                        })
+                        .collect();
+                    chunk
+                        .iter()
+                        .map(|&seed| {
+                            let start = perturbed(truth, seed);
+                            let out = refine_in_rounds(
+                                &start,
+                                &CylinderSpec::default(),
+                                &PanoramaOptions::default(),
+                                &frames,
+                                &rigview_tests::harris_subpixel,
+                                &RoundsOptions::default(),
+                            )
+                            .unwrap();
+                            assert_eq!(out.rounds.len(), 4, "seed {seed}: {:?}", out.stopped);
+                            for &(i, j, before, after) in &out.errors {
+                                let (b, a) = (before.unwrap(), after.unwrap());
+                                println!("seed {seed}, pair {i}–{j}: {b:.2} -> {a:.2} px");
+                                assert!(a < 1.0 && a < b, "seed {seed}, {i}–{j}: {b} -> {a}");
+                            }
+                            let offs: Vec<f64> = (1..4).map(|k| off(&out.rig, truth, k)).collect();
+                            println!("seed {seed}: cameras 1–3 {offs:.3?}° from the truth");
+                            (seed, offs.iter().copied().fold(0.0, f64::max))
+                        })
+                        .collect::<Vec<_>>()
+                })
+            })
+            .collect();
+        chunks.into_iter().flat_map(|h| h.join().unwrap()).collect()
+    });
+    let within = worst.iter().filter(|(_, w)| *w < 0.15).count();
+    println!("within 0.15°: {within} of {}", worst.len());
+    assert!(within >= 8, "{worst:?}");
+    assert!(worst.iter().all(|(_, w)| *w < 0.2), "{worst:?}");
 }

@@ -39,14 +39,18 @@ pub struct PanoramaArgs {
     /// green, outliers red) to this PNG.
     #[arg(long)]
     pub matches_out: Option<PathBuf>,
-    /// Refine the cameras' rotations (all but the first) from the matches
-    /// and compose the panorama with them; each pair's median reprojection
-    /// error is reported before and after.
+    /// Refine the cameras' rotations from the matches (in rounds, on a
+    /// cylinder with a floor) and compose the panorama with them; each
+    /// pair's median reprojection error is reported before and after.
     #[arg(long)]
     pub refine: bool,
     /// The largest rotation the refinement may give a camera, degrees.
     #[arg(long, default_value_t = 3.0, requires = "refine")]
     pub refine_bound_deg: f64,
+    /// Rounds of matching and refinement, each on the rig the last one
+    /// refined (on a cylinder with a floor).
+    #[arg(long, default_value_t = 4, requires = "refine")]
+    pub rounds: usize,
     /// Save the refined rig to this file (any format `rigview calib
     /// convert` writes; the rig file for `.yaml`).
     #[arg(long, requires = "refine")]

@@ -120,6 +120,34 @@ impl Panorama {
     /// [`Panorama::match_pairs`] on this panorama): see the module
     /// documentation. A rig without any inliers is an error.
     pub fn refine(&self, pairs: &[PairMatches], options: &RefineOptions) -> Result<Refinement> {
+        self.refine_rays(&self.inlier_rays(pairs), options)
+    }
+
+    /// The inliers of `pairs` (matched on this panorama) as rays of its
+    /// rig, which [`Panorama::refine_rays`] refines from, and which can be
+    /// pooled with other frame sets' ([`InlierRays::extend`]).
+    pub fn inlier_rays(&self, pairs: &[PairMatches]) -> InlierRays {
+        let n = self.origins.len();
+        InlierRays {
+            pairs: pairs
+                .iter()
+                .filter(|p| p.i < n && p.j < n)
+                .map(|p| {
+                    let rays = p
+                        .matches
+                        .iter()
+                        .filter(|m| m.inlier)
+                        .map(|m| (self.ray(p.i, m.at_i), self.ray(p.j, m.at_j)))
+                        .collect();
+                    (p.i, p.j, rays)
+                })
+                .collect(),
+        }
+    }
+
+    /// [`Panorama::refine`] from rays (of this panorama's rig, or turned to
+    /// it with [`InlierRays::turned`]).
+    pub fn refine_rays(&self, rays: &InlierRays, options: &RefineOptions) -> Result<Refinement> {
         let n = self.origins.len();
         if options.fixed >= n {
             return Err(Error::CameraIndex {
@@ -149,19 +177,12 @@ impl Panorama {
             100.0,
             "0.1 to 100 canvas pixels",
         )?;
-        // Per pair: its geometry and its inliers' rays.
-        let data: Vec<(&PairMatches, PairGeometry, Vec<RayPair>)> = pairs
+        // Per pair: its cameras, its geometry and its inliers' rays.
+        let data: Vec<Pair<'_>> = rays
+            .pairs
             .iter()
-            .filter(|p| p.i < n && p.j < n)
-            .map(|p| {
-                let rays = p
-                    .matches
-                    .iter()
-                    .filter(|m| m.inlier)
-                    .map(|m| (self.ray(p.i, m.at_i), self.ray(p.j, m.at_j)))
-                    .collect();
-                (p, self.pair_geometry(p.i, p.j), rays)
-            })
+            .filter(|(i, j, _)| *i < n && *j < n)
+            .map(|(i, j, rays)| ((*i, *j), self.pair_geometry(*i, *j), rays.as_slice()))
             .collect();
         if data.iter().all(|(_, _, rays)| rays.is_empty()) {
             return Err(Error::InvalidConfig(
@@ -193,10 +214,10 @@ impl Panorama {
         // the cameras' positions known, the ground sees every rotation.
         let classify = |q: &[Rotation3<f64>], limit: f64| -> Vec<Vec<bool>> {
             data.iter()
-                .map(|(p, g, rays)| {
+                .map(|((i, j), g, rays)| {
                     rays.iter()
                         .map(|(f_i, f_j)| {
-                            g.ground_error_px(&(q[p.i] * f_i), &(q[p.j] * f_j))
+                            g.ground_error_px(&(q[*i] * f_i), &(q[*j] * f_j))
                                 .is_some_and(|e| e <= limit)
                         })
                         .collect()
@@ -227,7 +248,7 @@ impl Panorama {
             .iter()
             .zip(&ground)
             .filter(|((_, _, rays), _)| !rays.is_empty())
-            .map(|((p, g, rays), on_ground)| {
+            .map(|(((i, j), g, rays), on_ground)| {
                 let errors = |qi: &Rotation3<f64>, qj: &Rotation3<f64>| {
                     median(
                         rays.iter()
@@ -236,12 +257,12 @@ impl Panorama {
                     )
                 };
                 PairRefinement {
-                    i: p.i,
-                    j: p.j,
+                    i: *i,
+                    j: *j,
                     inliers: rays.len(),
                     on_ground: on_ground.iter().filter(|&&b| b).count(),
                     error_before_px: errors(&Rotation3::identity(), &Rotation3::identity()),
-                    error_after_px: errors(&q[p.i], &q[p.j]),
+                    error_after_px: errors(&q[*i], &q[*j]),
                 }
             })
             .collect();
@@ -249,6 +270,94 @@ impl Panorama {
             rotations: q,
             pairs,
         })
+    }
+}
+
+impl Panorama {
+    /// Per pair of `rays` with inliers: its cameras and the median
+    /// epipolar error of its inliers (canvas pixels) with each camera
+    /// turned by `rotations` (none for a camera beyond them).
+    pub fn ray_errors(
+        &self,
+        rays: &InlierRays,
+        rotations: &[Rotation3<f64>],
+    ) -> Vec<(usize, usize, Option<f64>)> {
+        let n = self.origins.len();
+        let q = |k: usize| {
+            rotations
+                .get(k)
+                .copied()
+                .unwrap_or_else(Rotation3::identity)
+        };
+        rays.pairs
+            .iter()
+            .filter(|(i, j, r)| *i < n && *j < n && !r.is_empty())
+            .map(|(i, j, r)| {
+                let g = self.pair_geometry(*i, *j);
+                let (qi, qj) = (q(*i), q(*j));
+                let errors = r
+                    .iter()
+                    .filter_map(|(a, b)| g.error_px(&(qi * a), &(qj * b)))
+                    .collect();
+                (*i, *j, median(errors))
+            })
+            .collect()
+    }
+}
+
+/// One pair in a refinement: its cameras, its geometry and its inliers'
+/// rays.
+type Pair<'a> = ((usize, usize), PairGeometry, &'a [RayPair]);
+
+/// The inliers of a panorama's pairs as rays (vehicle frame) of a rig,
+/// from one frame set or pooled from several: see
+/// [`Panorama::inlier_rays`].
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct InlierRays {
+    /// Per pair, cameras `i` and `j` and each inlier's two rays.
+    pairs: Vec<(usize, usize, Vec<RayPair>)>,
+}
+
+impl InlierRays {
+    /// The same inliers seen by the rig turned by `rotations` (per camera,
+    /// about its centre: what [`Refinement::apply`] does).
+    pub fn turned(&self, rotations: &[Rotation3<f64>]) -> Self {
+        let q = |k: usize| {
+            rotations
+                .get(k)
+                .copied()
+                .unwrap_or_else(Rotation3::identity)
+        };
+        Self {
+            pairs: self
+                .pairs
+                .iter()
+                .map(|(i, j, rays)| {
+                    let (qi, qj) = (q(*i), q(*j));
+                    (*i, *j, rays.iter().map(|(a, b)| (qi * a, qj * b)).collect())
+                })
+                .collect(),
+        }
+    }
+
+    /// Adds `other`'s inliers (of the same rig) to these.
+    pub fn extend(&mut self, other: Self) {
+        for (i, j, rays) in other.pairs {
+            match self.pairs.iter_mut().find(|(a, b, _)| (*a, *b) == (i, j)) {
+                Some((_, _, held)) => held.extend(rays),
+                None => self.pairs.push((i, j, rays)),
+            }
+        }
+    }
+
+    /// How many inliers there are, over every pair.
+    pub fn len(&self) -> usize {
+        self.pairs.iter().map(|(_, _, rays)| rays.len()).sum()
+    }
+
+    /// Whether there are none.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
     }
 }
 
@@ -269,7 +378,7 @@ impl Panorama {
     /// the start is not defined.
     fn solve(
         &self,
-        data: &[(&PairMatches, PairGeometry, Vec<RayPair>)],
+        data: &[Pair<'_>],
         ground: &[Vec<bool>],
         axes: &[usize],
         (bound, scale, iterations): (f64, f64, usize),
@@ -297,9 +406,9 @@ impl Panorama {
         let residuals = |x: &[f64]| -> Option<Vec<f64>> {
             let q = rotations(x)?;
             let mut out = Vec::new();
-            for ((p, g, rays), on_ground) in data.iter().zip(ground) {
+            for (((i, j), g, rays), on_ground) in data.iter().zip(ground) {
                 for ((f_i, f_j), &flat) in rays.iter().zip(on_ground) {
-                    let (a, b) = (q[p.i] * f_i, q[p.j] * f_j);
+                    let (a, b) = (q[*i] * f_i, q[*j] * f_j);
                     if flat {
                         for e in g.ground_errors_px(&a, &b)? {
                             let norm = e.norm();

@@ -128,6 +128,9 @@ pub struct PanoramaSettings {
     pub refine_every: u64,
     /// The largest rotation a refinement may give a camera, degrees.
     pub refine_bound_deg: f64,
+    /// Rounds of matching and refinement per refinement
+    /// ([`crate::panorama::refine_in_rounds`]).
+    pub refine_rounds: usize,
 }
 
 impl Default for PanoramaSettings {
@@ -145,6 +148,7 @@ impl Default for PanoramaSettings {
             match_every: 10,
             refine_every: 0,
             refine_bound_deg: 3.0,
+            refine_rounds: 4,
         }
     }
 }
@@ -179,6 +183,13 @@ impl PanoramaSettings {
             20.0,
             "0.01° to 20°",
         )?;
+        if !(1..=20).contains(&self.refine_rounds) {
+            return Err(crate::error::Error::InvalidParameter {
+                name: "panorama.refine_rounds",
+                value: self.refine_rounds as f64,
+                expected: "1 to 20 rounds",
+            });
+        }
         Ok(())
     }
 }

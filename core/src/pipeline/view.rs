@@ -20,9 +20,11 @@
 //! saturated when matched stays so), so that the balancing never acts on
 //! ratios of exposures that have since changed.
 //!
-//! Refinement ([`Panorama::refine`]) runs on the same worker, when asked
+//! Refinement ([`crate::panorama::refine_in_rounds`]: matching and
+//! refining in [`PanoramaSettings::refine_rounds`] rounds on a cylinder
+//! with a floor) runs on the same worker, when asked
 //! ([`super::Control::Refine`]) or every
-//! [`PanoramaSettings::refine_every`] sets, from the latest matches; the
+//! [`PanoramaSettings::refine_every`] sets, from the set at hand; the
 //! worker also builds the refined panorama, which the processor takes in
 //! at the start of a later set. Neither ever waits on the per-set path.
 
@@ -39,8 +41,8 @@ use crate::exposure::metering::SATURATED_LEVEL;
 use crate::exposure::{FrameView, PatchPair};
 use crate::image::RoiMask;
 use crate::panorama::{
-    Detector, FeatureMatch, MatchOptions, PairMatches, Panorama, PanoramaOptions, RefineOptions,
-    Refinement,
+    refine_in_rounds, Detector, FeatureMatch, MatchOptions, PairMatches, Panorama, PanoramaOptions,
+    RefineOptions, RoundsOptions,
 };
 use crate::source::FrameSet;
 use crate::surround::{Mosaic, SurroundView};
@@ -219,10 +221,9 @@ enum Job {
     },
     Refine {
         generation: u64,
-        panorama: Arc<Panorama>,
         rig: Arc<Rig>,
-        matches: Arc<Vec<PairMatches>>,
-        options: RefineOptions,
+        set: FrameSet,
+        options: RoundsOptions,
     },
 }
 
@@ -237,7 +238,8 @@ enum Done {
     },
     Refined {
         generation: u64,
-        refinement: Refinement,
+        /// Per pair: cameras, and the median error before and after.
+        errors: Vec<(usize, usize, Option<f64>, Option<f64>)>,
         rig: Rig,
         panorama: Box<Panorama>,
         ms: f64,
@@ -348,21 +350,26 @@ fn work(
         }
         Job::Refine {
             generation,
-            panorama,
             rig,
-            matches,
-            options: refine_options,
+            set,
+            options: rounds,
         } => {
             let t = Instant::now();
-            let refined = panorama
-                .refine(&matches, &refine_options)
-                .and_then(|r| Ok((r.apply(&rig)?, r)))
-                .and_then(|(rig, r)| Ok((Panorama::build(&rig, spec, options)?, rig, r)));
+            let refined = set
+                .frames
+                .iter()
+                .flatten()
+                .map(|f| f.view())
+                .collect::<Result<Vec<FrameView<'_>>>>()
+                .and_then(|frames| {
+                    refine_in_rounds(&rig, spec, options, &frames, detector, &rounds)
+                })
+                .and_then(|r| Ok((Panorama::build(&r.rig, spec, options)?, r)));
             match refined {
-                Ok((panorama, rig, refinement)) => Done::Refined {
+                Ok((panorama, r)) => Done::Refined {
                     generation,
-                    refinement,
-                    rig,
+                    errors: r.errors,
+                    rig: r.rig,
                     panorama: Box::new(panorama),
                     ms: t.elapsed().as_secs_f64() * 1e3,
                 },
@@ -381,9 +388,6 @@ struct Held {
     matches: Arc<Vec<PairMatches>>,
     /// Per camera, the exposure of the matched frame.
     taken: Vec<f64>,
-    /// The panorama generation they were matched on: a refinement starts
-    /// from matches of the panorama in use only.
-    generation: u64,
 }
 
 /// The panorama in the pipeline: the view, its rig, and the matching and
@@ -519,12 +523,11 @@ impl LivePanorama {
                     self.held = Some(Held {
                         matches: Arc::new(matches),
                         taken,
-                        generation,
                     });
                 }
                 Done::Refined {
                     generation,
-                    refinement,
+                    errors,
                     rig,
                     panorama,
                     ms,
@@ -542,9 +545,9 @@ impl LivePanorama {
                     report.rig = Some(self.rig.clone());
                     report.problem = None;
                     for p in &mut report.pairs {
-                        let r = refinement.pairs.iter().find(|r| (r.i, r.j) == (p.i, p.j));
-                        p.refined_before_px = r.and_then(|r| r.error_before_px);
-                        p.refined_after_px = r.and_then(|r| r.error_after_px);
+                        let r = errors.iter().find(|r| (r.0, r.1) == (p.i, p.j));
+                        p.refined_before_px = r.and_then(|r| r.2);
+                        p.refined_after_px = r.and_then(|r| r.3);
                     }
                     rebuilt = true;
                 }
@@ -605,16 +608,19 @@ impl LivePanorama {
             return;
         };
         let job = match &self.held {
-            Some(held) if self.refine_wanted && held.generation == self.generation => {
+            _ if self.refine_wanted => {
                 self.refine_wanted = false;
                 Job::Refine {
                     generation: self.generation,
-                    panorama: self.panorama.clone(),
                     rig: self.rig.clone(),
-                    matches: held.matches.clone(),
-                    options: RefineOptions {
-                        bound_deg: self.settings.refine_bound_deg,
-                        ..RefineOptions::default()
+                    set: set.clone(),
+                    options: RoundsOptions {
+                        rounds: self.settings.refine_rounds,
+                        refine: RefineOptions {
+                            bound_deg: self.settings.refine_bound_deg,
+                            ..RefineOptions::default()
+                        },
+                        matching: self.match_options.clone(),
                     },
                 }
             }
