@@ -35,7 +35,10 @@
 //!   (parallax). Pixels either camera
 //!   clips are left out (Eq. 5's rule), so clipped areas do not pull the
 //!   gains, and the gains only brighten, so what a camera clipped stays
-//!   white. The gains move `smoothing` of the way to the
+//!   white; in the panorama, whose cameras see sky and shade side by side,
+//!   a gain may not push a camera's 90th percentile past 0.95 either, so
+//!   that evening out a seam does not wash out the brighter camera. The
+//!   gains move `smoothing` of the way to the
 //!   solution each set, and hold on a set with a probe frame (it sees
 //!   patches that its camera's normal frames saturate).
 //!
@@ -122,7 +125,20 @@ pub struct DisplayInput {
     pub mean: f64,
     /// Whether it was taken at a probe's darker exposure.
     pub probe_frame: bool,
+    /// The [`BRIGHT_QUANTILE`]-quantile of its metered intensities in
+    /// [0, 1] (the pixels the view shows, about): a seam gain brightens
+    /// this no further than [`CLIP_LEVEL`]. 0: no such limit (the
+    /// surround view).
+    pub bright: f64,
 }
+
+/// The quantile of a camera's metered intensities that a seam gain may not
+/// push past [`CLIP_LEVEL`]: at most a tenth of its pixels are clipped by
+/// the gain.
+pub const BRIGHT_QUANTILE: f32 = 0.9;
+
+/// The brightest a seam gain may make a camera's [`BRIGHT_QUANTILE`].
+pub const CLIP_LEVEL: f64 = 0.95;
 
 /// One camera's display gain, in two parts.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -217,6 +233,15 @@ impl DisplayGains {
                     .iter_mut()
                     .for_each(|c| *c = (*c - lowest).min(MAX_SEAM_EV));
             }
+            // Nor may a gain wash a camera out: one whose bright pixels
+            // would clip keeps what it shows (a camera of the panorama
+            // seeing the sky, its neighbour a dark wall).
+            for ((c, f), a) in target.iter_mut().zip(frames).zip(&ease) {
+                if f.bright > 0.0 {
+                    let room = (CLIP_LEVEL / f.bright).log2() - a;
+                    *c = c.min(room.max(0.0));
+                }
+            }
             for (c, t) in self.seam.iter_mut().zip(target) {
                 *c += settings.smoothing * (t - *c);
             }
@@ -276,6 +301,7 @@ mod tests {
             taken,
             mean,
             probe_frame,
+            bright: 0.0,
         }
     }
 
@@ -366,5 +392,38 @@ mod tests {
             ..s
         };
         assert!(d.update(&off, &frames, &r).iter().all(|g| g.total() == 1.0));
+    }
+
+    #[test]
+    fn a_seam_gain_does_not_wash_out_a_bright_camera() {
+        let s = DisplaySettings {
+            smoothing: 1.0,
+            prior: 1e-4,
+            ..Default::default()
+        };
+        // Camera 1 is shown 1 EV darker than camera 0 at their seam; its
+        // 90th percentile is at 0.8, camera 0's at 0.3.
+        let frames = [
+            DisplayInput {
+                bright: 0.3,
+                ..frame(1000.0, 0.2, false)
+            },
+            DisplayInput {
+                bright: 0.8,
+                ..frame(1000.0, 0.5, false)
+            },
+        ];
+        let r = [(0, 1, Some(-1.0))];
+        let mut d = DisplayGains::default();
+        let g = d.update(&s, &frames, &r);
+        let ev = |k: usize| f64::from(g[k].seam).log2();
+        // Uncapped it would be brightened by 1 EV; its 90th percentile may
+        // reach 0.95 only.
+        assert!((ev(1) - (0.95f64 / 0.8).log2()).abs() < 1e-6, "{g:?}");
+        assert!(ev(0).abs() < 1e-6, "{g:?}");
+        // Without a percentile (the surround view), the full gain.
+        let plain = [frame(1000.0, 0.2, false), frame(1000.0, 0.5, false)];
+        let g = DisplayGains::default().update(&s, &plain, &r);
+        assert!((f64::from(g[1].seam).log2() - 1.0).abs() < 0.01, "{g:?}");
     }
 }

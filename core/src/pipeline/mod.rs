@@ -49,7 +49,9 @@ mod telemetry;
 mod threads;
 mod view;
 
-pub use display::{DisplayGain, DisplayGains, DisplayInput, DisplaySettings};
+pub use display::{
+    DisplayGain, DisplayGains, DisplayInput, DisplaySettings, BRIGHT_QUANTILE, CLIP_LEVEL,
+};
 pub use lockstep::{LockStep, LoopStep};
 pub use output::{CameraOutput, Output, Overlay, PairOutput, PatchBox};
 pub use processor::{check_view, Processor};

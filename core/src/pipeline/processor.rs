@@ -7,9 +7,10 @@ use std::time::{Duration, Instant};
 
 use super::{
     CameraOutput, DisplayGains, DisplayInput, Output, Overlay, PairOutput, ProcessingSettings,
-    StageTimes, Strategy, View,
+    StageTimes, Strategy, View, BRIGHT_QUANTILE,
 };
 use crate::error::{Error, Result};
+use crate::exposure::metering::histogram_quantile;
 use crate::exposure::{
     CameraMasks, Estimate, Estimator, ExposureSetting, FrameView, Meter, Metered, NeighbourGraph,
     PixelFormat, ProbeEvent, RigController,
@@ -402,6 +403,11 @@ impl Processor {
                 } else {
                     1
                 };
+                // The panorama's cameras see sky and shade side by side: a
+                // seam gain may not wash out a camera's bright part there
+                // (the surround view shows the ground, which the gains
+                // rarely clip).
+                let capped = matches!(view, View::Panorama(_));
                 let view = view.mosaic();
                 let (w, h) = view.size();
                 let mut canvas = Canvas::new(w, h, channels);
@@ -411,6 +417,11 @@ impl Processor {
                         taken: c.taken.exposure(),
                         mean: f64::from(c.mean),
                         probe_frame: c.probe_frame,
+                        bright: if capped {
+                            f64::from(histogram_quantile(&c.histogram, BRIGHT_QUANTILE))
+                        } else {
+                            0.0
+                        },
                     })
                     .collect();
                 // The seam gains even out the ratios the view shows at its

@@ -123,6 +123,10 @@ pub struct PanoramaSettings {
     /// Features are matched on every `match_every`-th set (on a worker
     /// thread; the ratios of the last matching are held in between).
     pub match_every: u64,
+    /// A pair's ratio is held for up to `hold_sets` sets after the last
+    /// matching that gave it patches (one with too few inliers does not
+    /// take it away before).
+    pub hold_sets: u64,
     /// The rotations are refined in the background every `refine_every`
     /// sets (0: only when asked).
     pub refine_every: u64,
@@ -146,6 +150,7 @@ impl Default for PanoramaSettings {
             below_deg: 25.0,
             above_deg: 20.0,
             match_every: 10,
+            hold_sets: 100,
             refine_every: 0,
             refine_bound_deg: 3.0,
             refine_rounds: 4,
@@ -174,6 +179,13 @@ impl PanoramaSettings {
                 name: "panorama.match_every",
                 value: self.match_every as f64,
                 expected: "1 to 10000 sets",
+            });
+        }
+        if self.hold_sets > 100_000 {
+            return Err(crate::error::Error::InvalidParameter {
+                name: "panorama.hold_sets",
+                value: self.hold_sets as f64,
+                expected: "0 to 100000 sets",
             });
         }
         check_range(

@@ -13,7 +13,11 @@
 //! Matching the four overlaps takes longer than a set period at 20 Hz, so
 //! a [`LivePanorama`] matches on a worker thread of its own, on every
 //! [`PanoramaSettings::match_every`]-th set while the worker is free, and
-//! holds the last matches in between. Their patches were measured at the
+//! holds each pair's last matching that gave patches in between, for up to
+//! [`PanoramaSettings::hold_sets`] sets: a matching with too few inliers
+//! does not take a pair's ratio away at once, so that a pair on the edge
+//! of the inlier count does not switch its cameras between balanced and
+//! alone every few matchings (a flicker of the view). Their patches were measured at the
 //! exposures of the matched set; each set sees them at its own exposures,
 //! scaled by `E_now / E_matched` per camera as a linear sensor's brightness
 //! scales (a patch scaled into saturation counts as saturated, one
@@ -382,12 +386,58 @@ fn work(
     }
 }
 
-/// The latest matches and what they give each set.
-#[derive(Debug)]
+/// The latest matches and what they give each set: per pair, its latest
+/// matching that gave patches, held for up to
+/// [`PanoramaSettings::hold_sets`] sets.
+#[derive(Debug, Default)]
 struct Held {
-    matches: Arc<Vec<PairMatches>>,
-    /// Per camera, the exposure of the matched frame.
-    taken: Vec<f64>,
+    pairs: Vec<HeldPair>,
+}
+
+/// One pair's held matching.
+#[derive(Debug)]
+struct HeldPair {
+    pair: PairMatches,
+    /// The exposures of cameras `i` and `j` in the matched frames.
+    taken: (f64, f64),
+    /// The set count ([`LivePanorama::sets`]) when it was matched.
+    at: u64,
+}
+
+impl Held {
+    /// Takes a matching in: a pair that gave patches replaces what was held
+    /// for it; a pair that gave none (too few inliers) keeps its held
+    /// matching, which then ages out. A pair whose ratio comes and goes
+    /// with an inlier or two would otherwise switch its cameras between
+    /// balanced and alone every few matchings: a flicker of the view.
+    fn take(&mut self, matches: Vec<PairMatches>, taken: &[f64], at: u64) {
+        let exposure = |k: usize| taken.get(k).copied().unwrap_or(0.0);
+        for pair in matches {
+            if pair.problem.is_some() || pair.patches.is_empty() {
+                continue;
+            }
+            let held = HeldPair {
+                taken: (exposure(pair.i), exposure(pair.j)),
+                at,
+                pair,
+            };
+            match self
+                .pairs
+                .iter_mut()
+                .find(|h| (h.pair.i, h.pair.j) == (held.pair.i, held.pair.j))
+            {
+                Some(h) => *h = held,
+                None => self.pairs.push(held),
+            }
+        }
+    }
+
+    /// The pairs held at set count `now`: matched within `hold` sets.
+    fn current(&self, now: u64, hold: u64) -> impl Iterator<Item = &HeldPair> {
+        self.pairs
+            .iter()
+            .filter(move |h| now.saturating_sub(h.at) <= hold)
+    }
 }
 
 /// The panorama in the pipeline: the view, its rig, and the matching and
@@ -406,6 +456,8 @@ pub struct LivePanorama {
     /// Bumped by every refinement: older matches are not refined from.
     generation: u64,
     held: Option<Held>,
+    /// Sets scheduled so far.
+    sets: u64,
     sets_since_match: u64,
     sets_since_refine: u64,
     refine_wanted: bool,
@@ -448,6 +500,7 @@ impl LivePanorama {
             busy: false,
             generation: 0,
             held: None,
+            sets: 0,
             sets_since_match: 0,
             sets_since_refine: 0,
             refine_wanted: false,
@@ -520,10 +573,9 @@ impl LivePanorama {
                     {
                         report.problem = None;
                     }
-                    self.held = Some(Held {
-                        matches: Arc::new(matches),
-                        taken,
-                    });
+                    self.held
+                        .get_or_insert_with(Held::default)
+                        .take(matches, &taken, self.sets);
                 }
                 Done::Refined {
                     generation,
@@ -582,6 +634,7 @@ impl LivePanorama {
     /// matching of `set` when one is due. Never waits; a worker that
     /// cannot start or stopped is a problem in the report.
     pub fn schedule(&mut self, set: &FrameSet) {
+        self.sets += 1;
         self.sets_since_match += 1;
         self.sets_since_refine += 1;
         if self.settings.refine_every > 0 && self.sets_since_refine >= self.settings.refine_every {
@@ -652,17 +705,16 @@ impl LivePanorama {
         let Some(held) = &self.held else {
             return Vec::new();
         };
-        let scale = |k: usize| -> f32 {
-            match (taken.get(k), held.taken.get(k)) {
-                (Some(&now), Some(&then)) if now > 0.0 && then > 0.0 => (now / then) as f32,
+        let scale = |k: usize, then: f64| -> f32 {
+            match taken.get(k) {
+                Some(&now) if now > 0.0 && then > 0.0 => (now / then) as f32,
                 _ => 1.0,
             }
         };
-        held.matches
-            .iter()
-            .filter(|p| p.problem.is_none())
-            .map(|p| {
-                let (si, sj) = (scale(p.i), scale(p.j));
+        held.current(self.sets, self.settings.hold_sets)
+            .map(|h| {
+                let p = &h.pair;
+                let (si, sj) = (scale(p.i, h.taken.0), scale(p.j, h.taken.1));
                 PairObservation {
                     i: p.i,
                     j: p.j,
@@ -743,6 +795,50 @@ fn pair_reports(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn pair(i: usize, j: usize, patches: usize) -> PairMatches {
+        let patch = PatchPair {
+            mean_i: 0.2,
+            saturated_i: 0.0,
+            mean_j: 0.4,
+            saturated_j: 0.0,
+        };
+        PairMatches {
+            i,
+            j,
+            corners: (40, 40),
+            matches: Vec::new(),
+            inliers: patches,
+            rotation: None,
+            error_before_px: None,
+            error_after_px: None,
+            patches: vec![patch; patches],
+            problem: (patches < 6).then(|| "fewer than the 6 needed".to_string()),
+        }
+    }
+
+    #[test]
+    fn a_pairs_ratio_is_held_through_matchings_without_it_until_it_ages_out() {
+        let mut held = Held::default();
+        held.take(vec![pair(0, 1, 8), pair(1, 2, 3)], &[1.0, 2.0, 4.0], 10);
+        let at = |held: &Held, now: u64| -> Vec<(usize, usize, u64)> {
+            held.current(now, 100)
+                .map(|h| (h.pair.i, h.pair.j, h.at))
+                .collect()
+        };
+        // The pair with too few inliers gives nothing to hold.
+        assert_eq!(at(&held, 10), vec![(0, 1, 10)]);
+        assert_eq!(held.pairs[0].taken, (1.0, 2.0));
+        // A later matching without patches for 0–1 keeps the one held; one
+        // with them replaces it.
+        held.take(vec![pair(0, 1, 2), pair(1, 2, 7)], &[1.0, 2.0, 4.0], 50);
+        assert_eq!(at(&held, 50), vec![(0, 1, 10), (1, 2, 50)]);
+        assert_eq!(at(&held, 110), vec![(0, 1, 10), (1, 2, 50)]);
+        assert_eq!(at(&held, 111), vec![(1, 2, 50)]);
+        held.take(vec![pair(0, 1, 9)], &[3.0, 5.0, 4.0], 120);
+        assert_eq!(at(&held, 151), vec![(0, 1, 120)]);
+        assert_eq!(held.pairs[0].taken, (3.0, 5.0));
+    }
 
     #[test]
     fn held_patches_follow_the_exposures_and_saturate() {
