@@ -780,20 +780,129 @@ pub(super) fn central(app: &mut RigviewApp, ui: &mut Ui) {
             ui.text_style_height(&egui::TextStyle::Body) + ui.spacing().item_spacing.y;
         let avail = ui.available_size() - Vec2::new(0.0, caption_h);
         let [w, h] = t.size();
-        let scale = (avail.x / w as f32).min(avail.y / h as f32).max(0.05);
-        let size = Vec2::new(w as f32 * scale, h as f32 * scale);
+        let gap = ui.spacing().item_spacing.y;
+        let layout = Layout::fit(avail, [w as f32, h as f32], panorama, gap);
         let id = t.id();
         ui.vertical_centered(|ui| {
             ui.add(egui::Label::new(caption.unwrap_or_default()).truncate());
-            let (rect, _) = ui.allocate_exact_size(size, Sense::hover());
-            egui::Image::new(egui::load::SizedTexture::new(id, size)).paint_at(ui, rect);
+            let (area, _) = ui.allocate_exact_size(layout.size, Sense::hover());
+            for piece in &layout.pieces {
+                let rect = layout.rect(area, piece);
+                let uv = Rect::from_min_max(
+                    egui::pos2(piece.x0 / w as f32, 0.0),
+                    egui::pos2(piece.x1 / w as f32, 1.0),
+                );
+                egui::Image::new(egui::load::SizedTexture::new(id, rect.size()))
+                    .uv(uv)
+                    .paint_at(ui, rect);
+            }
             if panorama && app.settings.window.show_matches {
                 if let Some(out) = &app.latest {
-                    draw_matches(ui, rect, scale, out);
+                    draw_matches(ui, area, &layout, out);
                 }
             }
         });
     });
+}
+
+/// One run of canvas columns `x0..x1` shown at `at` (relative to the
+/// view's area, screen points).
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Piece {
+    x0: f32,
+    x1: f32,
+    at: Vec2,
+}
+
+/// How the view fills its panel: the canvas whole, or a panorama in two
+/// rows when that shows it larger (a 360° strip in a panel of ordinary
+/// shape leaves most of it empty): above, the front half (from the left
+/// camera's heading through the front to the right's); below, the back
+/// half (from the right's through the back to the left's). The rows meet
+/// at the side cameras' headings, away from every overlap.
+#[derive(Clone, Debug, PartialEq)]
+struct Layout {
+    /// Screen points per canvas pixel.
+    scale: f32,
+    /// The area the pieces take.
+    size: Vec2,
+    /// The height of a piece, points.
+    row_h: f32,
+    pieces: Vec<Piece>,
+}
+
+impl Layout {
+    /// The layout of a `w`×`h` canvas in `avail` (two rows only for a
+    /// panorama, `gap` points apart).
+    fn fit(avail: Vec2, [w, h]: [f32; 2], panorama: bool, gap: f32) -> Self {
+        let one = (avail.x / w).min(avail.y / h).max(0.05);
+        let two = (avail.x / (w / 2.0))
+            .min((avail.y - gap) / (2.0 * h))
+            .max(0.05);
+        if !panorama || two <= one * 1.1 {
+            return Self {
+                scale: one,
+                size: Vec2::new(w * one, h * one),
+                row_h: h * one,
+                pieces: vec![Piece {
+                    x0: 0.0,
+                    x1: w,
+                    at: Vec2::ZERO,
+                }],
+            };
+        }
+        let (q, row) = (w / 4.0, h * two + gap);
+        Self {
+            scale: two,
+            size: Vec2::new(w / 2.0 * two, 2.0 * h * two + gap),
+            row_h: h * two,
+            pieces: vec![
+                Piece {
+                    x0: q,
+                    x1: 3.0 * q,
+                    at: Vec2::ZERO,
+                },
+                Piece {
+                    x0: 3.0 * q,
+                    x1: w,
+                    at: Vec2::new(0.0, row),
+                },
+                Piece {
+                    x0: 0.0,
+                    x1: q,
+                    at: Vec2::new(q * two, row),
+                },
+            ],
+        }
+    }
+
+    /// The screen rectangle of `piece` in `area`.
+    fn rect(&self, area: Rect, piece: &Piece) -> Rect {
+        Rect::from_min_size(
+            area.min + piece.at,
+            Vec2::new((piece.x1 - piece.x0) * self.scale, self.row_h),
+        )
+    }
+
+    /// The piece showing canvas column `x`, if any.
+    fn piece(&self, x: f32) -> Option<usize> {
+        self.pieces.iter().position(|p| (p.x0..p.x1).contains(&x))
+    }
+
+    /// Where canvas position `p` is shown in `area`, and in which piece.
+    fn to_screen(&self, area: Rect, p: [f64; 2]) -> Option<(usize, egui::Pos2)> {
+        let k = self.piece(p[0] as f32)?;
+        let piece = &self.pieces[k];
+        Some((
+            k,
+            area.min
+                + piece.at
+                + Vec2::new(
+                    (p[0] as f32 - piece.x0) * self.scale,
+                    p[1] as f32 * self.scale,
+                ),
+        ))
+    }
 }
 
 /// The panorama's line above it: the overlay switch, Refine and Save rig,
@@ -816,8 +925,9 @@ fn panorama_bar(app: &mut RigviewApp, ui: &mut Ui) {
         if ui
             .add_enabled(report.is_some() && !refining, egui::Button::new("Refine"))
             .on_hover_text(
-                "refine every camera's rotation but the first from the latest matches, \
-                 in the background (at most 3° each); the panorama is rebuilt with them",
+                "refine the cameras' rotations from the current frame set, in rounds of \
+                 matching on a cylinder with a floor, in the background (at most 3° each); \
+                 the panorama is rebuilt with them",
             )
             .clicked()
         {
@@ -865,38 +975,43 @@ fn panorama_bar(app: &mut RigviewApp, ui: &mut Ui) {
 
 /// Each overlap's band outlined (its seam lies inside, where the cameras
 /// hand over) and its matches: a line from camera i's corner to camera
-/// j's, green for inliers and red for outliers.
-fn draw_matches(ui: &Ui, rect: Rect, scale: f32, out: &rigview_core::pipeline::Output) {
+/// j's, green for inliers and red for outliers (a band or match across two
+/// pieces of the layout is not drawn).
+fn draw_matches(ui: &Ui, area: Rect, layout: &Layout, out: &rigview_core::pipeline::Output) {
     let Some(report) = &out.panorama else {
         return;
     };
-    let painter = ui.painter_at(rect);
-    let at = |p: [f64; 2]| rect.min + Vec2::new(p[0] as f32 * scale, p[1] as f32 * scale);
+    let painter = ui.painter_at(area);
+    let both =
+        |a: [f64; 2], b: [f64; 2]| match (layout.to_screen(area, a), layout.to_screen(area, b)) {
+            (Some((k, a)), Some((l, b))) if k == l => Some((a, b)),
+            _ => None,
+        };
     for p in &report.pairs {
         if let Some([x, y, w, h]) = p.band {
-            let band = Rect::from_min_size(
-                at([x as f64, y as f64]),
-                Vec2::new(w as f32 * scale, h as f32 * scale),
-            );
-            painter.rect_stroke(
-                band,
-                0.0,
-                Stroke::new(1.0, Color32::from_rgb(250, 210, 60)),
-                StrokeKind::Inside,
-            );
+            let (x0, y0) = (x as f64, y as f64);
+            // The band's last column, inside it.
+            let far = [x0 + w as f64 - 0.5, y0 + h as f64];
+            if let Some((a, b)) = both([x0, y0], far) {
+                painter.rect_stroke(
+                    Rect::from_min_max(a, b),
+                    0.0,
+                    Stroke::new(1.0, Color32::from_rgb(250, 210, 60)),
+                    StrokeKind::Inside,
+                );
+            }
         }
         for m in &p.lines {
-            // A match across the canvas's ends is not drawn.
-            if (m.at_i[0] - m.at_j[0]).abs() * f64::from(scale) > f64::from(rect.width()) / 2.0 {
+            let Some((a, b)) = both(m.at_i, m.at_j) else {
                 continue;
-            }
+            };
             let colour = if m.inlier {
                 Color32::from_rgb(60, 230, 60)
             } else {
                 Color32::from_rgb(240, 60, 50)
             };
-            painter.line_segment([at(m.at_i), at(m.at_j)], Stroke::new(1.0, colour));
-            painter.circle_filled(at(m.at_i), 1.5, colour);
+            painter.line_segment([a, b], Stroke::new(1.0, colour));
+            painter.circle_filled(a, 1.5, colour);
         }
     }
 }
@@ -904,6 +1019,39 @@ fn draw_matches(ui: &Ui, rect: Rect, scale: f32, out: &rigview_core::pipeline::O
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_panorama_strip_takes_two_rows_where_they_show_it_larger() {
+        // A 2048×270 strip in a panel of 760×560 points: one row would be
+        // 0.37 points a pixel, two rows 0.74.
+        let l = Layout::fit(Vec2::new(760.0, 560.0), [2048.0, 270.0], true, 4.0);
+        assert_eq!(l.pieces.len(), 3);
+        assert!((l.scale - 760.0 / 1024.0).abs() < 1e-4, "{l:?}");
+        let area = Rect::from_min_size(egui::pos2(10.0, 20.0), l.size);
+        // The front (the canvas's middle) is in the middle of the top row,
+        // the back (its ends) in the middle of the bottom row, and the
+        // right camera's heading starts the bottom row.
+        let (k, front) = l.to_screen(area, [1024.0, 0.0]).unwrap();
+        assert_eq!(k, 0);
+        assert!((front.x - (10.0 + 380.0)).abs() < 1e-3 && (front.y - 20.0).abs() < 1e-3);
+        let (_, back) = l.to_screen(area, [2047.9, 135.0]).unwrap();
+        assert!((back.x - (10.0 + 380.0)).abs() < 0.1, "{back:?}");
+        assert!((back.y - (20.0 + l.row_h + 4.0 + 135.0 * l.scale)).abs() < 1e-3);
+        let (k, right) = l.to_screen(area, [1536.0, 0.0]).unwrap();
+        assert_eq!((k, right.x), (1, 10.0));
+        // The pieces cover the canvas once, and fit the area.
+        let covered: f32 = l.pieces.iter().map(|p| p.x1 - p.x0).sum();
+        assert!((covered - 2048.0).abs() < 1e-3);
+        for p in &l.pieces {
+            assert!(area.expand(1e-3).contains_rect(l.rect(area, p)));
+        }
+        // A panel as wide as the strip keeps one row, and so does the
+        // surround view.
+        let wide = Layout::fit(Vec2::new(2000.0, 300.0), [2048.0, 270.0], true, 4.0);
+        assert_eq!(wide.pieces.len(), 1);
+        let surround = Layout::fit(Vec2::new(760.0, 560.0), [2048.0, 270.0], false, 4.0);
+        assert_eq!(surround.pieces.len(), 1);
+    }
 
     #[test]
     fn the_probe_text_says_what_the_probe_did_and_whether_its_frame_is_read() {
