@@ -6,8 +6,19 @@
 use nalgebra::{DMatrix, DVector};
 
 /// Minimises `Σ r(x)²` from `x0`; `r` returns `None` where the model is not
-/// defined (the step is then rejected). Returns the best `x` and its cost.
-pub fn minimise<F>(x0: &[f64], mut r: F, iterations: usize) -> (Vec<f64>, f64)
+/// defined (the step is then rejected). Returns the best `x` and its cost,
+/// once a step no longer lowers the cost (to machine precision) or after
+/// `iterations`.
+pub fn minimise<F>(x0: &[f64], r: F, iterations: usize) -> (Vec<f64>, f64)
+where
+    F: FnMut(&[f64]) -> Option<Vec<f64>>,
+{
+    minimise_to(x0, r, iterations, 1e-15)
+}
+
+/// [`minimise`], stopping once a step lowers the cost by less than
+/// `rel_tol` of it: a first solution whose last digits do not matter.
+pub fn minimise_to<F>(x0: &[f64], mut r: F, iterations: usize, rel_tol: f64) -> (Vec<f64>, f64)
 where
     F: FnMut(&[f64]) -> Option<Vec<f64>>,
 {
@@ -64,7 +75,7 @@ where
                     let rel = (cost - cn) / cost.max(1e-300);
                     cost = cn;
                     lambda = (lambda / 10.0).max(1e-12);
-                    improved = !(small || rel < 1e-15);
+                    improved = !(small || rel < rel_tol);
                     break;
                 }
             }

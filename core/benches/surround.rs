@@ -875,9 +875,14 @@ fn panorama(c: &mut Criterion) {
         .zip(render.cameras())
         .map(|(d, c)| FrameView::new(c.format, c.width, c.height, d).unwrap())
         .collect();
+    // The app's detector: corners refined to a fraction of a pixel.
     let detect = |gray: &[u8], w: usize, h: usize, mask: &[u8]| {
         use rigview_calib::tools::corners::{harris_corners, HarrisParams};
-        harris_corners(gray, w, h, Some(mask), &HarrisParams::default())
+        let params = HarrisParams {
+            subpixel: true,
+            ..HarrisParams::default()
+        };
+        harris_corners(gray, w, h, Some(mask), &params)
             .map_err(|e| rigview_core::Error::InvalidConfig(e.to_string()))
     };
     let options = MatchOptions::default();

@@ -108,23 +108,6 @@ pub fn harris_corners(
             0.04,
         ),
     )?;
-    let response = if params.subpixel && !found.is_empty() {
-        let mut r = Mat::default();
-        cv(
-            "computing the Harris response",
-            opencv::imgproc::corner_harris(
-                &image,
-                &mut r,
-                3,
-                3,
-                0.04,
-                opencv::core::BORDER_DEFAULT,
-            ),
-        )?;
-        Some(r)
-    } else {
-        None
-    };
     // OpenCV gives them strongest first.
     let cells_x = width.div_ceil(params.cell);
     let mut taken = vec![0usize; cells_x * height.div_ceil(params.cell)];
@@ -139,36 +122,79 @@ pub fn harris_corners(
         };
         if *n < params.per_cell {
             *n += 1;
-            out.push(match &response {
-                Some(r) => subpixel(r, p.x, p.y),
-                None => [p.x, p.y],
+            out.push(if params.subpixel {
+                subpixel_near(gray, width, height, p.x, p.y)
+            } else {
+                [p.x, p.y]
             });
         }
     }
     Ok(out)
 }
 
-/// The peak near pixel (`x`, `y`) of the Harris response `r`: along each
-/// axis, the vertex of the parabola through the pixel and its two
-/// neighbours, within half a pixel (the pixel itself at the border or where
-/// the response is not a peak).
-fn subpixel(r: &Mat, x: f32, y: f32) -> [f32; 2] {
-    let (xi, yi) = (x.round() as i32, y.round() as i32);
-    let at = |dx: i32, dy: i32| r.at_2d::<f32>(yi + dy, xi + dx).ok().map(|v| f64::from(*v));
-    let vertex = |a: Option<f64>, b: Option<f64>, c: Option<f64>| match (a, b, c) {
-        (Some(a), Some(b), Some(c)) if a - 2.0 * b + c < 0.0 => {
-            (0.5 * (a - c) / (a - 2.0 * b + c)).clamp(-0.5, 0.5) as f32
+/// Reflects position `v` into `0..n` as OpenCV's `BORDER_REFLECT_101`.
+fn reflect101(v: i64, n: usize) -> usize {
+    let n = n as i64;
+    let mut v = v;
+    if n == 1 {
+        return 0;
+    }
+    while v < 0 || v >= n {
+        v = if v < 0 { -v } else { 2 * (n - 1) - v };
+    }
+    v as usize
+}
+
+/// OpenCV's `cornerHarris` response (3×3 Sobel, 3×3 window, k = 0.04,
+/// `BORDER_REFLECT_101`) at pixel (`x`, `y`) of a `w`×`h` grey image, up to
+/// a positive factor: computed at the one pixel instead of the whole image.
+fn harris_at(gray: &[u8], w: usize, h: usize, x: i64, y: i64) -> f64 {
+    let px = |u: i64, v: i64| f64::from(gray[reflect101(v, h) * w + reflect101(u, w)]);
+    let (mut xx, mut xy, mut yy) = (0.0, 0.0, 0.0);
+    for dy in -1..=1 {
+        for dx in -1..=1 {
+            // The window reflects the gradient images at the border.
+            let (u, v) = (reflect101(x + dx, w) as i64, reflect101(y + dy, h) as i64);
+            let gx = px(u + 1, v - 1) + 2.0 * px(u + 1, v) + px(u + 1, v + 1)
+                - px(u - 1, v - 1)
+                - 2.0 * px(u - 1, v)
+                - px(u - 1, v + 1);
+            let gy = px(u - 1, v + 1) + 2.0 * px(u, v + 1) + px(u + 1, v + 1)
+                - px(u - 1, v - 1)
+                - 2.0 * px(u, v - 1)
+                - px(u + 1, v - 1);
+            xx += gx * gx;
+            xy += gx * gy;
+            yy += gy * gy;
         }
-        _ => 0.0,
-    };
-    let inside = xi >= 1 && yi >= 1 && xi + 1 < r.cols() && yi + 1 < r.rows();
-    if !inside {
+    }
+    xx * yy - xy * xy - 0.04 * (xx + yy) * (xx + yy)
+}
+
+/// [`subpixel`] with the Harris response computed at the corner's pixel
+/// and its four neighbours only ([`harris_at`]; the vertex does not depend
+/// on the response's scale).
+fn subpixel_near(gray: &[u8], w: usize, h: usize, x: f32, y: f32) -> [f32; 2] {
+    let (xi, yi) = (x.round() as i64, y.round() as i64);
+    if xi < 1 || yi < 1 || xi + 1 >= w as i64 || yi + 1 >= h as i64 {
         return [x, y];
     }
+    let r = |dx: i64, dy: i64| harris_at(gray, w, h, xi + dx, yi + dy);
+    let c = r(0, 0);
     [
-        xi as f32 + vertex(at(-1, 0), at(0, 0), at(1, 0)),
-        yi as f32 + vertex(at(0, -1), at(0, 0), at(0, 1)),
+        xi as f32 + vertex(r(-1, 0), c, r(1, 0)),
+        yi as f32 + vertex(r(0, -1), c, r(0, 1)),
     ]
+}
+
+/// The offset (within half a pixel) of the vertex of the parabola through
+/// `a`, `b`, `c` at −1, 0, 1; 0 where `b` is not a peak.
+fn vertex(a: f64, b: f64, c: f64) -> f32 {
+    if a - 2.0 * b + c < 0.0 {
+        (0.5 * (a - c) / (a - 2.0 * b + c)).clamp(-0.5, 0.5) as f32
+    } else {
+        0.0
+    }
 }
 
 #[cfg(test)]
@@ -187,6 +213,88 @@ mod tests {
                 }
             })
             .collect()
+    }
+
+    /// The peak near pixel (`x`, `y`) of the Harris response `r` (of the whole
+    /// image, from OpenCV: what [`subpixel_near`] is tested against): along each
+    /// axis, the vertex of the parabola through the pixel and its two
+    /// neighbours, within half a pixel (the pixel itself at the border or where
+    /// the response is not a peak).
+    fn subpixel(r: &Mat, x: f32, y: f32) -> [f32; 2] {
+        let (xi, yi) = (x.round() as i32, y.round() as i32);
+        let at = |dx: i32, dy: i32| r.at_2d::<f32>(yi + dy, xi + dx).ok().map(|v| f64::from(*v));
+        let vertex = |a: Option<f64>, b: Option<f64>, c: Option<f64>| match (a, b, c) {
+            (Some(a), Some(b), Some(c)) if a - 2.0 * b + c < 0.0 => {
+                (0.5 * (a - c) / (a - 2.0 * b + c)).clamp(-0.5, 0.5) as f32
+            }
+            _ => 0.0,
+        };
+        let inside = xi >= 1 && yi >= 1 && xi + 1 < r.cols() && yi + 1 < r.rows();
+        if !inside {
+            return [x, y];
+        }
+        [
+            xi as f32 + vertex(at(-1, 0), at(0, 0), at(1, 0)),
+            yi as f32 + vertex(at(0, -1), at(0, 0), at(0, 1)),
+        ]
+    }
+
+    /// The response at the corners' pixels gives the positions OpenCV's
+    /// response of the whole image does.
+    #[test]
+    fn the_response_at_the_corners_is_opencvs() {
+        let (w, h) = (120usize, 90usize);
+        let img: Vec<u8> = (0..w * h)
+            .map(|i| {
+                let (x, y) = ((i % w) as f64, (i / w) as f64);
+                (128.0
+                    + 60.0 * (x * 0.37).sin() * (y * 0.23).cos()
+                    + 40.0 * ((x + 2.0 * y) * 0.11).sin()) as u8
+            })
+            .collect();
+        let params = HarrisParams {
+            subpixel: true,
+            ..HarrisParams::default()
+        };
+        let windowed = harris_corners(&img, w, h, None, &params).unwrap();
+        let plain = harris_corners(
+            &img,
+            w,
+            h,
+            None,
+            &HarrisParams {
+                subpixel: false,
+                ..params.clone()
+            },
+        )
+        .unwrap();
+        let image = Mat::new_rows_cols_with_data(h as i32, w as i32, &img).unwrap();
+        let mut whole = Mat::default();
+        opencv::imgproc::corner_harris(
+            &image,
+            &mut whole,
+            3,
+            3,
+            0.04,
+            opencv::core::BORDER_DEFAULT,
+        )
+        .unwrap();
+        assert!(windowed.len() > 20, "{} corners", windowed.len());
+        assert_eq!(windowed.len(), plain.len());
+        // Refined: most positions move off the pixel OpenCV found.
+        let moved = windowed
+            .iter()
+            .zip(&plain)
+            .filter(|(a, p)| (a[0] - p[0]).abs() + (a[1] - p[1]).abs() > 0.05)
+            .count();
+        assert!(2 * moved > windowed.len(), "{moved} of {}", windowed.len());
+        for (a, p) in windowed.iter().zip(&plain) {
+            let b = subpixel(&whole, p[0], p[1]);
+            assert!(
+                (a[0] - b[0]).abs() < 1e-4 && (a[1] - b[1]).abs() < 1e-4,
+                "{a:?} {b:?}"
+            );
+        }
     }
 
     #[test]

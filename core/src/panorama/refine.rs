@@ -203,7 +203,7 @@ impl Panorama {
                 &data,
                 &epipolar_only,
                 &fixed,
-                (bound, scale, options.iterations),
+                (bound, scale, options.iterations, ROUGH),
                 &vec![Rotation3::identity(); n],
             )
             .ok_or_else(|| {
@@ -234,7 +234,7 @@ impl Panorama {
             if taken.iter().flatten().filter(|&&b| b).count() < MIN_GROUND {
                 break;
             }
-            let limits = (bound, scale, options.iterations);
+            let limits = (bound, scale, options.iterations, ROUGH);
             match self.solve(&data, &taken, &every, limits, &current) {
                 Some(all) => {
                     current = all;
@@ -243,7 +243,14 @@ impl Panorama {
                 None => break,
             }
         }
-        let q = current;
+        // The last solution again, to convergence: the ones before only
+        // told which matches lie on the ground.
+        let on_ground = ground.iter().flatten().any(|&b| b);
+        let axes = if on_ground { &every } else { &fixed };
+        let limits = (bound, scale, options.iterations, 1e-15);
+        let q = self
+            .solve(&data, &ground, axes, limits, &current)
+            .unwrap_or(current);
         let pairs = data
             .iter()
             .zip(&ground)
@@ -361,6 +368,10 @@ impl InlierRays {
     }
 }
 
+/// The relative decrease of the cost below which the solutions before the
+/// last stop (the last one runs to convergence).
+const ROUGH: f64 = 1e-6;
+
 /// The fewest matches on the ground that the second stage needs.
 const MIN_GROUND: usize = 12;
 
@@ -374,14 +385,15 @@ impl Panorama {
     /// 3): the inliers of `data` with their epipolar errors, or where
     /// `ground` says so their two-dimensional errors as points on the
     /// ground, under the Cauchy loss of scale `scale`, with a prior of
-    /// σ = `bound` on each rotation, which may not exceed `bound`. `None` if
-    /// the start is not defined.
+    /// σ = `bound` on each rotation, which may not exceed `bound`; until a
+    /// step lowers the cost by less than `rel_tol` of it. `None` if the
+    /// start is not defined.
     fn solve(
         &self,
         data: &[Pair<'_>],
         ground: &[Vec<bool>],
         axes: &[usize],
-        (bound, scale, iterations): (f64, f64, usize),
+        (bound, scale, iterations, rel_tol): (f64, f64, usize, f64),
         start: &[Rotation3<f64>],
     ) -> Option<Vec<Rotation3<f64>>> {
         let n = self.origins.len();
@@ -433,7 +445,7 @@ impl Panorama {
             .zip(start)
             .flat_map(|(&m, q)| q.scaled_axis().iter().take(m).copied().collect::<Vec<_>>())
             .collect();
-        let (x, _) = rigview_calib::lm::minimise(&x0, residuals, iterations);
+        let (x, _) = rigview_calib::lm::minimise_to(&x0, residuals, iterations, rel_tol);
         rotations(&x)
     }
 }
