@@ -507,7 +507,7 @@ fn panorama_seams(out: &Path) {
 }
 
 /// A screenshot of `page` in headless Chromium (Debian's `chromium`,
-/// which `scripts/setup` installs), 1400×6000 pixels.
+/// which `scripts/setup` installs), 1400×14000 pixels (the whole report).
 fn screenshot(page: &Path, png_path: &Path) -> image::RgbImage {
     let out = std::process::Command::new("timeout")
         .arg("120")
@@ -517,7 +517,7 @@ fn screenshot(page: &Path, png_path: &Path) -> image::RgbImage {
             "--no-sandbox",
             "--disable-gpu",
             "--hide-scrollbars",
-            "--window-size=1400,6000",
+            "--window-size=1400,14000",
         ])
         .arg(format!("--screenshot={}", png_path.display()))
         .arg(format!("file://{}", page.display()))

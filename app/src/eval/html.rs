@@ -169,7 +169,10 @@ fn panorama_headline(r: &Results) -> String {
             st.unusable
         );
     }
-    h += "</table>\n";
+    h += "</table>\n<p>A pair without a ratio is counted, never given one: too few matches \
+          (fewer RANSAC inliers than a rotation and its patches need), or no usable patch (every \
+          patch around the inliers saturated or near black in either camera; \
+          <code>fig5_panorama_pairs.csv</code> says which).</p>\n";
     h
 }
 

@@ -90,7 +90,7 @@ impl Plan {
         let (lo, hi, steps) = (32.0, 262_144.0, 53);
         Self {
             preset: "quick",
-            reduced: "a quarter of the rig's resolution (322×241 instead of 1288×964); experiment 1 with a dense search of 121 values instead of 161; experiment 2 with 1.6 s (32 frames) between steps after 2 s of lead; experiments 3 and 4 with sweeps of 0.25 EV and closed loops of 80 sets in constant light (settled: the median of the last 10; experiment 4 leaves out the first 20 sets); experiment 5 with the same loops and sets left out, on the panorama's full canvas (2048×270: at half of it, 1024×135, a third to half of the overlaps found too few matches to give a ratio)".into(),
+            reduced: "a quarter of the rig's resolution (322×241 instead of 1288×964); experiment 1 with a dense search of 121 values instead of 161; experiment 2 with 1.6 s (32 frames) between steps after 2 s of lead; experiments 3 and 4 with sweeps of 0.25 EV and closed loops of 80 sets in constant light (settled: the median of the last 10; experiment 4 leaves out the first 20 sets); experiment 5 with the same loops and sets left out, on the panorama's full canvas (2048×270: at half of it, 1024×135, half or more of the overlaps found too few matches to give a ratio)".into(),
             scale: 0.25,
             gamma: GammaPlan {
                 dense_steps: 121,
@@ -867,8 +867,20 @@ fn write_panorama(r: &Results, out: &Path) -> Result<()> {
         &r.plan.panorama.scenarios,
         ("log2 r_ij (EV)", "fraction of the ratios"),
         |sc| {
+            // A strategy without a ratio has no line: the title says so.
+            let none: Vec<&str> = pa
+                .runs
+                .iter()
+                .filter(|run| run.scenario == sc && run.stats().with_ratio == 0)
+                .map(|run| run.strategy.label())
+                .collect();
+            let title = format!("{sc}: log2 r_ij of matched patches");
             (
-                format!("{sc}: log2 r_ij from matched patches in the panorama"),
+                if none.is_empty() {
+                    title
+                } else {
+                    format!("{title}; none for {}", none.join(", "))
+                },
                 vec![0.0],
             )
         },

@@ -23,7 +23,8 @@
 //! held ratios are rescaled to later exposures) and is the same for every
 //! strategy. The worker runs on a thread of its own, so when its matches
 //! reach the balancing depends on the machine: unlike experiment 4, a run
-//! does not repeat to the bit.
+//! under balancing does not repeat to the bit (the strategies that use no
+//! ratio do).
 //!
 //! The display-gain strategies of experiment 4 are left out: their
 //! exposures, and so their images and matched patches, are those of the
