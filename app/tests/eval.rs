@@ -233,13 +233,8 @@ fn the_quick_evaluation_writes_sane_figures_data_and_report() {
     // equal everywhere, leaves only the scene's own ratios.
     let (h, rows) = csv(&out.join(rigview::eval::files::SEAMS_CSV));
     assert_eq!(rows.len(), 3 * 6, "{h:?}");
-    let (sc, st) = (col(&h, "scenario"), col(&h, "strategy"));
     let get = |scenario: &str, strategy: &str, column: &str| {
-        let r = rows
-            .iter()
-            .find(|r| r[sc] == scenario && r[st] == strategy)
-            .unwrap_or_else(|| panic!("no row {scenario} {strategy}"));
-        num(&r[col(&h, column)])
+        num(&row_of(&h, &rows, scenario, strategy)[col(&h, column)])
     };
     for r in &rows {
         for v in &r[2..] {
@@ -247,14 +242,7 @@ fn the_quick_evaluation_writes_sane_figures_data_and_report() {
         }
     }
     let img = "mean_abs_log2_r_images";
-    for other in ["nonlinear", "camera-ae"] {
-        assert!(
-            get("backlight", "multi", img) < get("backlight", other, img),
-            "backlight: multi {} against {other} {}",
-            get("backlight", "multi", img),
-            get("backlight", other, img)
-        );
-    }
+    multi_lowest_under_backlight(&get, img, "surround");
     for scenario in ["backlight", "tunnel", "reference"] {
         for (plain, shown) in [
             ("camera-ae", "camera-ae+display"),
@@ -277,21 +265,38 @@ fn the_quick_evaluation_writes_sane_figures_data_and_report() {
             "{scenario}: fixed exposure"
         );
     }
-    let (h, rows) = csv(&out.join(rigview::eval::files::HIST_CSV));
-    let f = col(&h, "fraction");
-    let (sc, st) = (col(&h, "scenario"), col(&h, "strategy"));
-    let mut sums: HashMap<(String, String), f64> = HashMap::new();
-    for r in &rows {
-        *sums.entry((r[sc].clone(), r[st].clone())).or_default() += num(&r[f]);
-    }
+    let sums = hist_sums(&out.join(rigview::eval::files::HIST_CSV));
     assert_eq!(sums.len(), 3 * 6);
     assert!(sums.values().all(|s| (s - 1.0).abs() < 1e-3), "{sums:?}");
     let (_, rows) = csv(&out.join(rigview::eval::files::PROFILE_CSV));
     assert_eq!(rows.len(), 3 * 6 * 360);
+    panorama_seams(&out);
     let (h, rows) = csv(&out.join(rigview::eval::files::VIEWS_CSV));
     assert_eq!((h.len(), rows.len()), (3 + CAMERAS, 3 * 6));
     let views = png(&out.join(rigview::eval::files::VIEWS_PNG));
     assert!(views.width() > 6 * 200 && views.height() > 3 * 200);
+
+    // The summary in Markdown: a row per strategy, every cell a number
+    // or "·" where an experiment did not run the strategy; the panorama's
+    // column for exactly its four strategies.
+    let md = std::fs::read_to_string(out.join(rigview::eval::files::HEADLINE_MD)).unwrap();
+    let lines: Vec<&str> = md.lines().collect();
+    assert_eq!(lines.len(), 2 + 10, "{md}");
+    for line in &lines[2..] {
+        let cells: Vec<&str> = line.trim_matches('|').split('|').map(str::trim).collect();
+        assert_eq!(cells.len(), 7, "{line}");
+        for c in &cells[1..] {
+            assert!(*c == "·" || num(c.trim_end_matches(" %")) >= 0.0, "{line}");
+        }
+        let panorama_run = [
+            "fixed manual",
+            "camera built-in AE (simulated)",
+            "gradient, nonlinear law",
+            "gradient balanced (multi)",
+        ]
+        .contains(&cells[0]);
+        assert_eq!(cells[6] != "·", panorama_run, "{line}");
+    }
 
     // The report: self-contained, with its figures inlined.
     let html = std::fs::read_to_string(out.join(rigview::eval::files::REPORT)).unwrap();
@@ -334,8 +339,175 @@ fn the_quick_evaluation_writes_sane_figures_data_and_report() {
     assert!(with > 4 * without.max(1000), "{with} against {without}");
 }
 
+/// Under backlight, balanced control's `column` (by `get`: scenario,
+/// strategy, column) is below single's and the built-in AE's.
+fn multi_lowest_under_backlight(get: &dyn Fn(&str, &str, &str) -> f64, column: &str, view: &str) {
+    for other in ["nonlinear", "camera-ae"] {
+        let (multi, theirs) = (
+            get("backlight", "multi", column),
+            get("backlight", other, column),
+        );
+        assert!(
+            multi < theirs,
+            "backlight, {view}: {column} of multi {multi} against {other} {theirs}"
+        );
+    }
+}
+
+/// The row of `scenario` and `strategy` of a CSV with those columns.
+fn row_of<'a>(
+    header: &[String],
+    rows: &'a [Vec<String>],
+    scenario: &str,
+    strategy: &str,
+) -> &'a [String] {
+    let (sc, st) = (col(header, "scenario"), col(header, "strategy"));
+    rows.iter()
+        .find(|r| r[sc] == scenario && r[st] == strategy)
+        .unwrap_or_else(|| panic!("no row {scenario} {strategy}"))
+}
+
+/// Per scenario and strategy, the sum of a histogram CSV's fractions.
+fn hist_sums(path: &Path) -> HashMap<(String, String), f64> {
+    let (h, rows) = csv(path);
+    let (f, sc, st) = (
+        col(&h, "fraction"),
+        col(&h, "scenario"),
+        col(&h, "strategy"),
+    );
+    let mut sums: HashMap<(String, String), f64> = HashMap::new();
+    for r in &rows {
+        *sums.entry((r[sc].clone(), r[st].clone())).or_default() += num(&r[f]);
+    }
+    sums
+}
+
+/// Experiment 5's rows of one run, counted.
+#[derive(Default)]
+struct RunCounts {
+    /// The sets measured.
+    sets: Vec<usize>,
+    /// Overlaps × sets.
+    pairs: usize,
+    /// Those with a ratio.
+    with_ratio: usize,
+    /// Those with too few matches.
+    too_few: usize,
+}
+
+/// Experiment 5: every overlap of every measured set is in the data,
+/// with a ratio or a reason; the summary agrees with it; balancing gives
+/// the smallest ratios from matched patches under backlight.
+fn panorama_seams(out: &Path) {
+    use rigview::eval::files;
+    let quick = rigview::eval::Plan::quick(&[]);
+    let plan = &quick.panorama;
+    let strategies = ["fixed", "camera-ae", "nonlinear", "multi"];
+    let (h, rows) = csv(&out.join(files::PANORAMA_PAIRS_CSV));
+    let (sc, st, set, r, outcome) = (
+        col(&h, "scenario"),
+        col(&h, "strategy"),
+        col(&h, "set"),
+        col(&h, "log2_r"),
+        col(&h, "outcome"),
+    );
+    let (matches, inliers) = (col(&h, "matches"), col(&h, "inliers"));
+    let mut runs: HashMap<(String, String), RunCounts> = HashMap::new();
+    for row in &rows {
+        assert_eq!(row.len(), h.len(), "{row:?}");
+        assert!(strategies.contains(&row[st].as_str()), "{row:?}");
+        let k = num(&row[set]) as usize;
+        assert!(
+            k >= plan.warmup && (k - plan.warmup).is_multiple_of(plan.match_every),
+            "{row:?}"
+        );
+        let e = runs.entry((row[sc].clone(), row[st].clone())).or_default();
+        if !e.sets.contains(&k) {
+            e.sets.push(k);
+        }
+        e.pairs += 1;
+        match row[outcome].as_str() {
+            "ratio" => {
+                assert!(num(&row[r]).abs() < 8.0, "{row:?}");
+                assert!(num(&row[inliers]) >= 6.0, "{row:?}");
+                e.with_ratio += 1;
+            }
+            "too_few_matches" => {
+                assert!(row[r].is_empty(), "a ratio from too few matches: {row:?}");
+                e.too_few += 1;
+            }
+            "no_usable_patch" => assert!(row[r].is_empty(), "{row:?}"),
+            o => panic!("unknown outcome {o}: {row:?}"),
+        }
+        assert!(num(&row[inliers]) <= num(&row[matches]), "{row:?}");
+    }
+    assert_eq!(runs.len(), 3 * strategies.len(), "{:?}", runs.keys());
+    for ((scenario, strategy), RunCounts { sets, pairs, .. }) in &runs {
+        let frames = rigview::eval::seams::frames_of(&quick.sim(scenario).unwrap(), plan.frames);
+        let measured = (frames - plan.warmup).div_ceil(plan.match_every);
+        assert_eq!(sets.len(), measured, "{scenario} {strategy}");
+        assert_eq!(
+            *pairs,
+            CAMERAS * measured,
+            "{scenario} {strategy}: one row per overlap"
+        );
+    }
+
+    let (h, rows) = csv(&out.join(files::PANORAMA_CSV));
+    assert_eq!(rows.len(), 3 * strategies.len(), "{h:?}");
+    let (sc, st) = (col(&h, "scenario"), col(&h, "strategy"));
+    let get = |scenario: &str, strategy: &str, column: &str| {
+        num(&row_of(&h, &rows, scenario, strategy)[col(&h, column)])
+    };
+    for row in &rows {
+        let RunCounts {
+            pairs,
+            with_ratio: with,
+            too_few: few,
+            ..
+        } = &runs[&(row[sc].clone(), row[st].clone())];
+        let with_ratio = get(&row[sc], &row[st], "pairs_with_ratio");
+        assert_eq!(with_ratio as usize, *with, "{row:?}");
+        assert_eq!(
+            get(&row[sc], &row[st], "pairs_too_few_matches") as usize,
+            *few
+        );
+        let unusable = get(&row[sc], &row[st], "pairs_no_usable_patch") as usize;
+        assert_eq!(*with + *few + unusable, *pairs, "{row:?}");
+        // A run without a ratio has no mean; every other mean is finite.
+        let (mean, sd) = (
+            &row[col(&h, "mean_abs_log2_r")],
+            &row[col(&h, "sd_abs_log2_r")],
+        );
+        if *with == 0 {
+            assert!(mean.is_empty() && sd.is_empty(), "{row:?}");
+        } else {
+            assert!((0.0..4.0).contains(&num(mean)) && num(sd) >= 0.0, "{row:?}");
+        }
+        // Under backlight the gradient laws' overlaps mostly give a ratio
+        // (the quick panorama is detailed enough to match on).
+        if row[sc] == "backlight" && ["nonlinear", "multi"].contains(&row[st].as_str()) {
+            assert!(
+                2 * *with > *pairs,
+                "{row:?}: {with} of {pairs} with a ratio"
+            );
+        }
+    }
+    // Balancing with the neighbours brings the matched patches closer
+    // than each camera under its own law, and than the cameras' own AE.
+    multi_lowest_under_backlight(&get, "mean_abs_log2_r", "panorama");
+
+    let sums = hist_sums(&out.join(files::PANORAMA_HIST_CSV));
+    assert_eq!(sums.len(), 3 * strategies.len());
+    for (run, sum) in &sums {
+        // A run without a ratio has an empty histogram.
+        let expected = if runs[run].with_ratio == 0 { 0.0 } else { 1.0 };
+        assert!((sum - expected).abs() < 1e-3, "{run:?}: {sum}");
+    }
+}
+
 /// A screenshot of `page` in headless Chromium (Debian's `chromium`,
-/// which `scripts/setup` installs), 1400×6000 pixels.
+/// which `scripts/setup` installs), 1400×14000 pixels (the whole report).
 fn screenshot(page: &Path, png_path: &Path) -> image::RgbImage {
     let out = std::process::Command::new("timeout")
         .arg("120")
@@ -345,7 +517,7 @@ fn screenshot(page: &Path, png_path: &Path) -> image::RgbImage {
             "--no-sandbox",
             "--disable-gpu",
             "--hide-scrollbars",
-            "--window-size=1400,6000",
+            "--window-size=1400,14000",
         ])
         .arg(format!("--screenshot={}", png_path.display()))
         .arg(format!("file://{}", page.display()))

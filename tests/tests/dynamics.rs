@@ -392,12 +392,12 @@ fn median(mut v: Vec<f64>) -> f64 {
 }
 
 /// Every strategy, law and simulation measured the same way, for the
-/// README's tables: the step responses on `steps` at full resolution
-/// (probes as by default, probe frames left out), and on `reference` at a
-/// quarter of the resolution each camera's M at its settled exposure as a
-/// fraction of the best of a dense sweep, and the median `|log2 r_ij|` of
-/// the last 20 sets. Every combination settles after every step within the
-/// 1.5 s window.
+/// tables in docs/exposure-results.md: the step responses on `steps` at
+/// full resolution (probes as by default, probe frames left out), and on
+/// `reference` at a quarter of the resolution each camera's M at its
+/// settled exposure as a fraction of the best of a dense sweep, and the
+/// median `|log2 r_ij|` of the last 20 sets. Every combination settles
+/// after every step within the 1.5 s window.
 #[test]
 fn every_strategy_measured_alike() {
     let spec = ResponseSpec::default();

@@ -7,10 +7,11 @@ use std::sync::Arc;
 
 use anyhow::{Context, Result};
 use rigview_calib::rig::Rig;
+use rigview_core::exposure::FrameView;
 use rigview_core::exposure::NeighbourGraph;
 use rigview_core::pipeline::{LockStep, ProcessingSettings, Processor};
 use rigview_core::sim::{SimRender, SimRig, SimRigOptions};
-use rigview_core::source::FrameSource;
+use rigview_core::source::{FrameSet, FrameSource};
 use rigview_core::surround::{Canvas, CanvasSpec, SeamBands, SurroundOptions, SurroundView};
 
 /// The surround view the evaluation meters and measures: the rig's ground
@@ -98,14 +99,35 @@ pub fn run_with(
     options: LoopOptions,
     tick: &mut dyn FnMut(),
 ) -> Result<Trace> {
-    let source = SimRig::new(
+    run_source(
+        sim_source(render, frames)?,
+        render.rig(),
+        settings,
+        options,
+        tick,
+    )
+}
+
+/// The views of a set's frames (the set is complete).
+pub fn frame_views(set: &FrameSet) -> Result<Vec<FrameView<'_>>> {
+    Ok(set
+        .frames
+        .iter()
+        .flatten()
+        .map(|f| f.view())
+        .collect::<std::result::Result<Vec<_>, _>>()?)
+}
+
+/// The simulated rig of `render` as a source that ends after `frames`
+/// sets.
+pub fn sim_source(render: &Arc<SimRender>, frames: usize) -> Result<SimRig> {
+    Ok(SimRig::new(
         render.clone(),
         SimRigOptions {
             frames: Some(frames as u64),
             ..Default::default()
         },
-    )?;
-    run_source(source, render.rig(), settings, options, tick)
+    )?)
 }
 
 /// The loop on any `source` of the cameras of `rig` (calibrated in the
@@ -154,13 +176,7 @@ pub fn run_source<S: FrameSource>(
                     .map(|p| p.log2_r.map(|r| r + gain(p.j) - gain(p.i)))
                     .collect(),
             );
-            let views = step
-                .set
-                .frames
-                .iter()
-                .flatten()
-                .map(|f| f.view())
-                .collect::<std::result::Result<Vec<_>, _>>()?;
+            let views = frame_views(&step.set)?;
             trace.seam_steps.push(
                 seams
                     .steps(&views, gains)?

@@ -10,9 +10,10 @@ use base64::Engine as _;
 use rigview_core::exposure::Simulation;
 use rigview_core::sim::CameraAeParams;
 
+use super::panorama_seams::PanoramaStats;
 use super::steps::{goals, STEPS};
 use super::strategy::EvalStrategy;
-use super::{files, gamma, Results};
+use super::{files, gamma, summary, Results};
 
 /// Escapes text for HTML.
 pub fn escape(s: &str) -> String {
@@ -126,6 +127,55 @@ fn seams_headline(r: &Results) -> String {
     h
 }
 
+/// Mean ± SD of `|log2 r_ij|`, or that no overlap gave a ratio.
+fn mean_sd(st: &PanoramaStats) -> String {
+    if st.with_ratio == 0 {
+        "no ratio".into()
+    } else {
+        format!("{} ± {}", num(st.mean, 2), num(st.sd, 2))
+    }
+}
+
+/// The headline of experiment 5: a row per strategy, its mean ± SD per
+/// scenario and over them, and its pairs × sets with and without a ratio.
+fn panorama_headline(r: &Results) -> String {
+    let pa = &r.panorama;
+    let scenarios = &r.plan.panorama.scenarios;
+    let mut h = String::from(
+        "<h3>5. Panorama seams: |log2 r_ij| from matched patches (mean ± SD, EV), and the \
+         overlaps × measured sets with a ratio and without one</h3>\n<table><tr><th>strategy</th>",
+    );
+    for sc in scenarios {
+        let _ = write!(h, "<th>{}</th>", escape(sc));
+    }
+    h += "<th>all</th><th>with a ratio</th><th>too few matches</th><th>no usable patch</th></tr>\n";
+    for s in EvalStrategy::PANORAMA {
+        let _ = write!(h, "<tr><td>{}</td>", swatch(s));
+        for sc in scenarios {
+            let st = PanoramaStats::of(
+                pa.runs
+                    .iter()
+                    .filter(|x| x.strategy == s && &x.scenario == sc),
+            );
+            let _ = write!(h, "<td>{}</td>", mean_sd(&st));
+        }
+        let st = PanoramaStats::of(pa.runs.iter().filter(|x| x.strategy == s));
+        let _ = writeln!(
+            h,
+            "<td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+            mean_sd(&st),
+            st.with_ratio,
+            st.too_few,
+            st.unusable
+        );
+    }
+    h += "</table>\n<p>A pair without a ratio is counted, never given one: too few matches \
+          (fewer RANSAC inliers than a rotation and its patches need), or no usable patch (every \
+          patch around the inliers saturated or near black in either camera; \
+          <code>fig5_panorama_pairs.csv</code> says which).</p>\n";
+    h
+}
+
 /// The report's HTML; the figures are read from `out`.
 pub fn report(r: &Results, out: &Path) -> Result<String> {
     let p = &r.plan;
@@ -143,7 +193,26 @@ pub fn report(r: &Results, out: &Path) -> Result<String> {
     );
 
     // Headline table.
-    h += "<h2>Headline figures</h2>\n";
+    h += "<h2>Headline figures</h2>\n<h3>Summary: one row per strategy (· where an experiment \
+          did not run it; the tables below break each figure down)</h3>\n<table><tr><th>strategy</th>";
+    for c in summary::COLUMNS {
+        let _ = write!(h, "<th>{}</th>", escape(c));
+    }
+    h += "</tr>\n";
+    for (s, cells) in summary::rows(r) {
+        let _ = write!(h, "<tr><td>{}</td>", swatch(s));
+        for c in cells {
+            let _ = write!(h, "<td>{}</td>", escape(&c));
+        }
+        h += "</tr>\n";
+    }
+    let _ = writeln!(
+        h,
+        "</table>\n<p>Steps of light: over every step and camera; M: over the cameras of {}; \
+         seams: over the scenarios' overlaps after the warm-up (the panorama's: every overlap \
+         with a ratio).</p>",
+        escape(&p.sweep.presets.join(", "))
+    );
     if !r.gamma.is_empty() {
         h += "<h3>1. γ̂ accuracy: median |γ̂ − γ*| (γ-equivalent)</h3>\n<table><tr><th>simulation</th>\
           <th>3 anchors</th><th>7 anchors</th><th>15 anchors</th><th>7 anchors, 1/4 resolution</th>\
@@ -275,6 +344,9 @@ pub fn report(r: &Results, out: &Path) -> Result<String> {
     );
 
     h += &seams_headline(r);
+    if !r.panorama.runs.is_empty() {
+        h += &panorama_headline(r);
+    }
 
     // The experiments.
     if !r.gamma.is_empty() {
@@ -331,8 +403,32 @@ pub fn report(r: &Results, out: &Path) -> Result<String> {
         files::PROFILE_PNG,
         "intensity profiles across the seams",
     )?;
-    h += "<h2>5. Panorama seams</h2>\n<p>Not available: rigview has no panorama view yet; this section \
-          will measure r_ij from matched patches once it has one.</p>\n";
+    h += "<h2>5. Panorama seams</h2>\n";
+    if r.panorama.runs.is_empty() {
+        h += "<p>Not measured here: the panorama's closed loop runs on the simulated rig only.</p>\n";
+    } else {
+        let pp = &r.plan.panorama;
+        let _ = writeln!(
+            h,
+            "<p>Each scenario under each strategy that sets its own exposures, in closed loop with \
+             the cylindrical panorama ({w}×{hh} pixels) as the view: every pixel that reaches the \
+             cylinder metered, the balancing's ratios from the panorama's matching (Harris corners, \
+             BRIEF, RANSAC on each pair's rotation, 15×15 patches around the inliers) every {every} \
+             sets. Measured on every {every}th set after the first {warmup}: a matching of that set \
+             of its own; each overlap gives log2 r_ij (the median ratio of its usable patches, in \
+             the cameras' images) or none, counted by why (too few matches for RANSAC, or every \
+             patch saturated or near black). The display gains change no image and are left out.</p>",
+            w = pp.canvas.0,
+            hh = pp.canvas.1,
+            every = pp.match_every,
+            warmup = pp.warmup,
+        );
+        h += &figure(
+            out,
+            files::PANORAMA_HIST_PNG,
+            "histograms of log2 r_ij from matched patches per scenario and strategy",
+        )?;
+    }
     h += "<h2>6. Visual comparison</h2>\n<p>The last view of each scenario under each strategy \
           (the exposures it was taken with: <code>fig6_views.csv</code>).</p>\n";
     h += &figure(out, files::VIEWS_PNG, "the bird's-eye views side by side")?;

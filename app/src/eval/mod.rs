@@ -7,12 +7,14 @@
 //! - [`sweep`]: experiment 3, M against exposure with every strategy's
 //!   settled exposure.
 //! - [`seams`]: experiment 4, the surround view's seams, and experiment 6,
-//!   the views side by side (experiment 5, the panorama's seams, waits for
-//!   a panorama view).
+//!   the views side by side.
+//! - [`panorama_seams`]: experiment 5, the panorama's seams, with `r_ij`
+//!   from matched patches.
 //! - [`on_brackets`]: experiments 3, 4 and 6 on a bracket sequence
 //!   (`--brackets DIR`).
 //! - [`closed_loop`]: the app's processor in lock step on the simulated rig.
-//! - [`strategy`]: the strategies compared, with their colours.
+//! - [`strategy`]: the strategies compared, with their colours;
+//!   [`summary`]: a row of headline figures per strategy.
 //! - [`figure`]: the figures (plotters); [`html`]: the report.
 
 pub mod closed_loop;
@@ -20,9 +22,11 @@ pub mod figure;
 pub mod gamma;
 pub mod html;
 pub mod on_brackets;
+pub mod panorama_seams;
 pub mod seams;
 pub mod steps;
 pub mod strategy;
+pub mod summary;
 pub mod sweep;
 
 use std::fmt::Write as _;
@@ -37,6 +41,7 @@ use rigview_core::sim::{SimConfig, SimRender};
 
 use figure::{Panel, Series, Style};
 use gamma::{GammaPlan, GammaRow};
+use panorama_seams::{PanoramaPlan, PanoramaResult};
 use seams::{SeamsPlan, SeamsResult};
 use steps::{StepsPlan, StepsResult};
 use strategy::EvalStrategy;
@@ -71,6 +76,8 @@ pub struct Plan {
     pub sweep: SweepPlan,
     /// Experiments 4 and 6.
     pub seams: SeamsPlan,
+    /// Experiment 5.
+    pub panorama: PanoramaPlan,
 }
 
 impl Plan {
@@ -83,7 +90,7 @@ impl Plan {
         let (lo, hi, steps) = (32.0, 262_144.0, 53);
         Self {
             preset: "quick",
-            reduced: "a quarter of the rig's resolution (322×241 instead of 1288×964); experiment 1 with a dense search of 121 values instead of 161; experiment 2 with 1.6 s (32 frames) between steps after 2 s of lead; experiments 3 and 4 with sweeps of 0.25 EV and closed loops of 80 sets in constant light (settled: the median of the last 10; experiment 4 leaves out the first 20 sets)".into(),
+            reduced: "a quarter of the rig's resolution (322×241 instead of 1288×964); experiment 1 with a dense search of 121 values instead of 161; experiment 2 with 1.6 s (32 frames) between steps after 2 s of lead; experiments 3 and 4 with sweeps of 0.25 EV and closed loops of 80 sets in constant light (settled: the median of the last 10; experiment 4 leaves out the first 20 sets); experiment 5 with the same loops and sets left out, on the panorama's full canvas (2048×270: at half of it, 1024×135, half or more of the overlaps found too few matches to give a ratio)".into(),
             scale: 0.25,
             gamma: GammaPlan {
                 dense_steps: 121,
@@ -107,6 +114,11 @@ impl Plan {
                 tail: 10,
                 sweep: (lo, hi, steps),
                 ..full.seams
+            },
+            panorama: PanoramaPlan {
+                frames: 80,
+                warmup: 20,
+                ..full.panorama
             },
             ..full
         }
@@ -145,6 +157,13 @@ impl Plan {
                 warmup: 40,
                 tail: 20,
                 sweep: (16.0, 1_048_576.0, 161),
+            },
+            panorama: PanoramaPlan {
+                scenarios: seam_scenarios(scenarios),
+                frames: 200,
+                warmup: 40,
+                canvas: (2048, 270),
+                match_every: 5,
             },
         }
     }
@@ -226,14 +245,24 @@ pub mod files {
     pub const PROFILE_CSV: &str = "fig4_seam_profiles.csv";
     /// Experiment 4's summary figures.
     pub const SEAMS_CSV: &str = "fig4_seams.csv";
+    /// Experiment 5's histograms.
+    pub const PANORAMA_HIST_PNG: &str = "fig5_panorama_histograms.png";
+    /// Experiment 5's histograms, data.
+    pub const PANORAMA_HIST_CSV: &str = "fig5_panorama_histograms.csv";
+    /// Experiment 5's summary figures.
+    pub const PANORAMA_CSV: &str = "fig5_panorama.csv";
+    /// Experiment 5's measurements: every overlap of every measured set.
+    pub const PANORAMA_PAIRS_CSV: &str = "fig5_panorama_pairs.csv";
     /// Experiment 6's views.
     pub const VIEWS_PNG: &str = "fig6_views.png";
     /// Experiment 6's views: the exposures they were taken with.
     pub const VIEWS_CSV: &str = "fig6_views.csv";
     /// The report.
     pub const REPORT: &str = "report.html";
+    /// The report's summary table, in Markdown.
+    pub const HEADLINE_MD: &str = "headline.md";
     /// Every file.
-    pub const ALL: [&str; 17] = [
+    pub const ALL: [&str; 22] = [
         GAMMA_PNG,
         GAMMA_CSV,
         STEPS_TRACE_PNG,
@@ -248,9 +277,14 @@ pub mod files {
         PROFILE_PNG,
         PROFILE_CSV,
         SEAMS_CSV,
+        PANORAMA_HIST_PNG,
+        PANORAMA_HIST_CSV,
+        PANORAMA_CSV,
+        PANORAMA_PAIRS_CSV,
         VIEWS_PNG,
         VIEWS_CSV,
         REPORT,
+        HEADLINE_MD,
     ];
 }
 
@@ -267,6 +301,8 @@ pub struct Results {
     pub sweep: SweepResult,
     /// Experiments 4 and 6.
     pub seams: SeamsResult,
+    /// Experiment 5 (empty where it was not run).
+    pub panorama: PanoramaResult,
     /// Seconds per experiment.
     pub seconds: Vec<(&'static str, f64)>,
     /// What ran, in words (the simulated rig and its scenario, or a
@@ -283,46 +319,52 @@ pub fn run(plan: &Plan, out: &Path) -> Result<Results> {
     let steps_config = plan.steps.config(&base);
     let render = SimRender::new(&base).context("building the simulated rig")?;
     let cameras = render.cameras().len();
-    let seam_frames = plan
-        .seams
-        .scenarios
-        .iter()
-        .map(|s| {
-            let c = plan.sim(s)?;
-            Ok(if c.script.is_constant() {
-                plan.seams.frames
-            } else {
-                (c.duration_s * c.trigger_hz).round() as usize
-            })
-        })
-        .collect::<Result<Vec<_>>>()?;
+    let frames_of = |scenarios: &[String], constant: usize| {
+        scenarios
+            .iter()
+            .map(|s| Ok(seams::frames_of(&plan.sim(s)?, constant)))
+            .collect::<Result<Vec<_>>>()
+    };
+    let seam_frames = frames_of(&plan.seams.scenarios, plan.seams.frames)?;
+    let panorama_frames = frames_of(&plan.panorama.scenarios, plan.panorama.frames)?;
     let total = gamma::units(&plan.gamma, cameras)
         + (EvalStrategy::STEPS.len() * plan.steps.frames(&steps_config)) as u64
         + plan.sweep.presets.len() as u64 * sweep::units(&plan.sweep, cameras)
-        + seams::units(&plan.seams, &seam_frames, cameras);
+        + seams::units(&plan.seams, &seam_frames, cameras)
+        + panorama_seams::units(&panorama_frames);
     let bar = progress_bar(total)?;
     let mut seconds = Vec::new();
 
-    bar.set_message("1/4 γ̂ accuracy");
+    bar.set_message("1/5 γ̂ accuracy");
     let t = Instant::now();
     let gamma = gamma::run(&render, &plan.gamma, &mut || bar.inc(1))?;
     seconds.push(("1. γ̂ accuracy", t.elapsed().as_secs_f64()));
 
-    bar.set_message("2/4 steps of light");
+    bar.set_message("2/5 steps of light");
     let t = Instant::now();
     let render = Arc::new(SimRender::new(&steps_config).context("building the simulated rig")?);
     let steps = steps::run(&render, &mut || bar.inc(1))?;
     seconds.push(("2. steps of light", t.elapsed().as_secs_f64()));
 
-    bar.set_message("3/4 M against exposure");
+    bar.set_message("3/5 M against exposure");
     let t = Instant::now();
     let sweep = sweep::run(&plan.sweep, &|p| plan.sim(p), &mut |k| bar.inc(k))?;
     seconds.push(("3. M against exposure", t.elapsed().as_secs_f64()));
 
-    bar.set_message("4/4 surround seams");
+    bar.set_message("4/5 surround seams");
     let t = Instant::now();
     let seams = seams::run(&plan.seams, &|p| plan.sim(p), &mut |k| bar.inc(k))?;
     seconds.push(("4, 6. surround seams and views", t.elapsed().as_secs_f64()));
+
+    bar.set_message("5/5 panorama seams");
+    let t = Instant::now();
+    let panorama = panorama_seams::run(
+        &plan.panorama,
+        &|p| plan.sim(p),
+        &crate::panorama::shared_detector(),
+        &mut |k| bar.inc(k),
+    )?;
+    seconds.push(("5. panorama seams", t.elapsed().as_secs_f64()));
     bar.finish_and_clear();
 
     let results = Results {
@@ -331,6 +373,7 @@ pub fn run(plan: &Plan, out: &Path) -> Result<Results> {
         steps,
         sweep,
         seams,
+        panorama,
         seconds,
         source: format!("simulated rig, scenario {}", plan.scenario),
     };
@@ -394,6 +437,12 @@ pub fn write_all(r: &Results, out: &Path) -> Result<()> {
     }
     write_sweep(r, out)?;
     write_seams(r, out)?;
+    if !r.panorama.runs.is_empty() {
+        write_panorama(r, out)?;
+    }
+    let md = out.join(files::HEADLINE_MD);
+    std::fs::write(&md, summary::markdown(r))
+        .with_context(|| format!("writing {}", md.display()))?;
     let html = html::report(r, out)?;
     let path = out.join(files::REPORT);
     std::fs::write(&path, html).with_context(|| format!("writing {}", path.display()))
@@ -628,17 +677,10 @@ fn write_seams(r: &Results, out: &Path) -> Result<()> {
     write_csv(
         out,
         files::HIST_CSV,
-        "scenario,strategy,bin_lo_ev,bin_hi_ev,fraction",
-        se.runs.iter().flat_map(|run| {
-            run.histogram(warmup).into_iter().map(move |(lo, f)| {
-                format!(
-                    "{},{},{lo:.2},{:.2},{f:.5}",
-                    run.scenario,
-                    run.strategy.key(),
-                    lo + seams::BIN_EV
-                )
-            })
-        }),
+        HIST_HEADER,
+        se.runs
+            .iter()
+            .flat_map(|run| hist_lines(&run.scenario, run.strategy, run.histogram(warmup))),
     )?;
     write_csv(
         out,
@@ -690,7 +732,8 @@ fn write_seams(r: &Results, out: &Path) -> Result<()> {
         }),
     )?;
     let hist = per_scenario(
-        se,
+        &se.runs,
+        |run| (&run.scenario, run.strategy),
         scenarios,
         ("log2 r_ij (EV)", "fraction of the samples"),
         |sc| {
@@ -699,16 +742,12 @@ fn write_seams(r: &Results, out: &Path) -> Result<()> {
                 vec![0.0],
             )
         },
-        |run| {
-            run.histogram(warmup)
-                .into_iter()
-                .map(|(lo, f)| (lo + seams::BIN_EV / 2.0, f))
-                .collect()
-        },
+        |run| hist_points(run.histogram(warmup)),
     );
     figure::write(&out.join(files::HIST_PNG), &hist, 3, 560, 420)?;
     let profiles = per_scenario(
-        se,
+        &se.runs,
+        |run| (&run.scenario, run.strategy),
         scenarios,
         (
             "angle clockwise from ahead (degrees; grey: seams)",
@@ -733,15 +772,134 @@ fn write_seams(r: &Results, out: &Path) -> Result<()> {
     seams::write_views(se, scenarios, &out.join(files::VIEWS_PNG))
 }
 
+/// The header of the histograms' CSVs.
+const HIST_HEADER: &str = "scenario,strategy,bin_lo_ev,bin_hi_ev,fraction";
+
+/// The CSV lines of one run's histogram (see [`seams::histogram`]).
+fn hist_lines(
+    scenario: &str,
+    strategy: EvalStrategy,
+    hist: Vec<(f64, f64)>,
+) -> impl Iterator<Item = String> + '_ {
+    hist.into_iter().map(move |(lo, f)| {
+        format!(
+            "{scenario},{},{lo:.2},{:.2},{f:.5}",
+            strategy.key(),
+            lo + seams::BIN_EV
+        )
+    })
+}
+
+/// A histogram's line: each bin at its centre.
+fn hist_points(hist: Vec<(f64, f64)>) -> Vec<(f64, f64)> {
+    hist.into_iter()
+        .map(|(lo, f)| (lo + seams::BIN_EV / 2.0, f))
+        .collect()
+}
+
+/// Experiment 5's CSVs and figure.
+fn write_panorama(r: &Results, out: &Path) -> Result<()> {
+    let pa = &r.panorama;
+    let name = |k: usize| pa.cameras.get(k).map_or("?", String::as_str);
+    write_csv(
+        out,
+        files::PANORAMA_PAIRS_CSV,
+        "scenario,strategy,set,camera_i,camera_j,matches,inliers,patches,mostly_saturated,log2_r,outcome",
+        pa.runs.iter().flat_map(|run| {
+            run.samples.iter().map(move |p| {
+                format!(
+                    "{},{},{},{},{},{},{},{},{},{},{}",
+                    run.scenario,
+                    run.strategy.key(),
+                    p.set,
+                    name(p.i),
+                    name(p.j),
+                    p.matches,
+                    p.inliers,
+                    p.patches,
+                    u8::from(p.saturated),
+                    p.log2_r.map(|v| format!("{v:.4}")).unwrap_or_default(),
+                    match (p.log2_r, p.too_few) {
+                        (Some(_), _) => "ratio",
+                        (None, true) => "too_few_matches",
+                        (None, false) => "no_usable_patch",
+                    }
+                )
+            })
+        }),
+    )?;
+    write_csv(
+        out,
+        files::PANORAMA_CSV,
+        "scenario,strategy,mean_abs_log2_r,sd_abs_log2_r,pairs_with_ratio,pairs_too_few_matches,pairs_no_usable_patch",
+        pa.runs.iter().map(|run| {
+            let s = run.stats();
+            let finite = |v: f64| {
+                if v.is_finite() {
+                    format!("{v:.4}")
+                } else {
+                    String::new()
+                }
+            };
+            format!(
+                "{},{},{},{},{},{},{}",
+                run.scenario,
+                run.strategy.key(),
+                finite(s.mean),
+                finite(s.sd),
+                s.with_ratio,
+                s.too_few,
+                s.unusable
+            )
+        }),
+    )?;
+    write_csv(
+        out,
+        files::PANORAMA_HIST_CSV,
+        HIST_HEADER,
+        pa.runs
+            .iter()
+            .flat_map(|run| hist_lines(&run.scenario, run.strategy, run.histogram())),
+    )?;
+    let hist = per_scenario(
+        &pa.runs,
+        |run| (&run.scenario, run.strategy),
+        &r.plan.panorama.scenarios,
+        ("log2 r_ij (EV)", "fraction of the ratios"),
+        |sc| {
+            // A strategy without a ratio has no line: the title says so.
+            let none: Vec<&str> = pa
+                .runs
+                .iter()
+                .filter(|run| run.scenario == sc && run.stats().with_ratio == 0)
+                .map(|run| run.strategy.label())
+                .collect();
+            let title = format!("{sc}: log2 r_ij of matched patches");
+            (
+                if none.is_empty() {
+                    title
+                } else {
+                    format!("{title}; none for {}", none.join(", "))
+                },
+                vec![0.0],
+            )
+        },
+        |run| hist_points(run.histogram()),
+    );
+    figure::write(&out.join(files::PANORAMA_HIST_PNG), &hist, 3, 560, 420)
+}
+
 /// One panel per scenario with a line per strategy (the legend in the
-/// first): `axes` are the x and y descriptions, `head` gives a scenario's
-/// title and vertical marks, `points` a run's line.
-fn per_scenario(
-    se: &SeamsResult,
+/// first): `id` gives a run's scenario and strategy, `axes` are the x and
+/// y descriptions, `head` gives a scenario's title and vertical marks,
+/// `points` a run's line.
+fn per_scenario<R>(
+    runs: &[R],
+    id: impl Fn(&R) -> (&String, EvalStrategy),
     scenarios: &[String],
     axes: (&str, &str),
     head: impl Fn(&str) -> (String, Vec<f64>),
-    points: impl Fn(&seams::SeamRun) -> Vec<(f64, f64)>,
+    points: impl Fn(&R) -> Vec<(f64, f64)>,
 ) -> Vec<Panel> {
     scenarios
         .iter()
@@ -753,15 +911,17 @@ fn per_scenario(
                 x_label: axes.0.into(),
                 y_label: axes.1.into(),
                 marks_x,
-                series: se
-                    .runs
+                series: runs
                     .iter()
-                    .filter(|run| &run.scenario == sc)
-                    .map(|run| Series {
-                        label: (k == 0).then(|| run.strategy.label().to_string()),
-                        colour: run.strategy.colour(),
-                        style: Style::Line,
-                        points: points(run),
+                    .filter(|run| id(run).0 == sc)
+                    .map(|run| {
+                        let strategy = id(run).1;
+                        Series {
+                            label: (k == 0).then(|| strategy.label().to_string()),
+                            colour: strategy.colour(),
+                            style: Style::Line,
+                            points: points(run),
+                        }
                     })
                     .collect(),
             }
@@ -780,10 +940,12 @@ mod tests {
             assert_eq!(plan.scenario, "overcast");
             assert_eq!(plan.sweep.presets, given);
             assert_eq!(plan.seams.scenarios, given);
+            assert_eq!(plan.panorama.scenarios, given);
         }
         let plan = Plan::quick(&[]);
         assert_eq!(plan.scenario, "reference");
         assert_eq!(plan.sweep.presets, ["reference", "backlight", "overcast"]);
         assert_eq!(plan.seams.scenarios, ["backlight", "tunnel", "reference"]);
+        assert_eq!(plan.panorama.scenarios, plan.seams.scenarios);
     }
 }

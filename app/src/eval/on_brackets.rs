@@ -11,7 +11,8 @@
 //!
 //! Experiments 1 and 2 need the simulator (a noise-free render at any
 //! exposure; known steps of light) and are left out, as is the cameras'
-//! own AE, which needs the simulated camera.
+//! own AE, which needs the simulated camera. Experiment 5, the panorama's
+//! closed loop, runs on the simulated rig only.
 
 use std::path::Path;
 use std::time::Instant;
@@ -149,6 +150,7 @@ pub fn run(plan: &Plan, dir: &Path, out: &Path) -> Result<Results> {
             runs,
             seam_angles: vec![(NAME.into(), seams::seam_angles(&view))],
         },
+        panorama: Default::default(),
         seconds: vec![
             ("3. M against exposure (the brackets)", t_sweep),
             (

@@ -108,14 +108,8 @@ impl SeamRun {
 
     /// The summary figures.
     pub fn stats(&self, warmup: usize) -> SeamStats {
-        let mean_sd = |v: Vec<f64>| {
-            let a: Vec<f64> = v.iter().map(|x| x.abs()).collect();
-            let n = a.len().max(1) as f64;
-            let m = a.iter().sum::<f64>() / n;
-            (m, rigview_core::eval::dynamics::std_dev(&a))
-        };
-        let (mean_images, sd_images) = mean_sd(self.samples(warmup, false));
-        let (mean_view, sd_view) = mean_sd(self.samples(warmup, true));
+        let (mean_images, sd_images) = mean_sd_abs(&self.samples(warmup, false));
+        let (mean_view, sd_view) = mean_sd_abs(&self.samples(warmup, true));
         let mut steps: Vec<f64> = self
             .trace
             .seam_steps
@@ -141,25 +135,41 @@ impl SeamRun {
         }
     }
 
-    /// The histogram of `log2 r_ij` in the view: per bin, its lower edge
-    /// and the fraction of samples (outliers in the end bins).
+    /// The histogram of `log2 r_ij` in the view (see [`histogram`]).
     pub fn histogram(&self, warmup: usize) -> Vec<(f64, f64)> {
-        let bins = (2.0 * HIST_EV / BIN_EV).round() as usize;
-        let mut counts = vec![0usize; bins];
-        let samples = self.samples(warmup, true);
-        for v in &samples {
-            let k = ((v + HIST_EV) / BIN_EV)
-                .floor()
-                .clamp(0.0, (bins - 1) as f64) as usize;
-            counts[k] += 1;
-        }
-        let total = samples.len().max(1) as f64;
-        counts
-            .iter()
-            .enumerate()
-            .map(|(k, &c)| (-HIST_EV + BIN_EV * k as f64, c as f64 / total))
-            .collect()
+        histogram(&self.samples(warmup, true))
     }
+}
+
+/// The mean and standard deviation of `|v|`; NaN for no values.
+pub fn mean_sd_abs(v: &[f64]) -> (f64, f64) {
+    if v.is_empty() {
+        return (f64::NAN, f64::NAN);
+    }
+    let a: Vec<f64> = v.iter().map(|x| x.abs()).collect();
+    let m = a.iter().sum::<f64>() / a.len() as f64;
+    (m, rigview_core::eval::dynamics::std_dev(&a))
+}
+
+/// The histogram of `samples` of `log2 r_ij` from −[`HIST_EV`] to
+/// +[`HIST_EV`] in bins of [`BIN_EV`]: per bin, its lower edge and the
+/// fraction of samples (outliers in the end bins; all zero without
+/// samples).
+pub fn histogram(samples: &[f64]) -> Vec<(f64, f64)> {
+    let bins = (2.0 * HIST_EV / BIN_EV).round() as usize;
+    let mut counts = vec![0usize; bins];
+    for v in samples {
+        let k = ((v + HIST_EV) / BIN_EV)
+            .floor()
+            .clamp(0.0, (bins - 1) as f64) as usize;
+        counts[k] += 1;
+    }
+    let total = samples.len().max(1) as f64;
+    counts
+        .iter()
+        .enumerate()
+        .map(|(k, &c)| (-HIST_EV + BIN_EV * k as f64, c as f64 / total))
+        .collect()
 }
 
 /// What experiment 4 measured.
@@ -180,13 +190,13 @@ pub fn units(plan: &SeamsPlan, frames: &[usize], cameras: usize) -> u64 {
         .sum()
 }
 
-/// The sets of a run of `render`'s scenario.
-pub fn frames_of(render: &SimRender, plan: &SeamsPlan) -> usize {
-    let c = render.config();
-    if c.script.is_constant() {
-        plan.frames
+/// The sets of a run of `config`'s scenario: `constant` in constant
+/// light, otherwise the script's length.
+pub fn frames_of(config: &rigview_core::sim::SimConfig, constant: usize) -> usize {
+    if config.script.is_constant() {
+        constant
     } else {
-        (c.duration_s * c.trigger_hz).round() as usize
+        (config.duration_s * config.trigger_hz).round() as usize
     }
 }
 
@@ -275,7 +285,7 @@ pub fn run(
     for scenario in &plan.scenarios {
         let render = Arc::new(SimRender::new(&config(scenario)?)?);
         let view = closed_loop::eval_view(&render)?;
-        let frames = frames_of(&render, plan);
+        let frames = frames_of(render.config(), plan.frames);
         let t_last = (frames.saturating_sub(1)) as f64 / render.config().trigger_hz;
         let options = SweepOptions {
             lo: plan.sweep.0,

@@ -33,6 +33,21 @@ pub enum EvalStrategy {
 }
 
 impl EvalStrategy {
+    /// Every strategy, in the order of the report's summary: rigview's
+    /// gradient laws, the baselines, fixed exposure.
+    pub const ALL: [EvalStrategy; 10] = [
+        Self::Fast,
+        Self::Linear,
+        Self::Nonlinear,
+        Self::Multi,
+        Self::MultiComp,
+        Self::Pid,
+        Self::Mean,
+        Self::CameraAe,
+        Self::CameraAeComp,
+        Self::Fixed,
+    ];
+
     /// The strategies of the step responses (experiment 2).
     pub const STEPS: [EvalStrategy; 6] = [
         Self::Linear,
@@ -65,6 +80,12 @@ impl EvalStrategy {
         Self::CameraAeComp,
         Self::MultiComp,
     ];
+
+    /// The strategies of the panorama's seams (experiment 5): those of
+    /// experiment 4 that set different exposures. The display gains leave
+    /// the images, and so the ratios of their matched patches, as they are.
+    pub const PANORAMA: [EvalStrategy; 4] =
+        [Self::Fixed, Self::CameraAe, Self::Nonlinear, Self::Multi];
 
     /// The name in CSV files.
     pub fn key(self) -> &'static str {
