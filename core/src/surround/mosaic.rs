@@ -182,22 +182,26 @@ impl Mosaic {
                         let [c0, r0, rw, rh] = regions[k].roi;
                         let mut scratch = BlendScratch::default();
                         let mut map = Vec::with_capacity(rw * rh);
-                        let mut weights: [Vec<u16>; 3] =
-                            std::array::from_fn(|_| Vec::with_capacity(rw * rh));
+                        // Zero where the camera shows nothing.
+                        let mut weights: [Vec<u16>; 3] = std::array::from_fn(|_| vec![0; rw * rh]);
                         for r in r0..r0 + rh {
-                            for c in c0..c0 + rw {
-                                let i = r * w + c;
-                                map.push(source[k][i]);
-                                let [lin, alpha, seam] = if source[k][i][0] < 0.0 {
-                                    [0, 0, 0]
-                                } else if count[i] == 1 {
+                            let row = r * w + c0..r * w + c0 + rw;
+                            let src = &source[k][row.clone()];
+                            map.extend_from_slice(src);
+                            let at = (r - r0) * rw;
+                            for (dc, (s, &n)) in src.iter().zip(&count[row]).enumerate() {
+                                if s[0] < 0.0 {
+                                    continue;
+                                }
+                                let [lin, alpha, seam] = if n == 1 {
                                     [256, 256, 256]
                                 } else {
+                                    let c = c0 + dc;
                                     blend_weights(k, (c, r), w, source, regions, &mut scratch)
                                 };
-                                weights[0].push(lin);
-                                weights[1].push(alpha);
-                                weights[2].push(seam);
+                                weights[0][at + dc] = lin;
+                                weights[1][at + dc] = alpha;
+                                weights[2][at + dc] = seam;
                             }
                         }
                         CameraLayer {
