@@ -22,6 +22,7 @@
 //! - [`panorama`]: the panorama's Harris corners (OpenCV), its per-pair
 //!   report, and `rigview panorama`.
 //! - [`plot_png`]: a PNG plot of the exposure state (plotters).
+//! - [`plot_text`]: the plots' text drawn where its glyphs belong.
 //! - [`report`]: the summary of a run (drops, latency, CPU use).
 //! - [`session`]: a source, its calibration and the processing pipeline.
 //! - [`settings`]: the settings that persist between runs.
@@ -39,6 +40,7 @@ pub mod live;
 pub mod logging;
 pub mod panorama;
 pub mod plot_png;
+pub mod plot_text;
 pub mod record_brackets;
 pub mod recording;
 pub mod report;

@@ -60,7 +60,9 @@ pub fn write_with(
     register_font()?;
     let mut buf = vec![0u8; width as usize * height as usize * 3];
     {
-        let root = BitMapBackend::with_buffer(&mut buf, (width, height)).into_drawing_area();
+        let root =
+            crate::plot_text::Glyphs::new(BitMapBackend::with_buffer(&mut buf, (width, height)))
+                .into_drawing_area();
         root.fill(&WHITE)
             .map_err(|e| anyhow::anyhow!("plot: {e}"))?;
         let panels = root.split_evenly((if commands { 6 } else { 5 }, 1));
@@ -139,7 +141,7 @@ pub fn save_png(img: &image::RgbImage, path: &Path) -> Result<()> {
 }
 
 fn panel(
-    area: &DrawingArea<BitMapBackend<'_>, plotters::coord::Shift>,
+    area: &DrawingArea<crate::plot_text::Glyphs<BitMapBackend<'_>>, plotters::coord::Shift>,
     title: &str,
     series: &[(String, Vec<(f64, f64)>)],
 ) -> Result<()> {
@@ -162,7 +164,7 @@ fn panel(
     let mut chart = ChartBuilder::on(area)
         .caption(title, (FONT, 16))
         .margin(6)
-        .x_label_area_size(22)
+        .x_label_area_size(36)
         .y_label_area_size(56)
         .build_cartesian_2d(x0..x1, (y0 - pad)..(y1 + pad))
         .map_err(err)?;

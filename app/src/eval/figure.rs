@@ -58,7 +58,8 @@ pub fn write(path: &Path, panels: &[Panel], cols: usize, panel_w: u32, panel_h: 
     let (w, h) = (panel_w * cols as u32, panel_h * rows as u32);
     let mut buf = vec![0u8; w as usize * h as usize * 3];
     {
-        let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
+        let root = crate::plot_text::Glyphs::new(BitMapBackend::with_buffer(&mut buf, (w, h)))
+            .into_drawing_area();
         root.fill(&WHITE)
             .map_err(|e| anyhow::anyhow!("figure: {e}"))?;
         let areas = root.split_evenly((rows, cols));
@@ -91,7 +92,7 @@ fn bounds(panel: &Panel) -> (f64, f64, f64, f64) {
 }
 
 fn draw(
-    area: &DrawingArea<BitMapBackend<'_>, plotters::coord::Shift>,
+    area: &DrawingArea<crate::plot_text::Glyphs<BitMapBackend<'_>>, plotters::coord::Shift>,
     panel: &Panel,
 ) -> Result<()> {
     let title = panel.title.as_str();

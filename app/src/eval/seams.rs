@@ -378,7 +378,11 @@ pub fn write_views(result: &SeamsResult, scenarios: &[String], path: &Path) -> R
         }
     }
     {
-        let root = BitMapBackend::with_buffer(&mut buf, (w as u32, h as u32)).into_drawing_area();
+        let root = crate::plot_text::Glyphs::new(BitMapBackend::with_buffer(
+            &mut buf,
+            (w as u32, h as u32),
+        ))
+        .into_drawing_area();
         let style = TextStyle::from((FONT, 14)).color(&BLACK);
         for (col, strategy) in strategies.iter().enumerate() {
             let x = (left + col * (tile.0 + gap)) as i32;
