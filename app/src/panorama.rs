@@ -89,7 +89,6 @@ pub fn live_lines(names: &[String], output: &Output) -> Vec<String> {
             .cloned()
             .unwrap_or_else(|| format!("camera{k}"))
     };
-    let px = |v: Option<f64>| v.map_or("-".into(), |v| format!("{v:.2} px"));
     let mut lines = vec![match report.matched_trigger {
         Some(t) => format!(
             "panorama: matched on set {t} in {:.0} ms, {} refinements (the latest with the rebuild {:.0} ms){}",
@@ -180,6 +179,11 @@ pub fn draw_matches(canvas: &mut Canvas, pairs: &[PairMatches]) {
     }
 }
 
+/// A reprojection error in pixels, or "-" without one.
+fn px(v: Option<f64>) -> String {
+    v.map_or("-".into(), |v| format!("{v:.2} px"))
+}
+
 /// `rigview panorama`: composes the images, writes the panorama, and
 /// reports each pair's matches and brightness ratio.
 pub fn run_stills(args: &PanoramaArgs, out: &mut dyn Write) -> Result<()> {
@@ -212,7 +216,6 @@ pub fn run_stills(args: &PanoramaArgs, out: &mut dyn Write) -> Result<()> {
             &options,
         )
         .context("refining the cameras' rotations")?;
-        let px = |v: Option<f64>| v.map_or("-".into(), |v| format!("{v:.2} px"));
         for (k, (matches, r)) in refined.rounds.iter().enumerate() {
             let inliers: usize = matches.iter().map(|p| p.inliers).sum();
             let on_ground: usize = r.pairs.iter().map(|p| p.on_ground).sum();

@@ -42,8 +42,8 @@ impl<B> Glyphs<B> {
 
 /// Lays `text` out in `font` at a scale of `size` pixels, its baseline
 /// `size / 2` below the origin (where plotters puts it), and calls `put`
-/// with each covered pixel and its coverage; returns the text's width.
-fn layout(font: &FontRef<'_>, size: f32, text: &str, mut put: impl FnMut(i32, i32, f32)) -> f32 {
+/// with each covered pixel and its coverage.
+fn layout(font: &FontRef<'_>, size: f32, text: &str, mut put: impl FnMut(i32, i32, f32)) {
     let scaled = font.as_scaled(size);
     let mut x = 0.0f32;
     let mut prev = None;
@@ -61,7 +61,6 @@ fn layout(font: &FontRef<'_>, size: f32, text: &str, mut put: impl FnMut(i32, i3
         }
         x += scaled.h_advance(id);
     }
-    x
 }
 
 impl<B: DrawingBackend> DrawingBackend for Glyphs<B> {

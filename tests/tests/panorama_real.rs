@@ -14,13 +14,13 @@ use rigview_calib::formats;
 use rigview_calib::pose::Pose;
 use rigview_calib::rig::Rig;
 use rigview_core::exposure::balance::pair_ratio;
-use rigview_core::exposure::{BalanceParams, FrameView, PixelFormat};
+use rigview_core::exposure::{BalanceParams, FrameView};
 use rigview_core::panorama::{
     refine_in_rounds, CylinderSpec, MatchOptions, PairMatches, Panorama, PanoramaOptions,
     RefineOptions, RoundsOptions,
 };
 use rigview_core::surround::{Canvas, Composer};
-use surround_common::{data, images};
+use surround_common::{data, images, views};
 
 fn spec() -> CylinderSpec {
     CylinderSpec {
@@ -33,10 +33,7 @@ fn spec() -> CylinderSpec {
 
 fn matches(rig: &Rig, images: &[(usize, usize, Vec<u8>)]) -> Vec<PairMatches> {
     let pano = Panorama::build(rig, &spec(), &PanoramaOptions::default()).unwrap();
-    let frames: Vec<FrameView<'_>> = images
-        .iter()
-        .map(|(w, h, d)| FrameView::new(PixelFormat::Rgb8, *w, *h, d).unwrap())
-        .collect();
+    let frames = views(images);
     let (pairs, _) = pano
         .match_pairs(&frames, &rigview_tests::harris, &MatchOptions::default())
         .unwrap();
@@ -191,10 +188,7 @@ fn agreements(rig: &Rig, frames: &[FrameView<'_>]) -> Vec<(usize, usize, f64)> {
 fn the_refinement_in_rounds_lowers_the_real_rigs_errors() {
     let rig = formats::load(&data(), None, None).unwrap().rig;
     let imgs = images(&rig);
-    let frames: Vec<FrameView<'_>> = imgs
-        .iter()
-        .map(|(w, h, d)| FrameView::new(PixelFormat::Rgb8, *w, *h, d).unwrap())
-        .collect();
+    let frames = views(&imgs);
     let out = refine_in_rounds(
         &rig,
         &spec(),
@@ -238,10 +232,7 @@ fn a_frame_of_the_wrong_size_names_its_camera() {
     let pano = Panorama::build(&rig, &spec(), &PanoramaOptions::default()).unwrap();
     let mut imgs = images(&rig);
     imgs[2] = (100, 80, vec![0; 100 * 80 * 3]);
-    let frames: Vec<FrameView<'_>> = imgs
-        .iter()
-        .map(|(w, h, d)| FrameView::new(PixelFormat::Rgb8, *w, *h, d).unwrap())
-        .collect();
+    let frames = views(&imgs);
     let e = pano
         .match_pairs(&frames, &rigview_tests::harris, &MatchOptions::default())
         .unwrap_err()

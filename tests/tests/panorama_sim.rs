@@ -30,7 +30,7 @@ mod surround_common;
 use nalgebra::{Rotation3, Vector3};
 use rigview_calib::{Pose, Rig};
 use rigview_core::exposure::balance::pair_ratio;
-use rigview_core::exposure::{BalanceParams, FrameView, PixelFormat};
+use rigview_core::exposure::BalanceParams;
 use rigview_core::panorama::{
     CylinderSpec, Detector, MatchOptions, PairMatches, Panorama, PanoramaOptions,
 };
@@ -80,11 +80,7 @@ fn matches_on(
     buffers: &[Vec<u8>],
 ) -> Vec<PairMatches> {
     let pano = Panorama::build(rig, spec, &PanoramaOptions::default()).unwrap();
-    let frames: Vec<FrameView<'_>> = buffers
-        .iter()
-        .zip(r.cameras())
-        .map(|(b, c)| FrameView::new(PixelFormat::Mono8, c.width, c.height, b).unwrap())
-        .collect();
+    let frames = surround_common::still_views(r, buffers);
     let (pairs, times) = pano
         .match_pairs(&frames, detect, &MatchOptions::default())
         .unwrap();
@@ -304,13 +300,7 @@ fn refinement_in_rounds_recovers_the_cameras() {
             .map(|chunk| {
                 let (r, truth, buffers) = (&r, &truth, &buffers);
                 s.spawn(move || {
-                    let frames: Vec<FrameView<'_>> = buffers
-                        .iter()
-                        .zip(r.cameras())
-                        .map(|(b, c)| {
-                            FrameView::new(PixelFormat::Mono8, c.width, c.height, b).unwrap()
-                        })
-                        .collect();
+                    let frames = surround_common::still_views(r, buffers);
                     chunk
                         .iter()
                         .map(|&seed| {

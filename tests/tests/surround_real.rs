@@ -11,16 +11,8 @@ use opencv::imgproc;
 use rigview_calib::formats;
 use rigview_calib::pose::Pose;
 use rigview_calib::rig::Rig;
-use rigview_core::exposure::{FrameView, PixelFormat};
 use rigview_core::surround::{BlendMode, Canvas, Composer, SurroundOptions, SurroundView};
-use surround_common::{data, images, spec};
-
-fn views(images: &[(usize, usize, Vec<u8>)]) -> Vec<FrameView<'_>> {
-    images
-        .iter()
-        .map(|(w, h, d)| FrameView::new(PixelFormat::Rgb8, *w, *h, d).unwrap())
-        .collect()
-}
+use surround_common::{data, images, spec, views};
 
 /// Gradient agreement of two warped images over the pixels both show:
 /// `Σ ∇a·∇b / √(Σ|∇a|² Σ|∇b|²)` of the Sobel gradients after a Gaussian

@@ -11,7 +11,6 @@ use std::sync::Arc;
 
 use opencv::core::{self, Mat, Point2f, TermCriteria, Vector};
 use opencv::imgproc;
-use rigview_core::exposure::{FrameView, PixelFormat};
 use rigview_core::pipeline::{ProcessingSettings, Strategy};
 use rigview_core::sim::{SimConfig, SimRender};
 use rigview_core::surround::{
@@ -80,11 +79,7 @@ fn the_mat_corners_land_within_a_canvas_pixel_of_their_true_positions() {
     let buffers: Vec<Vec<u8>> = (0..r.cameras().len())
         .map(|k| surround_common::still(&r, k, 4000.0))
         .collect();
-    let frames: Vec<FrameView<'_>> = buffers
-        .iter()
-        .zip(r.cameras())
-        .map(|(b, c)| FrameView::new(PixelFormat::Mono8, c.width, c.height, b).unwrap())
-        .collect();
+    let frames = surround_common::still_views(&r, &buffers);
     let mut canvas = Canvas::new(0, 0, 1);
     Composer::new()
         .compose(&view, &frames, BlendMode::Linear, &mut canvas)

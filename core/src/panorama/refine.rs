@@ -255,22 +255,18 @@ impl Panorama {
             .iter()
             .zip(&ground)
             .filter(|((_, _, rays), _)| !rays.is_empty())
-            .map(|(((i, j), g, rays), on_ground)| {
-                let errors = |qi: &Rotation3<f64>, qj: &Rotation3<f64>| {
-                    median(
-                        rays.iter()
-                            .filter_map(|(a, b)| g.error_px(&(qi * a), &(qj * b)))
-                            .collect(),
-                    )
-                };
-                PairRefinement {
-                    i: *i,
-                    j: *j,
-                    inliers: rays.len(),
-                    on_ground: on_ground.iter().filter(|&&b| b).count(),
-                    error_before_px: errors(&Rotation3::identity(), &Rotation3::identity()),
-                    error_after_px: errors(&q[*i], &q[*j]),
-                }
+            .map(|(((i, j), g, rays), on_ground)| PairRefinement {
+                i: *i,
+                j: *j,
+                inliers: rays.len(),
+                on_ground: on_ground.iter().filter(|&&b| b).count(),
+                error_before_px: median_error(
+                    g,
+                    rays,
+                    &Rotation3::identity(),
+                    &Rotation3::identity(),
+                ),
+                error_after_px: median_error(g, rays, &q[*i], &q[*j]),
             })
             .collect();
         Ok(Refinement {
@@ -290,26 +286,39 @@ impl Panorama {
         rotations: &[Rotation3<f64>],
     ) -> Vec<(usize, usize, Option<f64>)> {
         let n = self.origins.len();
-        let q = |k: usize| {
-            rotations
-                .get(k)
-                .copied()
-                .unwrap_or_else(Rotation3::identity)
-        };
         rays.pairs
             .iter()
             .filter(|(i, j, r)| *i < n && *j < n && !r.is_empty())
             .map(|(i, j, r)| {
                 let g = self.pair_geometry(*i, *j);
-                let (qi, qj) = (q(*i), q(*j));
-                let errors = r
-                    .iter()
-                    .filter_map(|(a, b)| g.error_px(&(qi * a), &(qj * b)))
-                    .collect();
-                (*i, *j, median(errors))
+                let (qi, qj) = (rotation_of(rotations, *i), rotation_of(rotations, *j));
+                (*i, *j, median_error(&g, r, &qi, &qj))
             })
             .collect()
     }
+}
+
+/// Camera `k`'s rotation of `rotations` (none for a camera beyond them).
+fn rotation_of(rotations: &[Rotation3<f64>], k: usize) -> Rotation3<f64> {
+    rotations
+        .get(k)
+        .copied()
+        .unwrap_or_else(Rotation3::identity)
+}
+
+/// The median epipolar error (canvas pixels) of a pair's inliers `rays`
+/// with its cameras turned by `qi` and `qj`.
+fn median_error(
+    g: &PairGeometry,
+    rays: &[RayPair],
+    qi: &Rotation3<f64>,
+    qj: &Rotation3<f64>,
+) -> Option<f64> {
+    median(
+        rays.iter()
+            .filter_map(|(a, b)| g.error_px(&(qi * a), &(qj * b)))
+            .collect(),
+    )
 }
 
 /// One pair in a refinement: its cameras, its geometry and its inliers'
@@ -329,18 +338,12 @@ impl InlierRays {
     /// The same inliers seen by the rig turned by `rotations` (per camera,
     /// about its centre: what [`Refinement::apply`] does).
     pub fn turned(&self, rotations: &[Rotation3<f64>]) -> Self {
-        let q = |k: usize| {
-            rotations
-                .get(k)
-                .copied()
-                .unwrap_or_else(Rotation3::identity)
-        };
         Self {
             pairs: self
                 .pairs
                 .iter()
                 .map(|(i, j, rays)| {
-                    let (qi, qj) = (q(*i), q(*j));
+                    let (qi, qj) = (rotation_of(rotations, *i), rotation_of(rotations, *j));
                     (*i, *j, rays.iter().map(|(a, b)| (qi * a, qj * b)).collect())
                 })
                 .collect(),
@@ -355,16 +358,6 @@ impl InlierRays {
                 None => self.pairs.push((i, j, rays)),
             }
         }
-    }
-
-    /// How many inliers there are, over every pair.
-    pub fn len(&self) -> usize {
-        self.pairs.iter().map(|(_, _, rays)| rays.len()).sum()
-    }
-
-    /// Whether there are none.
-    pub fn is_empty(&self) -> bool {
-        self.len() == 0
     }
 }
 

@@ -9,10 +9,10 @@
 //! builds the panorama of the rig the last one refined, matches on it, and
 //! refines. The inliers of the rounds are pooled (turned to the current
 //! rig: [`InlierRays::turned`]) and refined together, so that the result
-//! does not follow the corners one matching happens to give; the first
-//! round's inliers, matched on the calibration being corrected, are left
-//! out of the pool (and so are any round's that
-//! turned a camera by more than [`POOL_WITHIN_DEG`]).
+//! does not follow the corners one matching happens to give. A round that
+//! turned a camera by more than [`POOL_WITHIN_DEG`] (the first, when the
+//! calibration was off) empties the pool: its inliers were matched on a
+//! rig that far from the refined one.
 //!
 //! A round after the first is not taken, and the rounds stop, if it leaves
 //! some pair's inliers further from their epipolar planes than the
@@ -89,7 +89,7 @@ pub struct Rounds {
 }
 
 /// The cylinder the refinement matches on: `spec` with a floor, at
-/// [`MATCH_WIDTH`] columns and as many rows as keep its pixels square.
+/// [`MATCH_WIDTH`] columns and as many rows as keep the view's aspect.
 pub fn matching_spec(spec: &CylinderSpec) -> CylinderSpec {
     let rows = (spec.height as f64 * MATCH_WIDTH as f64 / spec.width as f64).round() as usize;
     CylinderSpec {

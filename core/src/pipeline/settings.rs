@@ -298,7 +298,7 @@ pub enum Control {
         /// Which cameras overlap.
         graph: NeighbourGraph,
     },
-    /// Refine the panorama's rotations from its latest matches, in the
+    /// Refine the panorama's rotations from the next set, in rounds in the
     /// background (nothing without a panorama).
     Refine,
 }

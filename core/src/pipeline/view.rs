@@ -529,8 +529,8 @@ impl LivePanorama {
         self.settings = settings.clone();
     }
 
-    /// Asks for a refinement from the latest matches (at once if there are
-    /// any and the worker is free, otherwise as soon as they are).
+    /// Asks for a refinement ([`crate::panorama::refine_in_rounds`]) from
+    /// the next set the worker is free for.
     pub fn request_refine(&mut self) {
         self.refine_wanted = true;
         Arc::make_mut(&mut self.report).refining = true;
@@ -630,7 +630,7 @@ impl LivePanorama {
     }
 
     /// Counts a set and starts the worker's next job if it is free: a
-    /// refinement if one is wanted and there are matches, otherwise a
+    /// refinement of `set` if one is wanted, otherwise a
     /// matching of `set` when one is due. Never waits; a worker that
     /// cannot start or stopped is a problem in the report.
     pub fn schedule(&mut self, set: &FrameSet) {
@@ -660,35 +660,33 @@ impl LivePanorama {
         let Some(worker) = &self.worker else {
             return;
         };
-        let job = match &self.held {
-            _ if self.refine_wanted => {
-                self.refine_wanted = false;
-                Job::Refine {
-                    generation: self.generation,
-                    rig: self.rig.clone(),
-                    set: set.clone(),
-                    options: RoundsOptions {
-                        rounds: self.settings.refine_rounds,
-                        refine: RefineOptions {
-                            bound_deg: self.settings.refine_bound_deg,
-                            ..RefineOptions::default()
-                        },
-                        matching: self.match_options.clone(),
+        let job = if self.refine_wanted {
+            self.refine_wanted = false;
+            Job::Refine {
+                generation: self.generation,
+                rig: self.rig.clone(),
+                set: set.clone(),
+                options: RoundsOptions {
+                    rounds: self.settings.refine_rounds,
+                    refine: RefineOptions {
+                        bound_deg: self.settings.refine_bound_deg,
+                        ..RefineOptions::default()
                     },
-                }
+                    matching: self.match_options.clone(),
+                },
             }
+        } else if self.held.is_none() || self.sets_since_match >= self.settings.match_every {
             // The first set is matched at once, then one every
             // `match_every` sets (the next free set after a busy worker).
-            _ if self.held.is_none() || self.sets_since_match >= self.settings.match_every => {
-                self.sets_since_match = 0;
-                Job::Match {
-                    generation: self.generation,
-                    panorama: self.panorama.clone(),
-                    set: set.clone(),
-                    options: self.match_options.clone(),
-                }
+            self.sets_since_match = 0;
+            Job::Match {
+                generation: self.generation,
+                panorama: self.panorama.clone(),
+                set: set.clone(),
+                options: self.match_options.clone(),
             }
-            _ => return,
+        } else {
+            return;
         };
         self.busy = worker.send(job);
         if !self.busy {

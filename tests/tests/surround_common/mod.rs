@@ -6,7 +6,7 @@
 use std::path::{Path, PathBuf};
 
 use rigview_calib::rig::Rig;
-use rigview_core::exposure::{ExposureSetting, PixelFormat};
+use rigview_core::exposure::{ExposureSetting, FrameView, PixelFormat};
 use rigview_core::sim::{FillRequest, SimRender};
 use rigview_core::surround::CanvasSpec;
 
@@ -31,6 +31,25 @@ pub fn images(rig: &Rig) -> Vec<(usize, usize, Vec<u8>)> {
                 .to_rgb8();
             (img.width() as usize, img.height() as usize, img.into_raw())
         })
+        .collect()
+}
+
+/// Frame views of packed RGB images (width, height, pixels), as
+/// [`images`] gives them.
+pub fn views(images: &[(usize, usize, Vec<u8>)]) -> Vec<FrameView<'_>> {
+    images
+        .iter()
+        .map(|(w, h, d)| FrameView::new(PixelFormat::Rgb8, *w, *h, d).unwrap())
+        .collect()
+}
+
+/// Frame views of the simulated rig's Mono8 frames `buffers` (one per
+/// camera, rig order), as [`still`] gives them.
+pub fn still_views<'a>(render: &SimRender, buffers: &'a [Vec<u8>]) -> Vec<FrameView<'a>> {
+    buffers
+        .iter()
+        .zip(render.cameras())
+        .map(|(b, c)| FrameView::new(PixelFormat::Mono8, c.width, c.height, b).unwrap())
         .collect()
 }
 
