@@ -903,15 +903,17 @@ fn panorama(c: &mut Criterion) {
         sum.detect += times.detect;
         sum.describe += times.describe;
         sum.matching += times.matching;
+        sum.align += times.align;
         sum.ransac += times.ransac;
         inliers = pairs.iter().map(|p| p.inliers).collect();
     }
     eprintln!(
-        "matching and refinement, simulated rig at 4096x1024, mean of {calls} calls on one core: warp {:?}, detect {:?}, describe {:?}, match {:?}, RANSAC and patches {:?}, refine {:?}; inliers per pair {inliers:?}",
+        "matching and refinement, simulated rig at 4096x1024, mean of {calls} calls on one core: warp {:?}, detect {:?}, describe {:?}, match {:?}, align {:?}, RANSAC and patches {:?}, refine {:?}; inliers per pair {inliers:?}",
         sum.warp / calls,
         sum.detect / calls,
         sum.describe / calls,
         sum.matching / calls,
+        sum.align / calls,
         sum.ransac / calls,
         refine_time / calls,
     );

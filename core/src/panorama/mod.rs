@@ -62,9 +62,9 @@ use crate::surround::{grid, mosaic};
 use crate::surround::{Mosaic, Overlap, Plan};
 
 pub use matching::{Detector, FeatureMatch, MatchOptions, MatchTimes, OverlapBand, PairMatches};
-pub use refine::{InlierRays, PairRefinement, RefineOptions, Refinement};
+pub use refine::{InlierRays, PairRefinement, RefineOptions, Refinement, WORSE_PX};
 pub use rounds::{
-    matching_spec, refine_in_rounds, Rounds, RoundsOptions, MATCH_WIDTH, POOL_WITHIN_DEG, WORSE_PX,
+    matching_spec, refine_in_rounds, Rounds, RoundsOptions, MATCH_WIDTH, POOL_WITHIN_DEG,
 };
 
 /// The cylinder a panorama shows, and its canvas.

@@ -41,6 +41,16 @@ use super::matching::{median, PairGeometry, RayPair};
 use super::{PairMatches, Panorama};
 use crate::error::{check_range, Error, Result};
 
+/// How much a pair's median epipolar error (pixels) may exceed the
+/// calibration's after a round of [`super::refine_in_rounds`] for the round
+/// to be taken.
+pub const WORSE_PX: f64 = 0.05;
+
+/// The share of a frame set's inliers that must be aligned by their
+/// patches ([`super::FeatureMatch::aligned`]) for the refinement to take
+/// those alone: see [`Panorama::inlier_rays`].
+const ALIGNED_SHARE: f64 = 0.75;
+
 /// Options of [`Panorama::refine`].
 #[derive(Clone, Debug, PartialEq)]
 pub struct RefineOptions {
@@ -126,8 +136,26 @@ impl Panorama {
     /// The inliers of `pairs` (matched on this panorama) as rays of its
     /// rig, which [`Panorama::refine_rays`] refines from, and which can be
     /// pooled with other frame sets' ([`InlierRays::extend`]).
+    ///
+    /// Where most inliers (at least [`ALIGNED_SHARE`]) were aligned by
+    /// their patches, the cameras see the overlaps alike enough for patches
+    /// to tell, and only the aligned ones are taken: an inlier whose
+    /// patches do not align is then likely no single scene point (an edge
+    /// one camera sees in front of another object), and on the simulated
+    /// rig such inliers turned a camera by tenths of a degree. Where fewer
+    /// align (the real surround-nz stills, whose overlaps lie at the
+    /// fisheyes' edges and see near objects from metres apart: about half),
+    /// every inlier is taken.
     pub fn inlier_rays(&self, pairs: &[PairMatches]) -> InlierRays {
         let n = self.origins.len();
+        let inliers = || {
+            pairs
+                .iter()
+                .flat_map(|p| p.matches.iter().filter(|m| m.inlier))
+        };
+        let aligned = inliers().filter(|m| m.aligned).count();
+        let only_aligned =
+            aligned > 0 && aligned as f64 >= ALIGNED_SHARE * inliers().count() as f64;
         InlierRays {
             pairs: pairs
                 .iter()
@@ -136,7 +164,7 @@ impl Panorama {
                     let rays = p
                         .matches
                         .iter()
-                        .filter(|m| m.inlier)
+                        .filter(|m| m.inlier && (m.aligned || !only_aligned))
                         .map(|m| (self.ray(p.i, m.at_i), self.ray(p.j, m.at_j)))
                         .collect();
                     (p.i, p.j, rays)

@@ -30,7 +30,7 @@ use rigview_calib::rig::Rig;
 
 use super::{
     CylinderSpec, Detector, InlierRays, MatchOptions, PairMatches, Panorama, PanoramaOptions,
-    RefineOptions, Refinement,
+    RefineOptions, Refinement, WORSE_PX,
 };
 use crate::error::{Error, Result};
 use crate::image::FrameView;
@@ -41,10 +41,6 @@ pub const MATCH_WIDTH: usize = 2048;
 /// The largest turn of a camera in a round (degrees) after which that
 /// round's inliers, and the pool's, are kept for the next rounds.
 pub const POOL_WITHIN_DEG: f64 = 0.25;
-
-/// How much a pair's median error (pixels) may exceed the calibration's
-/// before a round is not taken.
-pub const WORSE_PX: f64 = 0.05;
 
 /// Options of [`refine_in_rounds`].
 #[derive(Clone, Debug, PartialEq)]

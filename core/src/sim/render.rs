@@ -18,7 +18,7 @@ use rigview_calib::{Camera, Frame as RigFrame, Rig};
 
 use super::config::{RigChoice, SimConfig};
 use super::rig::{reference_rig, scale_rig};
-use super::scene::{Built, Class, Shade};
+use super::scene::{Built, Class, Hit, Shade};
 use super::script::{Levels, Script};
 use super::sensor::{
     expose_row, format_bits, frame_rng, noise_table, store_row, Sensor, NOISE_TABLE_LEN,
@@ -220,6 +220,21 @@ impl SimRender {
     /// The direction to the sun (unit vector, vehicle frame).
     pub fn sun_direction(&self) -> Vector3<f64> {
         self.built.sun_dir()
+    }
+
+    /// The scene point (vehicle frame) that the ray from `origin` along
+    /// `direction` sees first, or `None` for the sky: the truth behind a
+    /// match between two cameras.
+    pub fn scene_point(
+        &self,
+        origin: &Vector3<f64>,
+        direction: &Vector3<f64>,
+    ) -> Option<Vector3<f64>> {
+        let d = direction.try_normalize(1e-12)?;
+        match self.built.first_hit(origin, &d) {
+            Hit::Sky => None,
+            Hit::Ground(t) | Hit::Solid(t, ..) => Some(origin + t * d),
+        }
     }
 
     fn planes(&self, camera: usize) -> Result<&Planes> {

@@ -44,6 +44,6 @@ mod shading;
 mod validation;
 
 pub use description::{Asphalt, Ego, Ground, Lane, Mat, Obstacle, ObstacleKind, Scene, Sky, Sun};
-pub(crate) use geometry::Built;
+pub(crate) use geometry::{Built, Hit};
 pub use shading::Class;
 pub(crate) use shading::Shade;
