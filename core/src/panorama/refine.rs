@@ -15,7 +15,11 @@
 //!    camera `i`'s ray, in canvas pixels). A point's depth is unknown, so a
 //!    turn that moves a match along its epipolar curve costs nothing; in a
 //!    narrow overlap whose curves run nearly level, a camera's turn about
-//!    the vertical is hardly seen.
+//!    the vertical is hardly seen. This stage's prior is σ = 1° (the bound
+//!    if smaller): a camera with inliers in one of its pairs only would
+//!    otherwise turn about the vertical as far as the bound (on the
+//!    simulated rig, 3° the wrong way), and the ground stage would find no
+//!    matches on the ground.
 //! 2. **Points on the ground.** A match whose two rays meet the ground
 //!    (z = 0) within [`RefineOptions::ground_px`] of each other is taken for
 //!    a point on it: where one camera's ray meets the ground, seen from
@@ -45,6 +49,11 @@ use crate::error::{check_range, Error, Result};
 /// calibration's after a round of [`super::refine_in_rounds`] for the round
 /// to be taken.
 pub const WORSE_PX: f64 = 0.05;
+
+/// The prior (σ, degrees; the bound if smaller) on each rotation in the
+/// first stage, of the epipolar errors alone: see the module
+/// documentation.
+const FIRST_PRIOR_DEG: f64 = 1.0;
 
 /// The share of a frame set's inliers that must be aligned by their
 /// patches ([`super::FeatureMatch::aligned`]) for the refinement to take
@@ -226,12 +235,13 @@ impl Panorama {
             .iter()
             .map(|(_, _, rays)| vec![false; rays.len()])
             .collect();
+        let sigma = FIRST_PRIOR_DEG.to_radians().min(bound);
         let first = self
-            .solve(
+            .solve_with_prior(
                 &data,
                 &epipolar_only,
                 &fixed,
-                (bound, scale, options.iterations, ROUGH),
+                (bound, sigma, scale, options.iterations, ROUGH),
                 &vec![Rotation3::identity(); n],
             )
             .ok_or_else(|| {
@@ -417,6 +427,25 @@ impl Panorama {
         (bound, scale, iterations, rel_tol): (f64, f64, usize, f64),
         start: &[Rotation3<f64>],
     ) -> Option<Vec<Rotation3<f64>>> {
+        self.solve_with_prior(
+            data,
+            ground,
+            axes,
+            (bound, bound, scale, iterations, rel_tol),
+            start,
+        )
+    }
+
+    /// [`Panorama::solve`] with a prior of σ = `sigma` (radians) on each
+    /// rotation instead of `bound`.
+    fn solve_with_prior(
+        &self,
+        data: &[Pair<'_>],
+        ground: &[Vec<bool>],
+        axes: &[usize],
+        (bound, sigma, scale, iterations, rel_tol): (f64, f64, f64, usize, f64),
+        start: &[Rotation3<f64>],
+    ) -> Option<Vec<Rotation3<f64>>> {
         let n = self.origins.len();
         let rotations = |x: &[f64]| -> Option<Vec<Rotation3<f64>>> {
             let mut out = vec![Rotation3::identity(); n];
@@ -435,7 +464,7 @@ impl Panorama {
             Some(out)
         };
         let robust = |e: f64| scale * (1.0 + (e / scale).powi(2)).ln().sqrt();
-        let prior = 1.0 / bound;
+        let prior = 1.0 / sigma;
         let residuals = |x: &[f64]| -> Option<Vec<f64>> {
             let q = rotations(x)?;
             let mut out = Vec::new();
