@@ -171,9 +171,11 @@ fn harris_at(gray: &[u8], w: usize, h: usize, x: i64, y: i64) -> f64 {
     xx * yy - xy * xy - 0.04 * (xx + yy) * (xx + yy)
 }
 
-/// [`subpixel`] with the Harris response computed at the corner's pixel
-/// and its four neighbours only ([`harris_at`]; the vertex does not depend
-/// on the response's scale).
+/// The peak of the Harris response near pixel (`x`, `y`): along each axis,
+/// the vertex of the parabola through the pixel and its two neighbours
+/// ([`vertex`]; the pixel itself at the border), with the response
+/// computed at those five pixels only ([`harris_at`]; the vertex does not
+/// depend on the response's scale).
 fn subpixel_near(gray: &[u8], w: usize, h: usize, x: f32, y: f32) -> [f32; 2] {
     let (xi, yi) = (x.round() as i64, y.round() as i64);
     if xi < 1 || yi < 1 || xi + 1 >= w as i64 || yi + 1 >= h as i64 {
@@ -222,17 +224,11 @@ mod tests {
     /// the response is not a peak).
     fn subpixel(r: &Mat, x: f32, y: f32) -> [f32; 2] {
         let (xi, yi) = (x.round() as i32, y.round() as i32);
-        let at = |dx: i32, dy: i32| r.at_2d::<f32>(yi + dy, xi + dx).ok().map(|v| f64::from(*v));
-        let vertex = |a: Option<f64>, b: Option<f64>, c: Option<f64>| match (a, b, c) {
-            (Some(a), Some(b), Some(c)) if a - 2.0 * b + c < 0.0 => {
-                (0.5 * (a - c) / (a - 2.0 * b + c)).clamp(-0.5, 0.5) as f32
-            }
-            _ => 0.0,
-        };
         let inside = xi >= 1 && yi >= 1 && xi + 1 < r.cols() && yi + 1 < r.rows();
         if !inside {
             return [x, y];
         }
+        let at = |dx: i32, dy: i32| f64::from(*r.at_2d::<f32>(yi + dy, xi + dx).unwrap());
         [
             xi as f32 + vertex(at(-1, 0), at(0, 0), at(1, 0)),
             yi as f32 + vertex(at(0, -1), at(0, 0), at(0, 1)),

@@ -16,22 +16,23 @@
 //! gain and offset `α`, `β` (the two cameras of an overlap expose
 //! differently; without `α` a step edge's alignment would lean towards its
 //! brighter side). `w` is a Gaussian of σ = radius / 2 over a square of
-//! side `2·radius + 1`, `A` is read at whole pixels and `B` bilinearly,
-//! its gradient by central differences of the bilinear reads. OpenCV's
+//! side `2·radius + 1`, `A` is read at whole pixels and `B` bilinearly
+//! (one fraction for the whole patch). `B`'s gradient is taken as `α`
+//! times `A`'s (central differences), equal where the patches align, so
+//! the Gauss–Newton matrix comes from the template's moments, computed
+//! once; each step reads `B` once a pixel. OpenCV's
 //! `calcOpticalFlowPyrLK` assumes equal brightness, and `core` calls no
 //! OpenCV.
 
 use nalgebra::{Matrix4, Vector4};
 
-/// A Mono8 image: packed rows of `width` bytes.
+/// A Mono8 image: packed rows of `width` bytes ([`Gray::new`] checks
+/// that they are all there).
 #[derive(Clone, Copy, Debug)]
 pub struct Gray<'a> {
-    /// The pixels, row-major.
-    pub data: &'a [u8],
-    /// Width in pixels.
-    pub width: usize,
-    /// Height in pixels.
-    pub height: usize,
+    data: &'a [u8],
+    width: usize,
+    height: usize,
 }
 
 impl<'a> Gray<'a> {
@@ -214,23 +215,12 @@ impl Aligner {
                 sums[3] += e;
             });
             let g2 = gain * gain;
+            #[rustfmt::skip]
             let h = Matrix4::new(
-                g2 * xx,
-                g2 * xy,
-                -gain * xt,
-                -gain * x1,
-                g2 * xy,
-                g2 * yy,
-                -gain * yt,
-                -gain * y1,
-                -gain * xt,
-                -gain * yt,
-                tt,
-                t1,
-                -gain * x1,
-                -gain * y1,
-                t1,
-                w1,
+                g2 * xx,     g2 * xy,     -gain * xt, -gain * x1,
+                g2 * xy,     g2 * yy,     -gain * yt, -gain * y1,
+                -gain * xt,  -gain * yt,  tt,         t1,
+                -gain * x1,  -gain * y1,  t1,         w1,
             );
             let grad = Vector4::new(gain * sums[0], gain * sums[1], -sums[2], -sums[3]);
             let step = h.cholesky()?.solve(&(-grad));
@@ -253,7 +243,7 @@ impl Aligner {
         if !converged || moved > o.max_shift || !inside(p) || gain <= 0.0 {
             return None;
         }
-        (correlation(&template, b, p)? >= o.min_correlation).then_some(p)
+        (correlation(&template, (w1, t1, tt), b, p)? >= o.min_correlation).then_some(p)
     }
 }
 
@@ -270,15 +260,18 @@ struct Texel {
 }
 
 /// The weighted normalised correlation of the template and `b`'s patch at
-/// `p`; `None` for a flat patch.
-fn correlation(template: &[Texel], b: &Gray<'_>, p: [f32; 2]) -> Option<f32> {
-    let (mut sw, mut st, mut sv, mut tt, mut vv, mut tv) = (0.0f64, 0.0, 0.0, 0.0, 0.0, 0.0);
+/// `p`; `None` for a flat patch. `(sw, st, tt)` are the template's
+/// weighted moments `Σw`, `Σw·t` and `Σw·t²`.
+fn correlation(
+    template: &[Texel],
+    (sw, st, tt): (f64, f64, f64),
+    b: &Gray<'_>,
+    p: [f32; 2],
+) -> Option<f32> {
+    let (mut sv, mut vv, mut tv) = (0.0f64, 0.0, 0.0);
     b.patch(p, template, |q, v| {
         let (w, t, v) = (f64::from(q.w), f64::from(q.t), f64::from(v));
-        sw += w;
-        st += w * t;
         sv += w * v;
-        tt += w * t * t;
         vv += w * v * v;
         tv += w * t * v;
     });

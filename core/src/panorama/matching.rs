@@ -39,11 +39,11 @@
 //! ([`crate::features::align`], which allows for the two cameras'
 //! brightness). A match whose patches do not align (too little texture,
 //! the scene seen too differently) keeps the detector's positions and says
-//! so ([`FeatureMatch::aligned`]); the refinement takes a pair's aligned
-//! inliers where it has enough of them. (On the simulated rig nearly all
-//! align; on the real surround-nz stills, whose overlaps lie at the edges
-//! of the fisheyes and see near objects from viewpoints metres apart, few
-//! do.)
+//! so ([`FeatureMatch::aligned`]); where most of a frame set's inliers
+//! aligned, the refinement takes those alone ([`Panorama::inlier_rays`]).
+//! (On the simulated rig nearly all align; on the real surround-nz
+//! stills, whose overlaps lie at the edges of the fisheyes and see near
+//! objects from viewpoints metres apart, about half do.)
 //!
 //! # Outliers: RANSAC on the pair's relative rotation
 //!
@@ -488,9 +488,17 @@ impl Panorama {
             patches: Vec::new(),
             problem: None,
         };
+        // (A match that kept the detector's positions has its rays already.)
         let rays: Vec<RayPair> = matches
             .iter()
-            .map(|m| (self.ray(band.i, m.at_i), self.ray(band.j, m.at_j)))
+            .zip(&aligned)
+            .map(|(m, (found, ..))| {
+                if m.aligned {
+                    (self.ray(band.i, m.at_i), self.ray(band.j, m.at_j))
+                } else {
+                    (fi[found.query], fj[found.train])
+                }
+            })
             .collect();
         let rotation = ransac(&geometry, &rays, &mut matches, options);
         result.inliers = matches.iter().filter(|m| m.inlier).count();

@@ -62,9 +62,10 @@ use crate::surround::{grid, mosaic};
 use crate::surround::{Mosaic, Overlap, Plan};
 
 pub use matching::{Detector, FeatureMatch, MatchOptions, MatchTimes, OverlapBand, PairMatches};
-pub use refine::{InlierRays, PairRefinement, RefineOptions, Refinement, WORSE_PX};
+pub use refine::{InlierRays, PairRefinement, RefineOptions, Refinement};
 pub use rounds::{
-    matching_spec, refine_in_rounds, Rounds, RoundsOptions, MATCH_WIDTH, POOL_WITHIN_DEG,
+    matching_spec, refine_in_rounds, Rounds, RoundsOptions, MATCH_WIDTH, MAX_ROUNDS,
+    POOL_WITHIN_DEG, WORSE_PX,
 };
 
 /// The cylinder a panorama shows, and its canvas.

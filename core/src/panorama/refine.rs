@@ -45,11 +45,6 @@ use super::matching::{median, PairGeometry, RayPair};
 use super::{PairMatches, Panorama};
 use crate::error::{check_range, Error, Result};
 
-/// How much a pair's median epipolar error (pixels) may exceed the
-/// calibration's after a round of [`super::refine_in_rounds`] for the round
-/// to be taken.
-pub const WORSE_PX: f64 = 0.05;
-
 /// The prior (σ, degrees; the bound if smaller) on each rotation in the
 /// first stage, of the epipolar errors alone: see the module
 /// documentation.

@@ -30,7 +30,7 @@ use rigview_calib::rig::Rig;
 
 use super::{
     CylinderSpec, Detector, InlierRays, MatchOptions, PairMatches, Panorama, PanoramaOptions,
-    RefineOptions, Refinement, WORSE_PX,
+    RefineOptions, Refinement,
 };
 use crate::error::{Error, Result};
 use crate::image::FrameView;
@@ -41,6 +41,13 @@ pub const MATCH_WIDTH: usize = 2048;
 /// The largest turn of a camera in a round (degrees) after which that
 /// round's inliers, and the pool's, are kept for the next rounds.
 pub const POOL_WITHIN_DEG: f64 = 0.25;
+
+/// How much a pair's median epipolar error (pixels) may exceed the
+/// calibration's after a round for the round to be taken.
+pub const WORSE_PX: f64 = 0.05;
+
+/// The most rounds [`refine_in_rounds`] runs.
+pub const MAX_ROUNDS: usize = 20;
 
 /// Options of [`refine_in_rounds`].
 #[derive(Clone, Debug, PartialEq)]
@@ -107,7 +114,7 @@ pub fn refine_in_rounds(
     detector: &Detector<'_>,
     options: &RoundsOptions,
 ) -> Result<Rounds> {
-    if options.rounds == 0 || options.rounds > 20 {
+    if !(1..=MAX_ROUNDS).contains(&options.rounds) {
         return Err(Error::InvalidParameter {
             name: "refine.rounds",
             value: options.rounds as f64,

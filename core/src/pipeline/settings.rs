@@ -195,7 +195,7 @@ impl PanoramaSettings {
             20.0,
             "0.01° to 20°",
         )?;
-        if !(1..=20).contains(&self.refine_rounds) {
+        if !(1..=crate::panorama::MAX_ROUNDS).contains(&self.refine_rounds) {
             return Err(crate::error::Error::InvalidParameter {
                 name: "panorama.refine_rounds",
                 value: self.refine_rounds as f64,

@@ -330,8 +330,7 @@ fn work(
             options: match_options,
         } => {
             let t = Instant::now();
-            let frames: Result<Vec<FrameView<'_>>> =
-                set.frames.iter().flatten().map(|f| f.view()).collect();
+            let frames = views(&set);
             let taken = set
                 .frames
                 .iter()
@@ -359,12 +358,7 @@ fn work(
             options: rounds,
         } => {
             let t = Instant::now();
-            let refined = set
-                .frames
-                .iter()
-                .flatten()
-                .map(|f| f.view())
-                .collect::<Result<Vec<FrameView<'_>>>>()
+            let refined = views(&set)
                 .and_then(|frames| {
                     refine_in_rounds(&rig, spec, options, &frames, detector, &rounds)
                 })
@@ -384,6 +378,11 @@ fn work(
             }
         }
     }
+}
+
+/// The views of a set's frames, in rig order.
+fn views(set: &FrameSet) -> Result<Vec<FrameView<'_>>> {
+    set.frames.iter().flatten().map(|f| f.view()).collect()
 }
 
 /// The latest matches and what they give each set: per pair, its latest
@@ -453,7 +452,8 @@ pub struct LivePanorama {
     worker: Option<Worker>,
     /// Whether a job is on the worker.
     busy: bool,
-    /// Bumped by every refinement: older matches are not refined from.
+    /// Bumped by every refinement: the worker's results for an older
+    /// panorama are dropped.
     generation: u64,
     held: Option<Held>,
     /// Sets scheduled so far.

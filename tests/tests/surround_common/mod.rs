@@ -86,3 +86,13 @@ pub fn still(render: &SimRender, k: usize, shutter_us: f64) -> Vec<u8> {
     render.fill(&req, &mut buf).unwrap();
     buf
 }
+
+/// A pair's matches and inliers aligned by their patches, for the
+/// panorama tests' reports.
+pub fn aligned(p: &rigview_core::panorama::PairMatches) -> (usize, usize) {
+    let aligned = p.matches.iter().filter(|m| m.aligned);
+    (
+        aligned.clone().count(),
+        aligned.filter(|m| m.inlier).count(),
+    )
+}
