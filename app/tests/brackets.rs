@@ -1,8 +1,10 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 //! Closed loop on exposure brackets exported from the simulated rig, each
 //! camera's command answered with the nearest of brackets 0.25 EV apart:
-//! every strategy settles within 0.15 EV of where it settles on the
-//! simulator itself (the median of the last 10 of 120 frames; printed with
+//! every strategy settles within 0.2 EV (less than a level) of where it
+//! settles on the simulator itself (the level walker may rest on the
+//! neighbour of the nearest level where the fixed point lies near their
+//! midpoint: `core/src/exposure/levels.rs`) (the median of the last 10 of 120 frames; printed with
 //! `--nocapture`). And `--source brackets:DIR` runs headless.
 
 mod common;
@@ -11,7 +13,6 @@ use std::sync::Arc;
 
 use rigview::brackets::{self, ExportSpec};
 use rigview::eval::closed_loop::{self, LoopOptions};
-use rigview::eval::strategy::EvalStrategy;
 use rigview::session::BRACKETS_START;
 use rigview_core::sim::{SimConfig, SimRender};
 
@@ -41,14 +42,7 @@ fn every_strategy_settles_on_brackets_where_it_settles_on_the_simulator() {
 
     let mut worst = 0.0f64;
     let mut failures = Vec::new();
-    for strategy in [
-        EvalStrategy::Linear,
-        EvalStrategy::Nonlinear,
-        EvalStrategy::Fast,
-        EvalStrategy::Pid,
-        EvalStrategy::Mean,
-        EvalStrategy::Multi,
-    ] {
+    for strategy in common::LOOP_STRATEGIES {
         let sim = closed_loop::run(&render, strategy.settings(), FRAMES, &mut || {}).unwrap();
         let (source, rig) = brackets::open_with_rig(dir.path(), None, BRACKETS_START).unwrap();
         let on_brackets = closed_loop::run_source(
@@ -72,7 +66,7 @@ fn every_strategy_settles_on_brackets_where_it_settles_on_the_simulator() {
                 spec.levels.iter().any(|l| (l.log2() - last).abs() < 1e-6),
                 "{last}"
             );
-            if (a - b).abs() > 0.15 {
+            if (a - b).abs() > 0.2 {
                 failures.push(format!(
                     "{}: camera {cam} settles at 2^{a:.3} on the simulator, 2^{b:.3} on brackets",
                     strategy.key()

@@ -5,6 +5,19 @@
 use std::path::Path;
 use std::process::Command;
 
+use rigview::eval::strategy::EvalStrategy;
+
+/// The strategies a closed loop on brackets runs (every controller of
+/// rigview's; the cameras' own AE needs the simulated camera).
+pub const LOOP_STRATEGIES: [EvalStrategy; 6] = [
+    EvalStrategy::Linear,
+    EvalStrategy::Nonlinear,
+    EvalStrategy::Fast,
+    EvalStrategy::Pid,
+    EvalStrategy::Mean,
+    EvalStrategy::Multi,
+];
+
 /// Runs `rigview ARGS --settings DIR/settings.yaml`; returns its output,
 /// after checking that it succeeded.
 pub fn rigview(args: &[&str], dir: &Path) -> String {

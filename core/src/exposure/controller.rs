@@ -20,6 +20,7 @@ use super::estimator::{
     Darker, Estimate, EstimateOptions, Estimator, EstimatorConfig, Simulation, DARKER_MIN_EV,
 };
 use super::laws::{LawKind, LawParams, LawStep};
+use super::levels::{LevelFrame, LevelWalker, Request};
 use super::light::{LightChange, LightParams, LightTracker};
 use super::metering::Metered;
 use super::probe::{ProbeEvent, ProbeInput, ProbeParams, Prober};
@@ -172,19 +173,6 @@ pub enum Hold {
 /// mean-intensity step is taken instead.
 pub const SATURATED_FALLBACK: f32 = 0.8;
 
-/// On a camera with fixed exposure levels, the level it has stays while
-/// the exposure asked lies within this share of the way to the next
-/// (nearest-level rounding is 0.5).
-const LEVEL_HYSTERESIS: f64 = 0.6;
-
-/// How much of the distance (in log exposure) between the exposure asked of
-/// a camera with fixed levels and the level it took carries to the next
-/// step ([`CameraController::anchor`]). Below 1, the steps' noise does not
-/// add up without bound while the camera rests at a level; on brackets
-/// 0.25 EV apart, 1 let noise walk the linear law 0.24 EV from where it
-/// settles on the simulator, 0.6 left the mean AE 0.26 EV short.
-const LEVEL_RETAIN: f64 = 0.8;
-
 /// Tolerance (relative) for "this frame shows the commanded exposure".
 const SETTLED_TOLERANCE: f64 = 2e-3;
 
@@ -309,12 +297,14 @@ pub struct CameraController {
     /// Whether this frame became the light's reference: the exposure
     /// commanded on it (after balancing) is the one a change of light moves.
     fresh_reference: bool,
-    /// The only exposure levels the camera takes, ascending, if it has a
-    /// fixed set ([`crate::source::CameraInfo::levels`]).
-    levels: Option<Vec<f64>>,
-    /// The exposure last asked of a camera with fixed levels, before it
-    /// was rounded to one, and the level it was sent ([`Self::anchor`]).
-    intended: Option<(f64, f64)>,
+    /// The levels of a camera that takes only a fixed set
+    /// ([`crate::source::CameraInfo::levels`]), and where it goes on them.
+    walker: Option<LevelWalker>,
+    /// The latest frame's request to the walker: the frame, the law's
+    /// request from its exposure (EV), how to read it, and the exposure
+    /// the camera's own law desired (balancing moves the request by the
+    /// target's ratio to it).
+    level_request: Option<LevelRequest>,
 }
 
 /// A kept frame as the estimator reads it, when it is at least
@@ -327,6 +317,21 @@ fn usable_darker(kept: Option<&ProbeFrame>, taken: f64) -> Option<Darker<'_>> {
             ratio,
         })
     })
+}
+
+/// A frame's request to the [`LevelWalker`] of a camera with fixed levels.
+#[derive(Clone, Copy, Debug)]
+struct LevelRequest {
+    frame: LevelFrame,
+    /// The law's request from the frame's exposure, EV.
+    step_ev: f64,
+    /// Where the estimate places the fixed point (`−ln γ̂`), for the
+    /// incremental laws, whose steps are asymmetric (α of Eq. 3 and 4).
+    signal: Option<f64>,
+    kind: Request,
+    /// The camera's own desired exposure: balancing moves the request by
+    /// the target's ratio to it.
+    desired: f64,
 }
 
 /// A probe frame kept for the estimator.
@@ -361,54 +366,16 @@ impl CameraController {
             light: LightTracker::default(),
             kept_light_ev: 0.0,
             fresh_reference: false,
-            levels: None,
-            intended: None,
+            walker: None,
+            level_request: None,
         })
     }
 
     /// Tells the controller that the camera takes only these exposure
     /// levels (`None`: any within its range); see [`Self::anchor`].
     pub fn set_levels(&mut self, levels: Option<Vec<f64>>) {
-        self.levels = levels.filter(|l| !l.is_empty());
-        self.intended = None;
-    }
-
-    /// The level to send for `exposure` on a camera with fixed levels, at
-    /// `current` now: the nearest in log exposure, except that `current`
-    /// stays while `exposure` lies within [`LEVEL_HYSTERESIS`] of the way
-    /// to the next level, so that an exposure asked near the middle between
-    /// two levels does not send the camera back and forth.
-    fn level_of(levels: &[f64], exposure: f64, current: f64) -> f64 {
-        let dist = |l: f64| (l / exposure).log2().abs();
-        let nearest = levels
-            .iter()
-            .copied()
-            .min_by(|a, b| dist(*a).total_cmp(&dist(*b)))
-            .unwrap_or(exposure);
-        let spacing = (nearest / current).log2().abs();
-        if spacing > 0.0 && dist(current) < LEVEL_HYSTERESIS * spacing {
-            current
-        } else {
-            nearest
-        }
-    }
-
-    /// Where a step computed on a frame taken at `taken` starts from. On a
-    /// camera with fixed levels that shows the level of the exposure last
-    /// asked of it, the step starts from that exposure (drawn
-    /// [`LEVEL_RETAIN`] of the way from the level), not from the level: a
-    /// law whose steps are smaller than half the levels' spacing would
-    /// otherwise ask for the level it has on every frame and stop a level
-    /// or more short of its fixed point, while from the exposure asked its
-    /// steps add up until they reach the next level. Between two levels
-    /// the camera then alternates, as long at each as its fixed point is
-    /// near it. On a camera with any level, and until then, `taken`.
-    fn anchor(&self, taken: f64) -> f64 {
-        self.intended
-            .filter(|&(_, level)| (level / taken).log2().abs() <= SETTLED_TOLERANCE)
-            .map_or(taken, |(asked, level)| {
-                level * (asked / level).powf(LEVEL_RETAIN)
-            })
+        self.walker = levels.as_deref().and_then(LevelWalker::new);
+        self.level_request = None;
     }
 
     /// The splitter (ranges and hysteresis state).
@@ -473,7 +440,10 @@ impl CameraController {
         self.repeller.reset();
         self.light.reset();
         self.kept_light_ev = 0.0;
-        self.intended = None;
+        if let Some(w) = &mut self.walker {
+            w.reset();
+        }
+        self.level_request = None;
     }
 
     /// The setting the camera will have once the commands in flight have
@@ -482,15 +452,14 @@ impl CameraController {
         self.in_flight.back().map_or(taken, |c| c.setting)
     }
 
-    /// The exposure the next step starts from: [`Self::base`], except on
-    /// a camera with fixed levels that shows the level last sent, where it
-    /// is the exposure asked before rounding ([`Self::anchor`]).
+    /// The exposure the next step starts from: [`Self::base`].
     pub fn working_point(&self, taken: ExposureSetting) -> f64 {
-        if self.in_flight.is_empty() {
-            self.anchor(taken.exposure())
-        } else {
-            self.base(taken).exposure()
-        }
+        self.base(taken).exposure()
+    }
+
+    /// Whether the camera takes only fixed levels.
+    pub fn has_levels(&self) -> bool {
+        self.walker.is_some()
     }
 
     /// Commands in flight (sent, not yet shown by a frame).
@@ -649,7 +618,9 @@ impl CameraController {
         // Under the camera's own law, between frames that do not ask
         // towards each other.
         let step = match &estimate {
-            Some(e) if own_law && hold.is_none() && follow.is_none() => {
+            // (On fixed levels the walker does this: the frames of two
+            // levels ask apart by a level's spacing.)
+            Some(e) if own_law && hold.is_none() && follow.is_none() && self.walker.is_none() => {
                 let at = taken.log2();
                 let asked = at + step.frame_ev();
                 let followed = self.repeller.follow(
@@ -676,19 +647,7 @@ impl CameraController {
                 base
             }
             (None, Some(c)) => base * config.law.bound(c.best / base),
-            (None, None) => match (step, self.intended) {
-                // The fast law's prediction is of the best exposure itself.
-                (LawStep::Predicted { .. }, _) => {
-                    config.law.next_exposure(step, taken, base, own_law)
-                }
-                // A frame from before the level sent shows: the exposure
-                // asked stands (a step from the frame's level would undo
-                // the steps added up since).
-                (_, Some((asked, _))) if !self.in_flight.is_empty() => asked,
-                _ => config
-                    .law
-                    .next_exposure(step, self.anchor(taken), base, own_law),
-            },
+            (None, None) => config.law.next_exposure(step, taken, base, own_law),
         };
         // The bracket is the estimator's: under the fast law, whose jumps
         // can straddle a discontinuity of the estimate, it holds whether or
@@ -697,6 +656,9 @@ impl CameraController {
             || (config.mode == ControlMode::Gradient
                 && config.law.kind == LawKind::Fast
                 && self.manual.is_none());
+        // On fixed levels the walker brackets the fixed point between two
+        // levels instead.
+        let bracketed = bracketed && self.walker.is_none();
         if bracketed && follow.is_none() {
             if hold.is_none() {
                 self.bracket
@@ -783,6 +745,54 @@ impl CameraController {
                 image: metered.clone(),
             });
         }
+        // On fixed levels, what the walker reads from this frame: a
+        // prediction (the fast law's, undamped; a fixed or manual exposure;
+        // a change of light followed) is the distance itself, any other
+        // request a step to add up (mean-intensity AE too: clipping makes
+        // the mean grow more slowly than the exposure, so its one-frame
+        // prediction falls short, and only its repetition reaches the
+        // exposure where the mean is on target). A probe's command,
+        // and a frame that shows no level yet, leave it out.
+        self.level_request = None;
+        if self.walker.is_some() && hold.is_none() && probe.is_none() {
+            let predicted = self.manual.is_some()
+                || follow.is_some()
+                || config.mode == ControlMode::Fixed
+                || matches!(step, LawStep::Predicted { .. });
+            let step_ev = match step {
+                LawStep::Predicted { .. } if self.manual.is_none() && follow.is_none() => {
+                    let undamped = taken.log2() + step.frame_ev();
+                    let clamped = if bracketed {
+                        self.bracket.clamp(undamped)
+                    } else {
+                        undamped
+                    };
+                    clamped - taken.log2()
+                }
+                _ => (desired / taken).log2(),
+            };
+            let kind = if predicted {
+                Request::Predicted
+            } else {
+                Request::Incremental
+            };
+            let frame = LevelFrame {
+                log2_e: taken.log2(),
+                mean,
+                saturated: f64::from(stats.saturated_fraction),
+            };
+            let signal = match (kind, &estimate) {
+                (Request::Incremental, Some(e)) if e.gamma_hat > 0.0 => Some(-e.gamma_hat.ln()),
+                _ => None,
+            };
+            self.level_request = Some(LevelRequest {
+                frame,
+                step_ev,
+                signal,
+                kind,
+                desired,
+            });
+        }
         Ok(UnaryStep {
             light: follow,
             probe_frame,
@@ -809,12 +819,21 @@ impl CameraController {
         }
         let (mut setting, clamped) = self.splitter.split(target);
         let base = self.base(taken);
-        if let Some(levels) = &self.levels {
-            // The camera is sent the level it will take, and the exposure
-            // asked is remembered for the next step (`anchor`).
-            let asked = setting.exposure();
-            let level = Self::level_of(levels, asked, base.exposure());
-            self.intended = Some((asked, level));
+        if let Some(walker) = &mut self.walker {
+            // The camera is sent a level: the walker's, after a frame at
+            // rest; the one it will have, while a command is in flight; the
+            // nearest otherwise (a probe).
+            let level = match self.level_request.take() {
+                Some(r) => {
+                    let moved = (setting.exposure() / r.desired).log2();
+                    let moved = if moved.is_finite() { moved } else { 0.0 };
+                    let step = r.step_ev + moved;
+                    // Balancing moves the fixed point: its step places it.
+                    let signal = r.signal.filter(|_| moved.abs() < 1e-6).unwrap_or(step);
+                    walker.step(r.frame, base.exposure(), step, signal, r.kind)
+                }
+                None => walker.round(setting.exposure()),
+            };
             setting = self.splitter.split(level).0;
         }
         let must_show = std::mem::take(&mut self.must_show);
@@ -1133,7 +1152,12 @@ impl RigController {
                             );
                         }
                         let b = balance::balance(u.desired, bases[i], &neighbour);
-                        let (e, kappa) = if u.hold.is_some() {
+                        // On fixed levels the walker keeps a camera from
+                        // circling, and a damped step would only add up
+                        // more slowly.
+                        let (e, kappa) = if cam.has_levels() {
+                            (b.exposure, 1.0)
+                        } else if u.hold.is_some() {
                             (b.exposure, cam.damping.kappa())
                         } else {
                             cam.damping.apply(bases[i], b.exposure, &params.damping)

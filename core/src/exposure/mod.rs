@@ -19,6 +19,7 @@ pub mod estimator;
 mod fastmath;
 mod kernel;
 pub mod laws;
+pub mod levels;
 pub mod light;
 pub mod metering;
 pub mod metric;
