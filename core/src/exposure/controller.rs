@@ -328,6 +328,9 @@ struct LevelRequest {
     /// Where the estimate places the fixed point (`−ln γ̂`), for the
     /// incremental laws, whose steps are asymmetric (α of Eq. 3 and 4).
     signal: Option<f64>,
+    /// The distance to the estimator's fixed point, EV, where the estimate
+    /// gives it (scale-and-clip within the anchors' span).
+    distance_ev: Option<f64>,
     kind: Request,
     /// The camera's own desired exposure: balancing moves the request by
     /// the target's ratio to it.
@@ -785,10 +788,24 @@ impl CameraController {
                 (Request::Incremental, Some(e)) if e.gamma_hat > 0.0 => Some(-e.gamma_hat.ln()),
                 _ => None,
             };
+            // Scale-and-clip's ŝ is the exposure ratio to the estimator's
+            // fixed point (a linear sensor), where the laws come to rest:
+            // within the anchors' span it places the fixed point itself.
+            let distance_ev = estimate
+                .as_ref()
+                .filter(|e| {
+                    kind == Request::Incremental
+                        && e.simulation == Simulation::ScaleClip
+                        && e.at_bound.is_none()
+                        && !e.flat
+                        && e.x_hat > 0.0
+                })
+                .map(|e| e.x_hat.log2());
             self.level_request = Some(LevelRequest {
                 frame,
                 step_ev,
                 signal,
+                distance_ev,
                 kind,
                 desired,
             });
@@ -829,8 +846,13 @@ impl CameraController {
                     let moved = if moved.is_finite() { moved } else { 0.0 };
                     let step = r.step_ev + moved;
                     // Balancing moves the fixed point: its step places it.
-                    let signal = r.signal.filter(|_| moved.abs() < 1e-6).unwrap_or(step);
-                    walker.step(r.frame, base.exposure(), step, signal, r.kind)
+                    let alone = moved.abs() < 1e-6;
+                    let signal = r.signal.filter(|_| alone).unwrap_or(step);
+                    let request = match r.distance_ev.filter(|_| alone) {
+                        Some(d) => Request::Placed(d),
+                        None => r.kind,
+                    };
+                    walker.step(r.frame, base.exposure(), step, signal, request)
                 }
                 None => walker.round(setting.exposure()),
             };

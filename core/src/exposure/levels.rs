@@ -20,7 +20,10 @@
 //!   balancing) add up across the frames at one level until they pass the
 //!   midpoint to the next; a predicting law's request (the fast law, a
 //!   fixed exposure) is the distance itself and is taken as it is, without
-//!   its damping, which on coarse levels only rounds it back.
+//!   its damping, which on coarse levels only rounds it back. Where the
+//!   estimate itself says how far the law's fixed point lies
+//!   (scale-and-clip's `ŝ` within the anchors' span: the exposure ratio to
+//!   where `ŝ = 1`), an incremental law is placed there at once.
 //! - It remembers, per level, the latest request a frame at that level
 //!   made (in the same light). When the camera would move to a level whose
 //!   frame asked to come back, the fixed point lies between the two, and
@@ -28,11 +31,13 @@
 //!   `x = |s_here| / (|s_here| + |s_there|)` of the way. The camera moves
 //!   only when `x` passes the midpoint by [`SWITCH_MARGIN`], and rests at
 //!   the nearer level otherwise.
-//! - Before it has seen the level ahead, an incremental law's steps at the
-//!   level behind and here place the fixed point by a secant (the steps
-//!   shrink towards it); where that lies short of the midpoint by the same
-//!   margin, the camera rests without visiting the level ahead. Nearer the
-//!   midpoint it goes and looks.
+//! - Before it has seen the level ahead, an incremental law's signals at
+//!   the frame's level and the one behind it place the fixed point by a
+//!   secant (they shrink towards it); where that lies short of the
+//!   midpoint to the level ahead by the same margin, the camera does not
+//!   go there (also while a command is in flight: the frame's level is
+//!   then behind the one the camera goes to). Nearer the midpoint it goes
+//!   and looks.
 //!
 //! What a level's frame said is forgotten when the frame at the current
 //! level contradicts it as a linear sensor would (the light changed): the
@@ -70,13 +75,17 @@ pub struct LevelFrame {
 }
 
 /// How a law's request is read ([`LevelWalker::step`]).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Request {
     /// A step towards the fixed point, repeated on every frame while the
     /// camera stays: added up across frames.
     Incremental,
     /// The distance to the fixed point itself: taken as it is.
     Predicted,
+    /// An incremental law whose estimate also says where its fixed point
+    /// lies: this far from the frame, EV. Placed there without waiting for
+    /// the steps to add up.
+    Placed(f64),
 }
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -164,22 +173,24 @@ impl LevelWalker {
         }
     }
 
-    /// Whether the signals at the level behind `here` (opposite `dir`) and
-    /// at `here` (the same sign, smaller) place the fixed point,
-    /// extrapolated linearly in log exposure, nearer `here` than the level
-    /// `spacing` ahead by more than [`SWITCH_MARGIN`].
+    /// Whether the signals at `here` and at the level behind it (opposite
+    /// `dir`; the same sign, larger) place the fixed point, extrapolated
+    /// linearly in log exposure, short of the midpoint between `from` and
+    /// the level after it in `dir` by more than [`SWITCH_MARGIN`] of their
+    /// spacing.
     fn crossing_short_of_midpoint(
         &self,
         here: usize,
         dir: isize,
         signal: f64,
-        spacing: f64,
+        from: usize,
     ) -> bool {
-        let behind = here as isize - dir;
-        if behind < 0 || behind as usize >= self.levels.len() {
+        let (behind, next) = (here as isize - dir, from as isize + dir);
+        let n = self.levels.len() as isize;
+        if behind < 0 || behind >= n || next < 0 || next >= n {
             return false;
         }
-        let behind = behind as usize;
+        let (behind, next) = (behind as usize, next as usize);
         let Some(s) = self.seen[behind] else {
             return false;
         };
@@ -187,8 +198,12 @@ impl LevelWalker {
         if s.signal * signal <= 0.0 || far <= near * 1.05 {
             return false;
         }
-        let distance = near * (self.levels[here] - self.levels[behind]).abs() / (far - near);
-        distance < (0.5 - SWITCH_MARGIN) * spacing.abs()
+        let d = dir as f64;
+        let crossing = self.levels[here]
+            + d * near * (self.levels[here] - self.levels[behind]).abs() / (far - near);
+        let spacing = (self.levels[next] - self.levels[from]).abs();
+        let midpoint = 0.5 * (self.levels[next] + self.levels[from]);
+        d * (crossing - midpoint) < -SWITCH_MARGIN * spacing
     }
 
     /// The level to send after a frame taken at `frame.log2_e` whose law
@@ -227,10 +242,12 @@ impl LevelWalker {
             Request::Incremental if self.carried_ev * step_ev >= 0.0 => self.carried_ev + step_ev,
             Request::Incremental => step_ev,
             Request::Predicted => step_ev - (self.levels[at] - self.levels[here]),
+            Request::Placed(d) if d.is_finite() => d - (self.levels[at] - self.levels[here]),
+            Request::Placed(_) => 0.0,
         };
         self.carried_ev = match request {
             Request::Incremental => wanted,
-            Request::Predicted => 0.0,
+            Request::Predicted | Request::Placed(_) => 0.0,
         };
         if wanted.abs() < DEAD_BAND_EV {
             return self.exact[at];
@@ -263,10 +280,8 @@ impl LevelWalker {
                 // An incremental law's steps shrink towards its fixed
                 // point: where the step behind and the step here place it
                 // (a secant) well short of the midpoint, the camera stays.
-                None if from == here
-                    && from == at
-                    && request == Request::Incremental
-                    && self.crossing_short_of_midpoint(here, dir, signal, b - a) =>
+                None if request == Request::Incremental
+                    && self.crossing_short_of_midpoint(here, dir, signal, from) =>
                 {
                     rest = true;
                     break;
@@ -355,6 +370,21 @@ mod tests {
         let mut w = walker();
         let trace = run(&mut w, 0.45, 1.0, Request::Predicted, 5);
         assert_eq!(trace, vec![0.0; 5]);
+    }
+
+    #[test]
+    fn a_placed_request_goes_to_the_level_nearest_the_fixed_point_at_once() {
+        // A small step whose estimate puts the fixed point 2.4 EV away.
+        let mut w = walker();
+        let f = frame(1.0, 3.4);
+        assert_eq!(w.step(f, 2.0, 0.1, 0.1, Request::Placed(2.4)), 8.0);
+        // While that command is in flight, the same frame asks for the same
+        // level, not for a step beyond it.
+        assert_eq!(w.step(f, 8.0, 0.1, 0.1, Request::Placed(2.4)), 8.0);
+        assert_eq!(
+            w.step(frame(3.0, 3.4), 8.0, 0.05, 0.05, Request::Placed(0.4)),
+            8.0
+        );
     }
 
     #[test]
