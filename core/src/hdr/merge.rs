@@ -154,7 +154,8 @@ pub fn merge(shots: &[Shot<'_>], config: &MergeConfig) -> Result<Radiance> {
             let sigma2 = l.kg * mu + l.var0;
             // Unclipped with a margin of 3σ on the prediction, and above
             // the floor (the pilot always counts).
-            if k != p && (mu < floor || mu + 3.0 * sigma2.sqrt() >= f32::from(l.clip)) {
+            let room = f32::from(l.clip) - mu;
+            if k != p && (mu < floor || room <= 0.0 || room * room <= 9.0 * sigma2) {
                 continue;
             }
             if code >= l.clip {
