@@ -35,7 +35,8 @@ pub struct LevelFigures {
     /// Samples compared (the image's, neither clipped nor in the noise
     /// floor).
     pub samples: u64,
-    /// Median |log2(emulated / image)| of the noise-free emulation, EV.
+    /// Median |log2(emulated / image)| of the noise-free emulation, EV (in
+    /// light: an 8-bit curve's values linearised first).
     pub median_ev: f64,
     /// The same with the sensor's noise added.
     pub median_ev_noisy: f64,
@@ -223,10 +224,14 @@ pub fn check_emulation(dir: &Path, options: &CheckOptions) -> Result<CheckReport
                     } else {
                         (&mut tally.hist, &mut tally.se)
                     };
+                    let response = emulator.response(cam);
+                    // In stops of light: through the response's linear
+                    // values (the identity for linear data).
+                    let light = |v: f64| f64::from(response.linear(v as u16)).max(0.5);
                     for (&e, &t) in emulated.iter().zip(&truth) {
                         *se += (e - t).powi(2);
                         if t >= floor && t < clip {
-                            let err = (e.max(0.5) / t).log2().abs();
+                            let err = (light(e) / light(t)).log2().abs();
                             hist[((err / BIN_EV) as usize).min(BINS - 1)] += 1;
                         }
                     }

@@ -360,3 +360,52 @@ fn emulate_mode_answers_any_exposure_within_the_brackets_widened() {
         setting(1000.0, 0.0)
     );
 }
+
+/// Writes one camera's bracket of 8-bit images of a display gamma (`z =
+/// 255 (v/255)^(1/2.2)` of the linear value `v`) over a scene spanning
+/// three decades, with `comment` before the header; a folder for
+/// [`check_emulation`].
+fn gamma_bracket(dir: &Path, comment: &str) {
+    std::fs::create_dir_all(dir.join("front")).unwrap();
+    let (w, h) = (160u32, 120u32);
+    let x = |px: u32, py: u32| 1e-3 * 10f64.powf(3.0 * f64::from(py * w + px) / f64::from(w * h));
+    let mut lines = format!("{comment}camera,moment,time_s,exposure_us,gain_db,file\n");
+    for (k, e) in [100.0, 200.0, 400.0, 800.0, 1600.0, 3200.0]
+        .iter()
+        .enumerate()
+    {
+        let f = format!("front/{k}.png");
+        image::GrayImage::from_fn(w, h, |px, py| {
+            let v = (x(px, py) * e).min(255.0);
+            image::Luma([(255.0 * (v / 255.0).powf(1.0 / 2.2)).round() as u8])
+        })
+        .save(dir.join(&f))
+        .unwrap();
+        lines += &format!("front,0,0,{e},0,{f}\n");
+    }
+    std::fs::write(dir.join(MANIFEST), lines).unwrap();
+}
+
+#[test]
+fn an_8_bit_sequence_without_a_response_has_it_recovered() {
+    let options = CheckOptions {
+        moments: None,
+        seed: 1,
+    };
+    let recovered = tempfile::tempdir().unwrap();
+    gamma_bracket(recovered.path(), "");
+    let r = check_emulation(recovered.path(), &options).unwrap();
+    let linear = tempfile::tempdir().unwrap();
+    gamma_bracket(linear.path(), "# response: linear\n");
+    let l = check_emulation(linear.path(), &options).unwrap();
+    println!("recovered {:?}\nlinear {:?}", r.all, l.all);
+    assert_eq!(r.levels.len(), 4);
+    assert!(r.all.median_ev <= 0.05, "{:?}", r.all);
+    // Taken as linear, the gamma curve's images are emulated worse.
+    assert!(
+        l.all.median_ev > 2.0 * r.all.median_ev,
+        "{:?} {:?}",
+        l.all,
+        r.all
+    );
+}

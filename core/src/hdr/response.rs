@@ -154,7 +154,7 @@ impl Response {
 
     /// The linear value of a recorded value.
     #[inline]
-    pub(crate) fn linear(&self, v: u16) -> f32 {
+    pub fn linear(&self, v: u16) -> f32 {
         match self {
             Self::Linear => f32::from(v),
             Self::Curve { inverse, .. } => inverse[usize::from(v.min(255))],
