@@ -66,6 +66,8 @@ pub struct BracketSpec {
     pub dir: std::path::PathBuf,
     /// Its calibration, if not `dir/rig.yaml`.
     pub rig: Option<std::path::PathBuf>,
+    /// How commands are answered: the nearest bracket or an emulated frame.
+    pub mode: crate::brackets::BracketMode,
 }
 
 /// A running session.
@@ -223,18 +225,19 @@ fn start_brackets(
     notify: Notify,
     record: Option<&RecordSpec>,
 ) -> Result<Session> {
-    let (source, rig) =
-        crate::brackets::open_with_rig(&spec.dir, spec.rig.as_deref(), BRACKETS_START)?;
+    let opening = crate::brackets::BracketOptions::new(BRACKETS_START, spec.mode);
+    let (source, rig) = crate::brackets::open_with_rig(&spec.dir, spec.rig.as_deref(), &opening)?;
     let cameras = source.cameras().to_vec();
     let (view, graph) = view_for(&rig, &cameras, processing)
         .with_context(|| format!("the calibration of the brackets {}", spec.dir.display()))?;
     let processor = Processor::new(cameras.clone(), Some(view), graph, processing.clone())?;
     let origin = Origin {
         source_name: format!(
-            "brackets {} ({} moments × {} cameras)",
+            "brackets {} ({} moments × {} cameras, {:?})",
             spec.dir.display(),
             source.manifest().moments.len(),
-            cameras.len()
+            cameras.len(),
+            spec.mode
         ),
         calibration: format!("{}", spec.dir.join(crate::brackets::RIG).display()),
         rig: Some(&rig),

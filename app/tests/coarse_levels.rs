@@ -13,7 +13,7 @@ mod common;
 
 use std::sync::Arc;
 
-use rigview::brackets::{self, ExportSpec};
+use rigview::brackets::{self, BracketMode, BracketOptions, ExportSpec};
 use rigview::eval::closed_loop::{self, LoopOptions};
 use rigview::eval::strategy::EvalStrategy;
 use rigview::session::BRACKETS_START;
@@ -75,7 +75,8 @@ fn every_strategy_ends_on_the_level_nearest_its_fixed_point() {
     };
     for strategy in common::LOOP_STRATEGIES {
         let sim = closed_loop::run(&render, settings(strategy), 100, &mut || {}).unwrap();
-        let (source, rig) = brackets::open_with_rig(dir.path(), None, BRACKETS_START).unwrap();
+        let options = BracketOptions::new(BRACKETS_START, BracketMode::Nearest);
+        let (source, rig) = brackets::open_with_rig(dir.path(), None, &options).unwrap();
         let on_brackets = closed_loop::run_source(
             source,
             &rig,

@@ -33,6 +33,7 @@ pub mod error;
 pub mod eval;
 pub mod exposure;
 pub mod features;
+pub mod hdr;
 pub mod image;
 pub mod panorama;
 pub mod pipeline;

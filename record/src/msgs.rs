@@ -81,7 +81,8 @@ pub fn schema_text(name: &str) -> Option<String> {
 }
 
 /// The ROS 2 image encoding of a pixel format (Mono12, unpacked in 16
-/// bits, is `mono16`; the frame meta keeps the exact format).
+/// bits, is `mono16`, and a 12-bit mosaic `bayer_*16`; the frame meta
+/// keeps the exact format).
 pub fn encoding(format: PixelFormat) -> &'static str {
     match format {
         PixelFormat::Mono8 => "mono8",
@@ -91,6 +92,10 @@ pub fn encoding(format: PixelFormat) -> &'static str {
         PixelFormat::BayerGr8 => "bayer_grbg8",
         PixelFormat::BayerGb8 => "bayer_gbrg8",
         PixelFormat::BayerBg8 => "bayer_bggr8",
+        PixelFormat::BayerRg12 | PixelFormat::BayerRg16 => "bayer_rggb16",
+        PixelFormat::BayerGr12 | PixelFormat::BayerGr16 => "bayer_grbg16",
+        PixelFormat::BayerGb12 | PixelFormat::BayerGb16 => "bayer_gbrg16",
+        PixelFormat::BayerBg12 | PixelFormat::BayerBg16 => "bayer_bggr16",
     }
 }
 

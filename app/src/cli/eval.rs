@@ -1,5 +1,5 @@
-//! `rigview eval`: the evaluation suite on the simulated rig, and
-//! `rigview eval export-brackets`.
+//! `rigview eval`: the evaluation suite on the simulated rig,
+//! `rigview eval export-brackets` and `rigview eval check-emulation`.
 
 use std::io::Write;
 use std::path::PathBuf;
@@ -46,6 +46,25 @@ pub enum EvalCommand {
     /// Write a bracket sequence of the simulated rig (several exposures per
     /// moment and camera, docs/brackets.md) for `--source brackets:DIR`.
     ExportBrackets(ExportArgs),
+    /// Check the exposure emulation on a bracket folder: every bracket
+    /// that has a shorter and a longer one is emulated from the others and
+    /// compared with itself (median |error| in stops over its unclipped
+    /// samples, PSNR), noise-free and with the sensor's noise.
+    CheckEmulation(CheckArgs),
+}
+
+/// Options of `rigview eval check-emulation`.
+#[derive(Clone, Debug, Args)]
+pub struct CheckArgs {
+    /// The bracket folder (docs/brackets.md).
+    #[arg(value_name = "DIR")]
+    pub dir: PathBuf,
+    /// At most this many moments, from the first [default: all].
+    #[arg(long, value_name = "N")]
+    pub moments: Option<usize>,
+    /// The seed of the emulated noise.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
 }
 
 /// Options of `rigview eval export-brackets`.
@@ -66,6 +85,10 @@ pub struct ExportArgs {
     /// The exposures' range, log2 µs at 0 dB: `LO:HI`.
     #[arg(long, value_name = "LO:HI", default_value = "8:13")]
     pub range_ev: String,
+    /// Bits of the images: 8 (Mono8) or 12 (Mono12, written as 16-bit
+    /// PNG with `bits` 12).
+    #[arg(long, default_value_t = 8)]
+    pub bits: u32,
     /// The folder to write into.
     #[arg(long, value_name = "DIR")]
     pub out: PathBuf,
@@ -80,8 +103,10 @@ impl ExportArgs {
 
 /// Runs `rigview eval`.
 pub fn run(args: &EvalArgs, out: &mut dyn Write) -> Result<()> {
-    if let Some(EvalCommand::ExportBrackets(e)) = &args.command {
-        return export(e, out);
+    match &args.command {
+        Some(EvalCommand::ExportBrackets(e)) => return export(e, out),
+        Some(EvalCommand::CheckEmulation(c)) => return check_emulation(c, out),
+        None => {}
     }
     let dir = args
         .out
@@ -117,11 +142,15 @@ fn export(args: &ExportArgs, out: &mut dyn Write) -> Result<()> {
             args.frames
         );
     }
-    let config = SimConfig {
+    if args.bits != 8 && args.bits != 12 {
+        anyhow::bail!("--bits {}: expected 8 or 12", args.bits);
+    }
+    let mut config = SimConfig {
         scale: args.scale,
         ..SimConfig::named(&args.scenario)
             .with_context(|| format!("the simulation \"{}\"", args.scenario))?
     };
+    config.sensor.bits = args.bits;
     let render = SimRender::new(&config).context("building the simulated rig")?;
     let spec = ExportSpec {
         frames: args.frames,
@@ -138,6 +167,55 @@ fn export(args: &ExportArgs, out: &mut dyn Write) -> Result<()> {
         args.exposures,
         (hi - lo) / (args.exposures - 1) as f64,
         args.out.display()
+    )?;
+    Ok(())
+}
+
+fn check_emulation(args: &CheckArgs, out: &mut dyn Write) -> Result<()> {
+    let started = Instant::now();
+    let options = brackets::CheckOptions {
+        moments: args.moments,
+        seed: args.seed,
+    };
+    let report = brackets::check_emulation(&args.dir, &options)?;
+    writeln!(
+        out,
+        "rigview eval check-emulation {}: {} moments, each bracket with a shorter and a longer one emulated from the others",
+        args.dir.display(),
+        report.moments
+    )?;
+    writeln!(
+        out,
+        "{:>14} {:>7} {:>11} {:>13} {:>13} {:>10} {:>10}",
+        "level (µs)", "images", "samples", "median |e| EV", "with noise", "PSNR dB", "with noise"
+    )?;
+    let row = |f: &brackets::LevelFigures| {
+        format!(
+            "{:>14} {:>7} {:>11} {:>13.4} {:>13.4} {:>10.2} {:>10.2}",
+            f.level.map_or("all".into(), |l| format!("{l:.1}")),
+            f.images,
+            f.samples,
+            f.median_ev,
+            f.median_ev_noisy,
+            f.psnr_db,
+            f.psnr_db_noisy
+        )
+    };
+    for f in &report.levels {
+        writeln!(out, "{}", row(f))?;
+    }
+    writeln!(out, "{}", row(&report.all))?;
+    writeln!(
+        out,
+        "goal: median |error| ≤ 0.05 EV: {} (noise-free {:.4}, with noise {:.4}) in {:.1} s",
+        if report.all.median_ev <= 0.05 && report.all.median_ev_noisy <= 0.05 {
+            "met"
+        } else {
+            "NOT met"
+        },
+        report.all.median_ev,
+        report.all.median_ev_noisy,
+        started.elapsed().as_secs_f64()
     )?;
     Ok(())
 }

@@ -114,7 +114,7 @@ pub struct LiveArgs {
     pub recording: super::record::RecordingArgs,
 }
 
-fn parse_pixel_format(s: &str) -> std::result::Result<PixelFormat, String> {
+pub(crate) fn parse_pixel_format(s: &str) -> std::result::Result<PixelFormat, String> {
     PixelFormat::ALL
         .into_iter()
         .find(|f| f.genicam_name().eq_ignore_ascii_case(s))

@@ -46,6 +46,10 @@ pub struct RecordArgs {
     /// Record the simulated rig (at its trigger rate).
     #[arg(long)]
     pub sim: bool,
+    /// The cameras' pixel format with `--rig` or `--fake` (GenICam name,
+    /// e.g. Mono8, BayerRG8) [default: Mono8].
+    #[arg(long, value_name = "FORMAT", value_parser = super::live::parse_pixel_format)]
+    pub pixel_format: Option<rigview_core::exposure::PixelFormat>,
     /// The simulation of `--sim` and `--fake`.
     #[arg(long, default_value = "reference")]
     pub scenario: String,
@@ -104,10 +108,17 @@ pub enum RecordingAction {
 
 /// Runs `rigview record`.
 pub fn run(args: &RecordArgs, out: &mut dyn std::io::Write) -> Result<()> {
+    let mut capture = CaptureConfig::default();
+    if let Some(f) = args.pixel_format {
+        if args.sim {
+            anyhow::bail!("--pixel-format is an option of --rig and --fake (the simulated rig renders its sensor's format)");
+        }
+        capture.pixel_format = f;
+    }
     let from = match (&args.rig, args.fake, args.sim) {
         (Some(r), false, false) => CaptureFrom::Live(Box::new(LiveSpec {
             cameras: LiveCameras::Rig(r.clone()),
-            capture: CaptureConfig::default(),
+            capture,
             frames: None,
         })),
         (None, true, false) => CaptureFrom::Live(Box::new(LiveSpec {
@@ -116,7 +127,7 @@ pub fn run(args: &RecordArgs, out: &mut dyn std::io::Write) -> Result<()> {
                 scale: args.scale,
                 ..FakeRig::default()
             }),
-            capture: CaptureConfig::default(),
+            capture,
             frames: None,
         })),
         (None, false, true) => CaptureFrom::Sim {

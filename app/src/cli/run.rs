@@ -58,6 +58,11 @@ pub struct RunArgs {
         default_value = "sim"
     )]
     pub source: SourceKind,
+    /// How `--source brackets:DIR` answers a command: `emulate` a frame at
+    /// the exposure asked from the moment's brackets, or give the
+    /// `nearest` bracket (docs/brackets.md).
+    #[arg(long, value_enum, default_value_t = crate::brackets::BracketMode::Emulate)]
+    pub bracket_mode: crate::brackets::BracketMode,
     /// Record every processed set into this MCAP file.
     #[arg(long, value_name = "FILE")]
     pub record: Option<PathBuf>,
@@ -120,6 +125,7 @@ impl RunArgs {
                 Ok(SourceSpec::Brackets(crate::session::BracketSpec {
                     dir: dir.clone(),
                     rig: self.rig.clone(),
+                    mode: self.bracket_mode,
                 }))
             }
             SourceKind::Sim => {
@@ -218,7 +224,19 @@ mod tests {
         let Ok(SourceSpec::Brackets(b)) = run.source(true) else {
             panic!("not a bracket source");
         };
-        assert_eq!((b.dir, b.rig), (PathBuf::from("seq"), None));
+        assert_eq!(
+            (b.dir, b.rig, b.mode),
+            (
+                PathBuf::from("seq"),
+                None,
+                crate::brackets::BracketMode::Emulate
+            )
+        );
+        let run = run_args(&["--source", "brackets:seq", "--bracket-mode", "nearest"]);
+        let Ok(SourceSpec::Brackets(b)) = run.source(true) else {
+            panic!("not a bracket source");
+        };
+        assert_eq!(b.mode, crate::brackets::BracketMode::Nearest);
         let e = "brackets:".parse::<SourceKind>().unwrap_err();
         assert!(e.contains("brackets:DIR"), "{e}");
     }

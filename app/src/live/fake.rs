@@ -143,7 +143,7 @@ impl FakeView {
 }
 
 /// Checks that Aravis's fake camera offers `format`: all that rigview
-/// knows but Mono12.
+/// knows but Mono12 and the 12- and 16-bit mosaics.
 pub fn check_format(format: PixelFormat) -> Result<(), LiveError> {
     match format {
         PixelFormat::Mono8
@@ -153,7 +153,8 @@ pub fn check_format(format: PixelFormat) -> Result<(), LiveError> {
         | PixelFormat::BayerGr8
         | PixelFormat::BayerGb8
         | PixelFormat::BayerBg8 => Ok(()),
-        PixelFormat::Mono12 => Err(LiveError::Config {
+        // Mono12 and the 12- and 16-bit mosaics.
+        _ => Err(LiveError::Config {
             field: "pixel format",
             expected: "one that Aravis's fake camera offers: Mono8, Mono16, RGB8, BayerRG8, BayerGR8, BayerGB8, BayerBG8",
             value: format.genicam_name().to_owned(),

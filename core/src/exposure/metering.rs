@@ -699,6 +699,10 @@ fn rgb_sum<T: Copy + Into<u32>>(block: &[T]) -> f32 {
 /// The luminance of the saturated samples of a row of 2×2 Bayer quads (a
 /// quad whose samples are all saturated counts 1).
 fn bayer_saturated_row(format: PixelFormat, top: &[u8], bottom: &[u8], dst: &mut [f32]) {
+    if format.bytes_per_pixel() == 2 {
+        let sat = |v: f32| if v >= SATURATED_LEVEL { 1.0 } else { 0.0 };
+        return luma::bayer_wide_row(format, top, bottom, dst, sat);
+    }
     let sat = |v: u8| if v >= SATURATED_BYTE { 1.0 } else { 0.0 };
     bayer_row(bayer_weights(format), top, bottom, dst, sat);
 }
@@ -872,6 +876,43 @@ mod tests {
         let (bayer, _, _, _) = frame_and_mask(PixelFormat::BayerRg8);
         let frame = FrameView::new(PixelFormat::BayerRg8, w, h, &bayer).unwrap();
         assert!(meter.meter_prepared(&frame, &prepared).is_err());
+    }
+
+    #[test]
+    fn a_16_bit_mosaic_meters_as_the_8_bit_one_of_the_same_light() {
+        // Samples v·257 in 16 bits are v/255 of full scale, as v in 8 bits:
+        // the same luminance and the same saturation, block by block.
+        let meter = square_meter(6);
+        let side = 24;
+        let narrow: Vec<u8> = (0..side * side)
+            .map(|i| ((i * 7919 + 13) % 256) as u8)
+            .collect();
+        let wide: Vec<u8> = narrow
+            .iter()
+            .flat_map(|&v| (u16::from(v) * 257).to_le_bytes())
+            .collect();
+        for (w8, w16) in [
+            (PixelFormat::BayerRg8, PixelFormat::BayerRg16),
+            (PixelFormat::BayerGb8, PixelFormat::BayerGb16),
+        ] {
+            let a = meter
+                .meter(&FrameView::new(w8, side, side, &narrow).unwrap(), None)
+                .unwrap();
+            let b = meter
+                .meter(&FrameView::new(w16, side, side, &wide).unwrap(), None)
+                .unwrap();
+            for (x, y) in a.luma().iter().zip(b.luma()) {
+                assert!((x - y).abs() < 1e-6, "{w16:?}: {x} {y}");
+            }
+            let (sa, sb) = (
+                a.saturated_samples().unwrap(),
+                b.saturated_samples().unwrap(),
+            );
+            assert!(sa.iter().any(|&v| v > 0.0));
+            for (x, y) in sa.iter().zip(sb) {
+                assert!((x - y).abs() < 1e-6, "{w16:?}: saturated {x} {y}");
+            }
+        }
     }
 
     #[test]

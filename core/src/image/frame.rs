@@ -120,7 +120,9 @@ impl<'a> FrameView<'a> {
             let (qx, qy) = (x & !1, y & !1);
             if qx + 1 < self.width && qy + 1 < self.height {
                 let (top, bottom) = (self.row(qy), self.row(qy + 1));
-                luma::bayer_luma_row(self.format, &top[qx..qx + 2], &bottom[qx..qx + 2], &mut out);
+                let quad =
+                    qx * self.format.bytes_per_pixel()..(qx + 2) * self.format.bytes_per_pixel();
+                luma::bayer_luma_row(self.format, &top[quad.clone()], &bottom[quad], &mut out);
                 return out[0];
             }
         }

@@ -10,7 +10,9 @@
 //! brighten such edges (the saturated sample of the darker frame was not
 //! clipped, and its scaled value exceeds 255 before the blend).
 
-use super::{FrameView, PixelFormat};
+use super::FrameView;
+#[cfg(test)]
+use super::PixelFormat;
 use crate::error::Result;
 
 /// Writes `frame`'s samples times `gain` (rounded to nearest, clipped at
@@ -22,7 +24,7 @@ pub fn scale_8bit<'b>(
     gain: f32,
     out: &'b mut Vec<u8>,
 ) -> Result<Option<FrameView<'b>>> {
-    if matches!(frame.format(), PixelFormat::Mono12 | PixelFormat::Mono16) {
+    if frame.format().bits() > 8 {
         return Ok(None);
     }
     let gain = if gain.is_finite() { gain.max(0.0) } else { 1.0 };

@@ -35,11 +35,12 @@ pub(crate) fn rgb(r: f32, g: f32, b: f32) -> f32 {
 
 /// The luminance weights of a Bayer quad's positions (top-left, top-right,
 /// bottom-left, bottom-right); the two greens share `W_G`. Formats other
-/// than Bayer read as `BayerBG8`.
+/// than Bayer read as `BayerBG8`; 12- and 16-bit mosaics as their 8-bit
+/// order.
 #[inline]
 pub(crate) fn bayer_weights(format: PixelFormat) -> [f32; 4] {
     let g = W_G * 0.5;
-    match format {
+    match format.to_8bit() {
         PixelFormat::BayerRg8 => [W_R, g, g, W_B],
         PixelFormat::BayerGr8 => [g, W_R, W_B, g],
         PixelFormat::BayerGb8 => [g, W_B, W_R, g],
@@ -69,8 +70,45 @@ pub(crate) fn bayer_row(
 /// Luminance of a row of 2×2 Bayer quads, from the quad's two source rows.
 #[inline]
 pub(crate) fn bayer_luma_row(format: PixelFormat, top: &[u8], bottom: &[u8], dst: &mut [f32]) {
+    if format.bytes_per_pixel() == 2 {
+        bayer_wide_row(format, top, bottom, dst, |v| v);
+        return;
+    }
     let w = bayer_weights(format).map(|v| v * (1.0 / 255.0));
     bayer_row(w, top, bottom, dst, f32::from);
+}
+
+/// A 12- or 16-bit sample (little-endian; 12 bits in the low bits, as
+/// Mono12) in [0, 1] of the format's full scale.
+#[inline(always)]
+fn wide_sample(format: PixelFormat, s: [u8; 2]) -> f32 {
+    let v = u16::from_le_bytes(s);
+    if format.bits() == 12 {
+        f32::from(v & 0x0fff) * (1.0 / 4095.0)
+    } else {
+        f32::from(v) * (1.0 / 65535.0)
+    }
+}
+
+/// `Σ w_i·value(s_i)` over each 2×2 quad of a 12- or 16-bit Bayer mosaic's
+/// rows `top` and `bottom`, each sample `s_i` in [0, 1] of full scale.
+#[inline]
+pub(crate) fn bayer_wide_row(
+    format: PixelFormat,
+    top: &[u8],
+    bottom: &[u8],
+    dst: &mut [f32],
+    value: impl Fn(f32) -> f32,
+) {
+    let w = bayer_weights(format);
+    let v = |s: &[u8]| value(wide_sample(format, [s[0], s[1]]));
+    for ((d, t), b) in dst
+        .iter_mut()
+        .zip(top.chunks_exact(4))
+        .zip(bottom.chunks_exact(4))
+    {
+        *d = w[0] * v(&t[..2]) + w[1] * v(&t[2..]) + w[2] * v(&b[..2]) + w[3] * v(&b[2..]);
+    }
 }
 
 /// Luminance of one row of a frame, one value per pixel; a Bayer row is
@@ -106,6 +144,12 @@ pub(crate) fn luma_row(format: PixelFormat, src: &[u8], dst: &mut [f32]) {
         | PixelFormat::BayerBg8 => {
             for (d, &s) in dst.iter_mut().zip(src) {
                 *d = f32::from(s) * (1.0 / 255.0);
+            }
+        }
+        // The 12- and 16-bit mosaics, sample by sample.
+        _ => {
+            for (d, s) in dst.iter_mut().zip(src.chunks_exact(2)) {
+                *d = wide_sample(format, [s[0], s[1]]);
             }
         }
     }

@@ -22,7 +22,7 @@ mod mask;
 
 pub use convert::{mono8_to_rgb8, rgb8_to_mono8};
 pub use distance::distance_to_zero;
-pub use format::PixelFormat;
+pub use format::{PixelFormat, BAYER_PATTERNS};
 pub use frame::FrameView;
 pub use gain::scale_8bit;
 pub use mask::RoiMask;

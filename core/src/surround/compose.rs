@@ -328,10 +328,12 @@ fn prepare(
             };
             (how, format.bytes_per_pixel())
         }
-        PixelFormat::Mono12 | PixelFormat::Mono16 => {
-            // The top 8 bits (rounded down), the gain applied at the
-            // frame's precision and saturated at white.
-            let shift = if format == PixelFormat::Mono12 { 4 } else { 8 };
+        _ => {
+            // Mono12, Mono16 and the 12- and 16-bit mosaics: the top 8 bits
+            // (rounded down), the gain applied at the frame's precision and
+            // saturated at white (a mosaic stays a mosaic, demosaiced by the
+            // remap as an 8-bit one).
+            let shift = if format.bits() == 12 { 4 } else { 8 };
             let g = gain.map_or(UNIT_GAIN, |g| std::mem::replace(g, UNIT_GAIN));
             let g = u32::from(g);
             scratch.clear();
@@ -552,6 +554,73 @@ mod tests {
         let linear = compose(&mut composer, &view, &frames, BlendMode::Linear, None, 3);
         rgb8_to_mono8(&linear, &mut want).unwrap();
         assert!(grey == want);
+    }
+
+    #[test]
+    fn a_wide_mosaic_composes_as_the_8_bit_mosaic_of_its_top_bits() {
+        // The 12- and 16-bit mosaics are demosaiced by the remap as the
+        // 8-bit mosaic of their top 8 bits, with or without gains.
+        let view = small_view(SIZE.0 as u32, SIZE.1 as u32);
+        let mut composer = Composer::new();
+        let n = SIZE.0 * SIZE.1;
+        for (bits, format) in [(16, PixelFormat::BayerGb16), (12, PixelFormat::BayerRg12)] {
+            let wide: Vec<Vec<u8>> = random(2 * n, 9)
+                .into_iter()
+                .map(|d| {
+                    d.chunks_exact(2)
+                        .flat_map(|b| {
+                            (u16::from_le_bytes([b[0], b[1]]) >> (16 - bits)).to_le_bytes()
+                        })
+                        .collect()
+                })
+                .collect();
+            let narrow: Vec<Vec<u8>> = wide
+                .iter()
+                .map(|d| {
+                    d.chunks_exact(2)
+                        .map(|b| (u16::from_le_bytes([b[0], b[1]]) >> (bits - 8)) as u8)
+                        .collect()
+                })
+                .collect();
+            let (wf, nf) = (views(&wide, format), views(&narrow, format.to_8bit()));
+            for ch in [1, 3] {
+                let a = compose(&mut composer, &view, &wf, BlendMode::Linear, None, ch);
+                let b = compose(&mut composer, &view, &nf, BlendMode::Linear, None, ch);
+                assert!(a == b, "{format:?}, {ch} channels");
+                // A gain of 2 on the wide frames: the top bits of twice the
+                // value, saturated, as the 8-bit mosaic of those.
+                let gains = [2.0f32; 4];
+                let a = compose(
+                    &mut composer,
+                    &view,
+                    &wf,
+                    BlendMode::Linear,
+                    Some(&gains),
+                    ch,
+                );
+                let doubled: Vec<Vec<u8>> = wide
+                    .iter()
+                    .map(|d| {
+                        d.chunks_exact(2)
+                            .map(|b| {
+                                ((u32::from(u16::from_le_bytes([b[0], b[1]])) * 2) >> (bits - 8))
+                                    .min(255) as u8
+                            })
+                            .collect()
+                    })
+                    .collect();
+                let b = compose(
+                    &mut composer,
+                    &view,
+                    &views(&doubled, format.to_8bit()),
+                    BlendMode::Linear,
+                    None,
+                    ch,
+                );
+                assert!(a == b, "{format:?}, {ch} channels, gain 2");
+                assert!(a.iter().any(|&v| v > 0));
+            }
+        }
     }
 
     /// Frames of every format the composer takes, random, one set each.

@@ -11,16 +11,14 @@ use crate::image::PixelFormat;
 pub(crate) struct Cfa(u8);
 
 impl Cfa {
-    /// The order of a Bayer format, or `None` for the others.
+    /// The order of a Bayer format (any depth), or `None` for the others.
     pub(crate) fn of(format: PixelFormat) -> Option<Self> {
-        match format {
+        match format.to_8bit() {
             PixelFormat::BayerRg8 => Some(Self(0)),
             PixelFormat::BayerGr8 => Some(Self(1)),
             PixelFormat::BayerGb8 => Some(Self(2)),
             PixelFormat::BayerBg8 => Some(Self(3)),
-            PixelFormat::Mono8 | PixelFormat::Mono12 | PixelFormat::Mono16 | PixelFormat::Rgb8 => {
-                None
-            }
+            _ => None,
         }
     }
 
