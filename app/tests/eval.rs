@@ -13,12 +13,17 @@ use std::path::Path;
 use common::{csv, rigview};
 
 const STRATEGIES_STEPS: [&str; 6] = ["linear", "nonlinear", "fast", "pid", "mean", "camera-ae"];
-const STRATEGIES_SETTLED: [&str; 7] = [
+const STRATEGIES_SETTLED: [&str; 12] = [
     "linear",
     "nonlinear",
     "fast",
     "multi",
     "pid",
+    "linear/scale-clip",
+    "nonlinear/scale-clip",
+    "fast/scale-clip",
+    "multi/scale-clip",
+    "pid/scale-clip",
     "mean",
     "camera-ae",
 ];
@@ -225,6 +230,23 @@ fn the_quick_evaluation_writes_sane_figures_data_and_report() {
         mean("nonlinear"),
         mean("camera-ae")
     );
+    // Every gradient law runs under both exposure simulations; on the
+    // simulator's linear sensor scale-and-clip's fixed points keep at
+    // least as much gradient information as the γ-mapping's.
+    for g in ["linear", "nonlinear", "fast", "pid"] {
+        let sc = format!("{g}/scale-clip");
+        println!(
+            "{g}: γ-mapping {:.4}, scale-and-clip {:.4}",
+            mean(g),
+            mean(&sc)
+        );
+        assert!(
+            mean(&sc) >= mean(g) - 0.002,
+            "{g}: {:.4} vs {:.4}",
+            mean(&sc),
+            mean(g)
+        );
+    }
 
     // Experiment 4: every scenario under every strategy. Balancing brings
     // the overlaps closer than each camera alone and than the cameras'
@@ -281,7 +303,7 @@ fn the_quick_evaluation_writes_sane_figures_data_and_report() {
     // column for exactly its four strategies.
     let md = std::fs::read_to_string(out.join(rigview::eval::files::HEADLINE_MD)).unwrap();
     let lines: Vec<&str> = md.lines().collect();
-    assert_eq!(lines.len(), 2 + 10, "{md}");
+    assert_eq!(lines.len(), 2 + 15, "{md}");
     for line in &lines[2..] {
         let cells: Vec<&str> = line.trim_matches('|').split('|').map(str::trim).collect();
         assert_eq!(cells.len(), 7, "{line}");

@@ -30,18 +30,34 @@ pub enum EvalStrategy {
     CameraAeComp,
     /// Balanced, and display gains that even out what balancing leaves.
     MultiComp,
+    /// [`Self::Linear`] under scale-and-clip (every other gradient strategy
+    /// runs under the paper's γ-mapping).
+    LinearSc,
+    /// [`Self::Nonlinear`] under scale-and-clip.
+    NonlinearSc,
+    /// [`Self::Fast`] under scale-and-clip.
+    FastSc,
+    /// [`Self::Multi`] under scale-and-clip.
+    MultiSc,
+    /// [`Self::Pid`] under scale-and-clip.
+    PidSc,
 }
 
 impl EvalStrategy {
     /// Every strategy, in the order of the report's summary: rigview's
     /// gradient laws, the baselines, fixed exposure.
-    pub const ALL: [EvalStrategy; 10] = [
+    pub const ALL: [EvalStrategy; 15] = [
         Self::Fast,
         Self::Linear,
         Self::Nonlinear,
         Self::Multi,
         Self::MultiComp,
         Self::Pid,
+        Self::FastSc,
+        Self::LinearSc,
+        Self::NonlinearSc,
+        Self::MultiSc,
+        Self::PidSc,
         Self::Mean,
         Self::CameraAe,
         Self::CameraAeComp,
@@ -59,13 +75,19 @@ impl EvalStrategy {
     ];
 
     /// The strategies whose settled exposure is marked on M(E)
-    /// (experiment 3).
-    pub const SETTLED: [EvalStrategy; 7] = [
+    /// (experiment 3): every gradient strategy under both exposure
+    /// simulations.
+    pub const SETTLED: [EvalStrategy; 12] = [
         Self::Linear,
         Self::Nonlinear,
         Self::Fast,
         Self::Multi,
         Self::Pid,
+        Self::LinearSc,
+        Self::NonlinearSc,
+        Self::FastSc,
+        Self::MultiSc,
+        Self::PidSc,
         Self::Mean,
         Self::CameraAe,
     ];
@@ -100,6 +122,11 @@ impl EvalStrategy {
             Self::Multi => "multi",
             Self::CameraAeComp => "camera-ae+display",
             Self::MultiComp => "multi+display",
+            Self::LinearSc => "linear/scale-clip",
+            Self::NonlinearSc => "nonlinear/scale-clip",
+            Self::FastSc => "fast/scale-clip",
+            Self::MultiSc => "multi/scale-clip",
+            Self::PidSc => "pid/scale-clip",
         }
     }
 
@@ -116,6 +143,11 @@ impl EvalStrategy {
             Self::Multi => "gradient balanced (multi)",
             Self::CameraAeComp => "built-in AE + display gains",
             Self::MultiComp => "balanced + display gains",
+            Self::LinearSc => "gradient, linear law, scale-and-clip",
+            Self::NonlinearSc => "gradient, nonlinear law, scale-and-clip",
+            Self::FastSc => "gradient, fast law, scale-and-clip",
+            Self::MultiSc => "gradient balanced (multi), scale-and-clip",
+            Self::PidSc => "PID, scale-and-clip",
         }
     }
 
@@ -132,26 +164,41 @@ impl EvalStrategy {
             Self::Multi => RGBColor(120, 60, 200),
             Self::CameraAeComp => RGBColor(240, 200, 60),
             Self::MultiComp => RGBColor(30, 170, 170),
+            Self::LinearSc => RGBColor(120, 180, 240),
+            Self::NonlinearSc => RGBColor(140, 210, 110),
+            Self::FastSc => RGBColor(250, 120, 110),
+            Self::MultiSc => RGBColor(180, 140, 240),
+            Self::PidSc => RGBColor(200, 160, 110),
         }
     }
 
-    /// The processing settings: the γ-mapping, probes off (the laws
-    /// measured alone), display gains only where the strategy says, the
-    /// rest at rigview's defaults.
+    /// The exposure simulation its estimate uses.
+    pub fn simulation(self) -> Simulation {
+        match self {
+            Self::LinearSc | Self::NonlinearSc | Self::FastSc | Self::MultiSc | Self::PidSc => {
+                Simulation::ScaleClip
+            }
+            _ => Simulation::Gamma,
+        }
+    }
+
+    /// The processing settings: the strategy's exposure simulation, probes
+    /// off (the laws measured alone), display gains only where the strategy
+    /// says, the rest at rigview's defaults.
     pub fn settings(self) -> ProcessingSettings {
         let mut p = ProcessingSettings::default();
-        p.controller.estimator.simulation = Simulation::Gamma;
+        p.controller.estimator.simulation = self.simulation();
         p.controller.probe = None;
         p.display.compensate = matches!(self, Self::CameraAeComp | Self::MultiComp);
         let (strategy, law) = match self {
             Self::Fixed => (Strategy::Manual, LawKind::Nonlinear),
             Self::CameraAe | Self::CameraAeComp => (Strategy::CameraAuto, LawKind::Nonlinear),
             Self::Mean => (Strategy::Mean, LawKind::Nonlinear),
-            Self::Pid => (Strategy::Pid, LawKind::Nonlinear),
-            Self::Linear => (Strategy::Single, LawKind::Linear),
-            Self::Nonlinear => (Strategy::Single, LawKind::Nonlinear),
-            Self::Fast => (Strategy::Single, LawKind::Fast),
-            Self::Multi | Self::MultiComp => (Strategy::Multi, LawKind::Nonlinear),
+            Self::Pid | Self::PidSc => (Strategy::Pid, LawKind::Nonlinear),
+            Self::Linear | Self::LinearSc => (Strategy::Single, LawKind::Linear),
+            Self::Nonlinear | Self::NonlinearSc => (Strategy::Single, LawKind::Nonlinear),
+            Self::Fast | Self::FastSc => (Strategy::Single, LawKind::Fast),
+            Self::Multi | Self::MultiComp | Self::MultiSc => (Strategy::Multi, LawKind::Nonlinear),
         };
         p.strategy = strategy;
         p.controller.law.kind = law;
