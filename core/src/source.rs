@@ -11,8 +11,9 @@
 //! A set is fed to the controller only when [`FrameSet::is_complete`]: every
 //! camera delivered a frame and every frame arrived whole.
 
+use std::collections::VecDeque;
 use std::sync::Arc;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use serde::{Deserialize, Serialize};
 
@@ -205,6 +206,40 @@ pub struct StreamHealth {
     pub missing_packets: u64,
     /// Packets that were asked for again.
     pub resent_packets: u64,
+}
+
+/// A stream's frame rate over the last second or so, from the times its
+/// frames were delivered ([`StreamHealth::fps`] of the sources that keep no
+/// count of their own).
+#[derive(Clone, Debug, Default)]
+pub struct RateMeter {
+    recent: VecDeque<Instant>,
+}
+
+impl RateMeter {
+    /// Counts a frame delivered now; returns the rate (0 until a second
+    /// frame).
+    pub fn tick(&mut self) -> f64 {
+        self.tick_at(Instant::now())
+    }
+
+    /// [`Self::tick`] at `now`.
+    pub fn tick_at(&mut self, now: Instant) -> f64 {
+        self.recent.push_back(now);
+        while self
+            .recent
+            .front()
+            .is_some_and(|t| now.duration_since(*t) > Duration::from_secs(1))
+        {
+            self.recent.pop_front();
+        }
+        match (self.recent.front(), self.recent.len()) {
+            (Some(first), k) if k > 1 => {
+                (k - 1) as f64 / now.duration_since(*first).as_secs_f64().max(1e-9)
+            }
+            _ => 0.0,
+        }
+    }
 }
 
 impl Default for StreamHealth {
@@ -469,6 +504,20 @@ pub fn check_command(command: &ExposureCommand, count: usize) -> Result<()> {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn the_rate_counts_the_frames_of_the_last_second() {
+        let mut r = super::RateMeter::default();
+        let t0 = std::time::Instant::now();
+        let at = |ms: u64| t0 + std::time::Duration::from_millis(ms);
+        assert!(r.tick_at(at(0)).abs() < 1e-12);
+        assert!((r.tick_at(at(50)) - 20.0).abs() < 1e-6);
+        for k in 2..=40 {
+            r.tick_at(at(50 * k));
+        }
+        // Only the last second's frames count: 20 intervals of 50 ms.
+        assert!((r.tick_at(at(50 * 41)) - 20.0).abs() < 1e-6);
+    }
+
     use super::*;
 
     fn frame(camera: usize, t: u64, status: FrameStatus) -> Frame {

@@ -39,7 +39,7 @@ use anyhow::{bail, Context, Result};
 use rigview_core::exposure::{ExposureRange, ExposureSetting};
 use rigview_core::source::{
     check_command, CameraInfo, ExposureCommand, Frame, FrameMeta, FrameSet, FrameSource,
-    FrameStatus, SourceError, StreamHealth,
+    FrameStatus, RateMeter, SourceError, StreamHealth,
 };
 
 pub use check::{check_emulation, CheckOptions, CheckReport, LevelFigures};
@@ -128,6 +128,8 @@ pub struct BracketSource {
     queued: Vec<(u64, ExposureCommand)>,
     next: u64,
     health: Vec<StreamHealth>,
+    /// Sets served per second (the window's stream rates).
+    rate: RateMeter,
     emulator: Option<Emulator>,
 }
 
@@ -166,6 +168,7 @@ impl BracketSource {
         Ok(Self {
             settings: vec![options.start; cameras.len()],
             health: vec![StreamHealth::default(); cameras.len()],
+            rate: RateMeter::default(),
             cameras,
             manifest,
             queued: Vec::new(),
@@ -231,8 +234,10 @@ impl BracketSource {
             };
             frames.push(Some(Frame::new(meta, d.data.into())?));
         }
+        let fps = self.rate.tick();
         for h in &mut self.health {
             h.completed += 1;
+            h.fps = fps;
         }
         self.next += 1;
         Ok(FrameSet {

@@ -82,6 +82,29 @@ fn a_good_manifest_is_read_in_order() {
     assert!(src.is_finished());
 }
 
+#[test]
+fn the_streams_report_the_rate_the_sets_are_served_at() {
+    let dir = tempfile::tempdir().unwrap();
+    let m = format!(
+        "{HEADER}front,0,0,1000,0,front/a.png\nleft,0,0,1000,0,front/a.png\nfront,1,0.05,1000,0,front/a.png\nleft,1,0.05,1000,0,front/a.png\n"
+    );
+    write(dir.path(), &m, &["front/a.png"]);
+    let options = BracketOptions::new(setting(1000.0, 0.0), BracketMode::Nearest);
+    let mut src = BracketSource::open(dir.path(), &names(), &options).unwrap();
+    src.next_set(Duration::ZERO).unwrap().unwrap();
+    assert!(src.health().iter().all(|h| h.fps.abs() < 1e-12));
+    std::thread::sleep(Duration::from_millis(20));
+    src.next_set(Duration::ZERO).unwrap().unwrap();
+    // Two sets at least 20 ms apart: a positive rate below 50 per second.
+    let health = src.health();
+    assert!(
+        health
+            .iter()
+            .all(|h| h.fps > 0.0 && h.fps <= 50.0 && h.completed == 2),
+        "{health:?}"
+    );
+}
+
 fn error(manifest: &str, images: &[&str]) -> String {
     let dir = tempfile::tempdir().unwrap();
     write(dir.path(), manifest, images);

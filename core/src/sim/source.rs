@@ -16,7 +16,6 @@
 //! [`Pacing::Realtime`] also holds each set back until its trigger's moment,
 //! [`Pacing::AsFastAsAsked`] renders each set when asked.
 
-use std::collections::VecDeque;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -24,8 +23,8 @@ use super::camera_ae::CameraAeParams;
 use super::render::{FillRequest, SimRender};
 use crate::exposure::{ExposureSetting, Meter, MeteringConfig};
 use crate::source::{
-    check_command, CameraInfo, ExposureCommand, Frame, FrameSet, FrameSource, SourceError,
-    StreamHealth,
+    check_command, CameraInfo, ExposureCommand, Frame, FrameSet, FrameSource, RateMeter,
+    SourceError, StreamHealth,
 };
 
 /// When a set is produced.
@@ -73,7 +72,7 @@ pub struct SimRig {
     queued: Vec<(u64, ExposureCommand)>,
     trigger: u64,
     started: Option<Instant>,
-    recent: VecDeque<Instant>,
+    rate: RateMeter,
     health: Vec<StreamHealth>,
     /// Whether the cameras' own auto-exposure runs.
     camera_auto: bool,
@@ -108,7 +107,7 @@ impl SimRig {
             queued: Vec::new(),
             trigger: 0,
             started: None,
-            recent: VecDeque::new(),
+            rate: RateMeter::default(),
         })
     }
 
@@ -188,21 +187,7 @@ impl SimRig {
                 }
             }
         }
-        let now = Instant::now();
-        self.recent.push_back(now);
-        while self
-            .recent
-            .front()
-            .is_some_and(|t| now.duration_since(*t) > Duration::from_secs(1))
-        {
-            self.recent.pop_front();
-        }
-        let fps = match (self.recent.front(), self.recent.len()) {
-            (Some(first), k) if k > 1 => {
-                (k - 1) as f64 / now.duration_since(*first).as_secs_f64().max(1e-9)
-            }
-            _ => 0.0,
-        };
+        let fps = self.rate.tick();
         for h in &mut self.health {
             h.completed += 1;
             h.fps = fps;
