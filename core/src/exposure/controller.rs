@@ -375,7 +375,7 @@ impl CameraController {
     }
 
     /// Tells the controller that the camera takes only these exposure
-    /// levels (`None`: any within its range); see [`Self::anchor`].
+    /// levels (`None`: any within its range); see [`LevelWalker`].
     pub fn set_levels(&mut self, levels: Option<Vec<f64>>) {
         self.walker = levels.as_deref().and_then(LevelWalker::new);
         self.level_request = None;
@@ -453,11 +453,6 @@ impl CameraController {
     /// shown: the newest command's, or `taken` when none is in flight.
     pub fn base(&self, taken: ExposureSetting) -> ExposureSetting {
         self.in_flight.back().map_or(taken, |c| c.setting)
-    }
-
-    /// The exposure the next step starts from: [`Self::base`].
-    pub fn working_point(&self, taken: ExposureSetting) -> f64 {
-        self.base(taken).exposure()
     }
 
     /// Whether the camera takes only fixed levels.
@@ -763,14 +758,9 @@ impl CameraController {
                 || config.mode == ControlMode::Fixed
                 || matches!(step, LawStep::Predicted { .. });
             let step_ev = match step {
+                // Undamped (on fixed levels no bracket clamps it).
                 LawStep::Predicted { .. } if self.manual.is_none() && follow.is_none() => {
-                    let undamped = taken.log2() + step.frame_ev();
-                    let clamped = if bracketed {
-                        self.bracket.clamp(undamped)
-                    } else {
-                        undamped
-                    };
-                    clamped - taken.log2()
+                    step.frame_ev()
                 }
                 _ => (desired / taken).log2(),
             };
@@ -1112,7 +1102,7 @@ impl RigController {
             .cameras
             .iter()
             .zip(inputs)
-            .map(|(c, input)| c.working_point(input.info.taken))
+            .map(|(c, input)| c.base(input.info.taken).exposure())
             .collect();
         // What balancing acts on: the measured ratios, or a pair's held
         // scene ratio while its patches are unusable.
