@@ -229,13 +229,17 @@ impl RateMeter {
         while self
             .recent
             .front()
-            .is_some_and(|t| now.duration_since(*t) > Duration::from_secs(1))
+            .is_some_and(|t| now.saturating_duration_since(*t) > Duration::from_secs(1))
         {
             self.recent.pop_front();
         }
         match (self.recent.front(), self.recent.len()) {
             (Some(first), k) if k > 1 => {
-                (k - 1) as f64 / now.duration_since(*first).as_secs_f64().max(1e-9)
+                (k - 1) as f64
+                    / now
+                        .saturating_duration_since(*first)
+                        .as_secs_f64()
+                        .max(1e-9)
             }
             _ => 0.0,
         }

@@ -15,7 +15,8 @@ use super::{
 };
 use crate::error::{Error, Result};
 use crate::source::{
-    CameraInfo, ExposureCommand, FrameSet, FrameSource, SetCounters, SourceError, StreamHealth,
+    CameraInfo, ExposureCommand, FrameSet, FrameSource, RateMeter, SetCounters, SourceError,
+    StreamHealth,
 };
 
 /// A set as the capture thread hands it on.
@@ -216,7 +217,7 @@ impl Pipeline {
                         control: &control_rx,
                         capture: &capture_tx,
                         notify: &notify,
-                        recent: VecDeque::new(),
+                        recent: RateMeter::default(),
                         sink,
                     };
                     ctx.run();
@@ -428,7 +429,7 @@ struct ProcessingLoop<'a> {
     control: &'a Receiver<Control>,
     capture: &'a Sender<CaptureMsg>,
     notify: &'a Notify,
-    recent: VecDeque<Instant>,
+    recent: RateMeter,
     sink: Option<Arc<dyn SetSink>>,
 }
 
@@ -496,24 +497,7 @@ impl ProcessingLoop<'_> {
             }
             return;
         }
-        self.recent.push_back(ready);
-        while self
-            .recent
-            .front()
-            .is_some_and(|t| ready.saturating_duration_since(*t) > Duration::from_secs(1))
-        {
-            self.recent.pop_front();
-        }
-        let rate = match (self.recent.front(), self.recent.len()) {
-            (Some(first), n) if n > 1 => {
-                (n - 1) as f64
-                    / ready
-                        .saturating_duration_since(*first)
-                        .as_secs_f64()
-                        .max(1e-9)
-            }
-            _ => 0.0,
-        };
+        let rate = self.recent.tick_at(ready);
         let times = StageTimes {
             capture_ms,
             queue_ms: ms(popped.saturating_duration_since(ready)),
