@@ -15,7 +15,8 @@ use crate::demo::{self, Demo};
 #[derive(Clone, Debug, Args)]
 pub struct DemoArgs {
     /// The simulation: a preset (reference, steps, ramp, tunnel, backlight,
-    /// overcast) or a simulation file (see assets/sim/).
+    /// overcast, sky, tunnel-exit, snow, lawn) or a simulation file (see
+    /// assets/sim/).
     #[arg(long, default_value = "reference")]
     pub scenario: String,
     /// Frame sets to run [default: the scenario's length at its trigger

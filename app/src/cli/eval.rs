@@ -27,7 +27,9 @@ pub struct EvalArgs {
     /// A simulation preset or file (repeatable): the first gives the scene
     /// of the γ̂ accuracy and the steps of light, all of them the M(E)
     /// sweeps and the seams [default: reference; sweeps: reference,
-    /// backlight, overcast; seams: backlight, tunnel, reference].
+    /// backlight, overcast, and with `--preset full` also sky (metered over
+    /// whole frames), tunnel-exit, snow, lawn; seams: backlight, tunnel,
+    /// reference].
     #[arg(long, value_name = "NAME|FILE")]
     pub scenario: Vec<String>,
     /// The folder to write the figures, their data and report.html into.

@@ -91,8 +91,8 @@ pub struct LiveArgs {
     #[arg(long)]
     pub fake: bool,
     /// The simulation the fake cameras show: a preset (reference, steps,
-    /// ramp, tunnel, backlight, overcast) or a simulation file (see
-    /// assets/sim/) [default: reference].
+    /// ramp, tunnel, backlight, overcast, sky, tunnel-exit, snow, lawn) or a
+    /// simulation file (see assets/sim/) [default: reference].
     #[arg(long, value_name = "NAME|FILE", requires = "fake")]
     pub scenario: Option<String>,
     /// Render the fake cameras at this fraction of the simulated rig's

@@ -79,7 +79,8 @@ pub struct RunArgs {
     #[arg(long, value_name = "K", default_value_t = 10)]
     pub every: u64,
     /// The simulation (`--source sim`): a preset (reference, steps, ramp,
-    /// tunnel, backlight, overcast) or a simulation file.
+    /// tunnel, backlight, overcast, sky, tunnel-exit, snow, lawn) or a
+    /// simulation file.
     #[arg(long, default_value = "reference")]
     pub scenario: String,
     /// Render scale of the simulated rig (0.25: 322×241).

@@ -101,6 +101,7 @@ impl Plan {
                 hold_s: 1.6,
             },
             sweep: SweepPlan {
+                presets: sweep_presets(scenarios, false),
                 lo,
                 hi,
                 steps,
@@ -144,7 +145,8 @@ impl Plan {
                 hold_s: 2.0,
             },
             sweep: SweepPlan {
-                presets: sweep_presets(scenarios),
+                presets: sweep_presets(scenarios, true),
+                whole_frames: vec!["sky".into()],
                 lo: 16.0,
                 hi: 1_048_576.0,
                 steps: 161,
@@ -192,15 +194,17 @@ impl Plan {
 }
 
 /// The presets of experiment 3: the scenarios given, or the three of
-/// constant light.
-fn sweep_presets(scenarios: &[String]) -> Vec<String> {
-    if scenarios.is_empty() {
-        ["reference", "backlight", "overcast"]
-            .map(String::from)
-            .to_vec()
-    } else {
-        scenarios.to_vec()
+/// constant light, and with `hard` the four where mean-intensity AE should
+/// lose (`sky`, `tunnel-exit`, `snow`, `lawn`).
+fn sweep_presets(scenarios: &[String], hard: bool) -> Vec<String> {
+    if !scenarios.is_empty() {
+        return scenarios.to_vec();
     }
+    let mut presets = vec!["reference", "backlight", "overcast"];
+    if hard {
+        presets.extend(["sky", "tunnel-exit", "snow", "lawn"]);
+    }
+    presets.into_iter().map(String::from).collect()
 }
 
 /// The scenarios of the seams: the scenarios given, or a low sun, a
@@ -945,6 +949,18 @@ mod tests {
         let plan = Plan::quick(&[]);
         assert_eq!(plan.scenario, "reference");
         assert_eq!(plan.sweep.presets, ["reference", "backlight", "overcast"]);
+        assert_eq!(
+            Plan::full(&[]).sweep.presets,
+            [
+                "reference",
+                "backlight",
+                "overcast",
+                "sky",
+                "tunnel-exit",
+                "snow",
+                "lawn"
+            ]
+        );
         assert_eq!(plan.seams.scenarios, ["backlight", "tunnel", "reference"]);
         assert_eq!(plan.panorama.scenarios, plan.seams.scenarios);
     }

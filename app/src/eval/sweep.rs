@@ -8,6 +8,7 @@
 use std::sync::Arc;
 
 use anyhow::Result;
+use rigview_core::pipeline::MeterRoi;
 use rigview_core::sim::truth::{self, Sweep, SweepOptions};
 use rigview_core::sim::{SimConfig, SimRender};
 
@@ -19,6 +20,10 @@ use super::strategy::EvalStrategy;
 pub struct SweepPlan {
     /// The presets (constant light).
     pub presets: Vec<String>,
+    /// The presets metered over whole frames (the sweeps and every
+    /// strategy's loop) rather than over the surround view's ground: `sky`,
+    /// whose bright sky no ground mask contains.
+    pub whole_frames: Vec<String>,
     /// The sweep: lowest and highest level, and levels.
     pub lo: f64,
     /// Highest level.
@@ -113,8 +118,13 @@ pub fn run(
             ..Default::default()
         };
         let first = out.sweeps.len();
+        let whole = plan.whole_frames.contains(preset);
         for (cam, info) in render.cameras().iter().enumerate() {
-            let mask = view.ground_masks().get(cam);
+            let mask = if whole {
+                None
+            } else {
+                view.ground_masks().get(cam)
+            };
             let sweep = truth::sweep(&render, cam, 0.0, &options, mask)?;
             tick(plan.steps as u64);
             out.sweeps.push(CameraSweep {
@@ -124,8 +134,11 @@ pub fn run(
             });
         }
         for strategy in EvalStrategy::SETTLED {
-            let trace =
-                closed_loop::run(&render, strategy.settings(), plan.frames, &mut || tick(1))?;
+            let mut settings = strategy.settings();
+            if whole {
+                settings.roi = MeterRoi::Full;
+            }
+            let trace = closed_loop::run(&render, settings, plan.frames, &mut || tick(1))?;
             for (cam, s) in out.sweeps[first..].iter().enumerate() {
                 let log2_e = trace.settled(cam, plan.tail);
                 let m = s.sweep.score_at(log2_e.exp2());

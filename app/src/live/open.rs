@@ -32,7 +32,7 @@ pub enum LiveCameras {
 #[derive(Clone, Debug, PartialEq)]
 pub struct FakeRig {
     /// A simulation preset (reference, steps, ramp, tunnel, backlight,
-    /// overcast) or a simulation file.
+    /// overcast, sky, tunnel-exit, snow, lawn) or a simulation file.
     pub scenario: String,
     /// The fraction of the simulated rig's resolution rendered (0.25:
     /// 322×241).

@@ -8,7 +8,7 @@
 //! format: rigview-sim
 //! version: 1
 //! rig: reference            # the built-in reference rig, or a rig file (relative to this file)
-//! scene: car-park           # a scene preset (car-park, low-sun, overcast) or a scene (see below)
+//! scene: car-park           # a scene preset (car-park, low-sun, overcast, sky, tunnel-exit, snow, lawn) or a scene
 //! script: tunnel            # a script preset (constant, steps, ramp, tunnel) or a list of events
 //! sensor: {bits: 12}        # the camera model; every field has the reference camera's default
 //! trigger_hz: 20
@@ -31,6 +31,8 @@
 //!     lanes:
 //!     - {from_m: [-40, -5.5], to_m: [40, -5.5], width_m: 0.15, dash_m: 3, gap_m: 3}
 //!     mat: {centre_m: [0, 0], size_m: [10, 6], hole_m: [5, 2], square_m: 0.4, circle_square_m: 0.8}
+//!     patches:              # ground with its own surface and light (here: tree shade)
+//!     - {centre_m: [3, 2], size_m: [4, 3], yaw_deg: 20, surface: {reflectance: 0.1, grain: 0.9, grain_m: 0.01}, sun: 0, sky: 0.8}
 //!   obstacles:
 //!   - {kind: building, centre_m: [-10.5, -11], size_m: [19, 6, 15]}
 //!   - {kind: wall, centre_m: [0, 11.5], size_m: [40, 0.3, 2.4]}
@@ -54,7 +56,7 @@ use serde::de::value::{MapAccessDeserializer, SeqAccessDeserializer};
 use serde::de::{self, MapAccess, SeqAccess, Visitor};
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
-use super::scene::{Lane, Obstacle, ObstacleKind, Scene, Sun};
+use super::scene::{Asphalt, Ground, Lane, Obstacle, ObstacleKind, Patch, Scene, Sky, Sun};
 use super::script::{Event, LightPart, Script};
 use super::sensor::Sensor;
 use super::{check_field, field_error, FieldError};
@@ -68,7 +70,7 @@ pub const VERSION: u32 = 1;
 
 /// The built-in simulations: `(name, scene preset, script preset, what it
 /// shows)`.
-pub const PRESETS: [(&str, &str, &str, &str); 6] = [
+pub const PRESETS: [(&str, &str, &str, &str); 10] = [
     (
         "reference",
         "car-park",
@@ -105,10 +107,46 @@ pub const PRESETS: [(&str, &str, &str, &str); 6] = [
         "constant",
         "the car park under an overcast sky: soft light, no cast shadows",
     ),
+    (
+        "sky",
+        "sky",
+        "constant",
+        "a bright hazy sky over dark, textured ground and façades (metered whole frames)",
+    ),
+    (
+        "tunnel-exit",
+        "tunnel-exit",
+        "constant",
+        "inside a dark tunnel, about 5 EV below the sunlit road ahead of its exit",
+    ),
+    (
+        "snow",
+        "snow",
+        "constant",
+        "bright, almost textureless snow with dark cars, a wall and tyre tracks",
+    ),
+    (
+        "lawn",
+        "lawn",
+        "constant",
+        "a finely textured lawn in sun and tree shade, 12-bit, starting 4 EV dark",
+    ),
 ];
 
+/// The `lawn` preset's starting shutter: 4 EV below the shutter of its
+/// best M (`tests/tests/hard_scenes.rs` checks it).
+pub const LAWN_START_US: f64 = 90.0;
+
 /// The built-in scenes.
-pub const SCENE_PRESETS: [&str; 3] = ["car-park", "low-sun", "overcast"];
+pub const SCENE_PRESETS: [&str; 7] = [
+    "car-park",
+    "low-sun",
+    "overcast",
+    "sky",
+    "tunnel-exit",
+    "snow",
+    "lawn",
+];
 /// The built-in scripts.
 pub const SCRIPT_PRESETS: [&str; 4] = ["constant", "steps", "ramp", "tunnel"];
 
@@ -430,12 +468,202 @@ fn overcast() -> Scene {
     }
 }
 
+/// A textured ground surface (see [`Asphalt`]).
+fn surface(reflectance: f64, variation: f64, grain: f64, grain_m: f64) -> Asphalt {
+    Asphalt {
+        reflectance,
+        variation,
+        grain,
+        grain_m,
+    }
+}
+
+/// An obstacle with the default yaw.
+fn obstacle(kind: ObstacleKind, centre_m: [f64; 2], size_m: [f64; 3], rho: f64) -> Obstacle {
+    Obstacle {
+        kind,
+        centre_m,
+        size_m,
+        yaw_deg: 0.0,
+        reflectance: Some(rho),
+    }
+}
+
+/// A bright hazy sky over a dark foreground: no sun, a sky 3.5 times the
+/// car park's, three times brighter at the horizon than at the zenith;
+/// dark, coarse asphalt without a mat, dark façades and a brick wall
+/// around. Seen by whole frames, the sky is 4–5 EV brighter than the
+/// ground and takes a large part of each image, but has no texture.
+fn sky() -> Scene {
+    Scene {
+        seed: 11,
+        ground: Ground {
+            asphalt: surface(0.08, 0.4, 0.6, 0.03),
+            mat: None,
+            ..Default::default()
+        },
+        obstacles: vec![
+            obstacle(
+                ObstacleKind::Building,
+                [16.0, -10.0],
+                [14.0, 8.0, 9.0],
+                0.15,
+            ),
+            obstacle(
+                ObstacleKind::Building,
+                [-18.0, 9.0],
+                [16.0, 8.0, 10.0],
+                0.15,
+            ),
+            obstacle(ObstacleKind::Wall, [0.0, 7.5], [24.0, 0.3, 1.8], 0.12),
+            obstacle(ObstacleKind::Car, [-1.0, -4.0], [4.5, 1.8, 1.45], 0.08),
+        ],
+        sun: Sun {
+            level: 0.0,
+            ..Default::default()
+        },
+        sky: Sky {
+            level: 0.35,
+            horizon: 3.0,
+            zenith: 1.0,
+        },
+        ..Default::default()
+    }
+}
+
+/// The last metres of a tunnel: the road around the car and behind it is a
+/// patch that no sunlight and 15 % of the skylight reach (concrete, textured),
+/// the road from 4 m ahead of the rig on is the sunlit asphalt outside,
+/// about 5 EV brighter; lane lines run through both.
+fn tunnel_exit() -> Scene {
+    let lane = |y: f64, dash_m: f64| Lane {
+        from_m: [-40.0, y],
+        to_m: [40.0, y],
+        width_m: 0.15,
+        dash_m,
+        gap_m: dash_m,
+        reflectance: 0.65,
+    };
+    Scene {
+        seed: 13,
+        ground: Ground {
+            lanes: vec![lane(-1.8, 3.0), lane(1.8, 3.0), lane(-5.0, 0.0)],
+            mat: None,
+            patches: vec![Patch {
+                centre_m: [-18.0, 0.0],
+                size_m: [44.0, 16.0],
+                yaw_deg: 0.0,
+                surface: surface(0.2, 0.3, 0.6, 0.02),
+                sun: 0.0,
+                sky: 0.15,
+            }],
+            ..Default::default()
+        },
+        obstacles: vec![
+            obstacle(ObstacleKind::Car, [10.0, -2.0], [4.5, 1.8, 1.45], 0.3),
+            obstacle(
+                ObstacleKind::Building,
+                [30.0, 14.0],
+                [14.0, 10.0, 18.0],
+                0.4,
+            ),
+        ],
+        sun: Sun {
+            azimuth_deg: 180.0,
+            elevation_deg: 45.0,
+            ..Default::default()
+        },
+        ..Default::default()
+    }
+}
+
+/// Snow in sunshine: a ground of reflectance 0.85 with hardly any texture,
+/// two dark tyre tracks of wet asphalt behind the car, dark parked cars on
+/// both sides and a dark brick wall ahead.
+fn snow() -> Scene {
+    let track = |y: f64| Patch {
+        centre_m: [-8.0, y],
+        size_m: [12.0, 0.5],
+        yaw_deg: 0.0,
+        surface: surface(0.08, 0.3, 0.6, 0.02),
+        sun: 1.0,
+        sky: 1.0,
+    };
+    let car = |x: f64, y: f64, rho: f64| obstacle(ObstacleKind::Car, [x, y], [4.5, 1.8, 1.45], rho);
+    Scene {
+        seed: 17,
+        ground: Ground {
+            asphalt: surface(0.85, 0.05, 0.04, 0.05),
+            mat: None,
+            patches: vec![track(-0.8), track(0.8)],
+            ..Default::default()
+        },
+        obstacles: vec![
+            car(0.5, 3.6, 0.06),
+            car(-5.0, -3.6, 0.1),
+            car(5.5, -3.8, 0.05),
+            obstacle(ObstacleKind::Wall, [5.5, 2.0], [0.3, 4.0, 2.0], 0.15),
+        ],
+        sun: Sun {
+            elevation_deg: 30.0,
+            ..Default::default()
+        },
+        sky: Sky {
+            level: 0.15,
+            ..Default::default()
+        },
+        ..Default::default()
+    }
+}
+
+/// A lawn in sun and the shade of trees: fine grass (1 cm grain, strong
+/// contrast) everywhere, and shade patches (no sun, 80 % of the sky) over
+/// about half the ground around the car, at angles. No mat, no obstacles
+/// besides the car, and a high sun (65°) so that the car's own shadow is
+/// short: no large bright or dark areas, so M rises until the sunlit grass
+/// begins to clip.
+fn lawn() -> Scene {
+    let shade = |centre_m: [f64; 2], size_m: [f64; 2], yaw_deg: f64| Patch {
+        centre_m,
+        size_m,
+        yaw_deg,
+        surface: surface(0.1, 0.35, 0.9, 0.01),
+        sun: 0.0,
+        sky: 0.8,
+    };
+    Scene {
+        seed: 19,
+        ground: Ground {
+            asphalt: surface(0.1, 0.35, 0.9, 0.01),
+            mat: None,
+            patches: vec![
+                shade([3.8, 1.5], [2.5, 2.5], 20.0),
+                shade([4.0, -2.5], [2.0, 2.0], 45.0),
+                shade([0.5, 3.6], [2.0, 1.5], -15.0),
+                shade([-4.0, 3.5], [2.0, 2.0], 0.0),
+                shade([-3.8, -1.0], [2.5, 3.0], 10.0),
+                shade([0.0, -3.5], [3.0, 2.0], 30.0),
+            ],
+            ..Default::default()
+        },
+        sun: Sun {
+            elevation_deg: 65.0,
+            ..Default::default()
+        },
+        ..Default::default()
+    }
+}
+
 /// A scene preset by name.
 pub fn scene_preset(name: &str) -> Option<Scene> {
     match name {
         "car-park" => Some(car_park()),
         "low-sun" => Some(low_sun()),
         "overcast" => Some(overcast()),
+        "sky" => Some(sky()),
+        "tunnel-exit" => Some(tunnel_exit()),
+        "snow" => Some(snow()),
+        "lawn" => Some(lawn()),
         _ => None,
     }
 }
@@ -496,14 +724,21 @@ impl SimConfig {
         };
         let (script, duration_s) = script_preset(script)
             .ok_or_else(|| Error::InvalidConfig(format!("preset {name}: no script {script}")))?;
-        Ok(Self {
+        let mut config = Self {
             name: name.into(),
             scene: scene_preset(scene)
                 .ok_or_else(|| Error::InvalidConfig(format!("preset {name}: no scene {scene}")))?,
             script,
             duration_s,
             ..Self::default()
-        })
+        };
+        if name == "lawn" {
+            // As the real lawn sequence: a 12-bit camera starting 4 EV below
+            // the best M.
+            config.sensor.bits = 12;
+            config.start.shutter_us = LAWN_START_US;
+        }
+        Ok(config)
     }
 
     /// A preset if `name` is one, otherwise the simulation file at that
@@ -798,5 +1033,12 @@ mod tests {
         assert!(m.contains("sceen"), "{m}");
         let m = msg("format: rigview-sim\nversion: 1\nscene: {ground: {mat: {hole_m: [11, 1]}}}\n");
         assert!(m.contains("scene.ground.mat.hole_m[0]"), "{m}");
+        let m = msg("format: rigview-sim\nversion: 1\nscene: {ground: {patches: [{centre_m: [0, 0], size_m: [2, 2], sun: 1.5}]}}\n");
+        assert!(
+            m.contains("scene.ground.patches[0].sun") && m.contains("1.5") && m.contains("[0, 1]"),
+            "{m}"
+        );
+        let m = msg("format: rigview-sim\nversion: 1\nscene: {ground: {patches: [{centre_m: [0, 0], size_m: [2, 2], surface: {grain: 2}}]}}\n");
+        assert!(m.contains("scene.ground.patches[0].surface.grain"), "{m}");
     }
 }

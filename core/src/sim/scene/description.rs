@@ -57,6 +57,11 @@ pub struct Ground {
     /// The calibration mat (`null`: none).
     #[serde(default = "default_mat")]
     pub mat: Option<Mat>,
+    /// Regions of the ground with a surface and a light of their own (snow,
+    /// grass, the shade of trees, the inside of a tunnel), over the asphalt
+    /// and under the lanes and the mat; a later patch covers an earlier one.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub patches: Vec<Patch>,
 }
 
 fn default_mat() -> Option<Mat> {
@@ -69,6 +74,7 @@ impl Default for Ground {
             asphalt: Asphalt::default(),
             lanes: Vec::new(),
             mat: default_mat(),
+            patches: Vec::new(),
         }
     }
 }
@@ -95,6 +101,46 @@ impl Default for Asphalt {
             grain: 0.5,
             grain_m: 0.03,
         }
+    }
+}
+
+/// A rectangle of the ground with its own surface (textured as asphalt
+/// is, from its own reflectance, patches and grain) and its own share of
+/// the sun's and the sky's light: 0 sun for the shade of trees or a roof,
+/// a small sky share for the inside of a tunnel. It needs no geometry, so
+/// nothing else (walls, cars) is darkened by it.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Patch {
+    /// Centre (x, y), metres.
+    pub centre_m: [f64; 2],
+    /// Size along the patch's own x and y, metres.
+    pub size_m: [f64; 2],
+    /// Direction of the patch's x axis (0 = forward), degrees.
+    #[serde(default)]
+    pub yaw_deg: f64,
+    /// The surface.
+    #[serde(default)]
+    pub surface: Asphalt,
+    /// The share of direct sunlight that reaches it, in [0, 1].
+    #[serde(default = "one")]
+    pub sun: f64,
+    /// The share of skylight that reaches it, in [0, 1].
+    #[serde(default = "one")]
+    pub sky: f64,
+}
+
+fn one() -> f64 {
+    1.0
+}
+
+impl Patch {
+    /// Whether (x, y) lies on the patch.
+    pub fn contains(&self, x: f64, y: f64) -> bool {
+        let (s, c) = self.yaw_deg.to_radians().sin_cos();
+        let (dx, dy) = (x - self.centre_m[0], y - self.centre_m[1]);
+        let (px, py) = (c * dx + s * dy, -s * dx + c * dy);
+        px.abs() <= 0.5 * self.size_m[0] && py.abs() <= 0.5 * self.size_m[1]
     }
 }
 

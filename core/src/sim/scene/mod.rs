@@ -43,7 +43,9 @@ mod geometry;
 mod shading;
 mod validation;
 
-pub use description::{Asphalt, Ego, Ground, Lane, Mat, Obstacle, ObstacleKind, Scene, Sky, Sun};
+pub use description::{
+    Asphalt, Ego, Ground, Lane, Mat, Obstacle, ObstacleKind, Patch, Scene, Sky, Sun,
+};
 pub(crate) use geometry::{Built, Hit};
 pub use shading::Class;
 pub(crate) use shading::Shade;

@@ -204,16 +204,21 @@ impl Built {
             .unwrap_or_else(|| ao_at(&self.solids, x, y))
     }
 
-    /// The reflectance of the ground at (x, y) for a pixel footprint `fp`.
-    fn ground_reflectance(&self, x: f64, y: f64, fp: f64) -> f64 {
+    /// The reflectance of the ground at (x, y) for a pixel footprint `fp`,
+    /// and the shares of the sun's and the sky's light that reach it (below
+    /// 1 on a patch in shade).
+    fn ground_reflectance(&self, x: f64, y: f64, fp: f64) -> (f64, f64, f64) {
         let g = &self.scene.ground;
+        let patch = g.patches.iter().rev().find(|p| p.contains(x, y));
+        let (sun, sky) = patch.map_or((1.0, 1.0), |p| (p.sun, p.sky));
         if let Some(m) = &g.mat {
             if let Some(r) = mat_reflectance(m, x, y) {
                 // Creases and dirt on the cloth.
-                return r * (1.0 + 0.06 * fbm(self.scene.seed ^ 0x3a, x, y, 0.5, 3, fp));
+                let r = r * (1.0 + 0.06 * fbm(self.scene.seed ^ 0x3a, x, y, 0.5, 3, fp));
+                return (r, sun, sky);
             }
         }
-        let a = &g.asphalt;
+        let a = patch.map_or(&g.asphalt, |p| &p.surface);
         let seed = self.scene.seed;
         // Patches from 2 m down to 12 cm, and the aggregate from 4 grains
         // down to one.
@@ -227,7 +232,7 @@ impl Built {
                 r += (paint - r) * cover;
             }
         }
-        r.clamp(0.005, 0.98)
+        (r.clamp(0.005, 0.98), sun, sky)
     }
 
     /// Traces one ray: what it sees and the light it brings back. `pixel`
@@ -240,15 +245,15 @@ impl Built {
             Hit::Ground(t) => {
                 let p = o + d * t;
                 let fp = t * pixel / d.z.abs().max(0.05);
-                let rho = self.ground_reflectance(p.x, p.y, fp);
+                let (rho, sun_share, sky_share) = self.ground_reflectance(p.x, p.y, fp);
                 let lift = p + Vector3::z() * 1e-6;
-                let lit = self.sun_up && !self.shadowed(&lift);
+                let lit = self.sun_up && sun_share > 0.0 && !self.shadowed(&lift);
                 let sun = if lit {
-                    rho * level * self.sun_dir.z
+                    rho * sun_share * level * self.sun_dir.z
                 } else {
                     0.0
                 };
-                let sky = rho * sky_level * self.ground_ao(p.x, p.y);
+                let sky = rho * sky_share * sky_level * self.ground_ao(p.x, p.y);
                 (Shade { sun, sky }, Class::Ground)
             }
             Hit::Solid(t, k, face) => {
@@ -430,7 +435,7 @@ pub(crate) fn mat_reflectance(m: &Mat, x: f64, y: f64) -> Option<f64> {
 
 #[cfg(test)]
 mod tests {
-    use super::super::{Ground, Obstacle, ObstacleKind, Scene, Sun};
+    use super::super::{Asphalt, Ground, Obstacle, ObstacleKind, Patch, Scene, Sun};
     use super::*;
 
     #[test]
@@ -452,6 +457,68 @@ mod tests {
             mat_reflectance(&m, centre.0 - 0.35, centre.1 - 0.35),
             Some(m.white)
         );
+    }
+
+    #[test]
+    fn a_patch_has_its_own_surface_and_light() {
+        let shade = |patches: Vec<Patch>| {
+            let scene = Scene {
+                ego: None,
+                ground: Ground {
+                    mat: None,
+                    patches,
+                    ..Default::default()
+                },
+                ..Default::default()
+            };
+            let b = Built::new(&scene);
+            let eye = Vector3::new(0.0, 0.0, 1.0);
+            let d = (Vector3::new(2.0, 0.0, 0.0) - eye).normalize();
+            let (s, class) = b.shade(&eye, &d, 1e-3);
+            assert_eq!(class, Class::Ground);
+            s
+        };
+        let bare = shade(Vec::new());
+        let snow = Asphalt {
+            reflectance: 0.9,
+            variation: 0.0,
+            grain: 0.0,
+            grain_m: 0.03,
+        };
+        let patch = |centre_m: [f64; 2], sun: f64, sky: f64| Patch {
+            centre_m,
+            size_m: [2.0, 1.0],
+            yaw_deg: 0.0,
+            surface: snow,
+            sun,
+            sky,
+        };
+        // (2, 0) on a snow patch in full light: the reflectance is the
+        // snow's, 0.9, against about 0.12 for the asphalt.
+        let lit = shade(vec![patch([2.0, 0.0], 1.0, 1.0)]);
+        assert!(
+            lit.sun > 4.0 * bare.sun && lit.sky > 4.0 * bare.sky,
+            "{lit:?} {bare:?}"
+        );
+        let ratio = lit.sky / lit.sun;
+        assert!((ratio - bare.sky / bare.sun).abs() < 1e-9);
+        // In shade: no sun, a tenth of the sky.
+        let dark = shade(vec![patch([2.0, 0.0], 0.0, 0.1)]);
+        assert!(dark.sun.abs() < 1e-15);
+        assert!((dark.sky - 0.1 * lit.sky).abs() < 1e-12);
+        // A patch elsewhere changes nothing; a later patch covers an
+        // earlier one.
+        assert_eq!(shade(vec![patch([6.0, 0.0], 1.0, 1.0)]), bare);
+        let later = shade(vec![
+            patch([2.0, 0.0], 0.0, 0.1),
+            patch([2.0, 0.0], 1.0, 1.0),
+        ]);
+        assert_eq!(later, lit);
+        let turned = Patch {
+            yaw_deg: 90.0,
+            ..patch([2.0, 0.0], 1.0, 1.0)
+        };
+        assert!(turned.contains(2.0, 0.9) && !turned.contains(2.9, 0.0));
     }
 
     #[test]

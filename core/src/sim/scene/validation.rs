@@ -1,7 +1,7 @@
 //! Checks of a scene description: every value in its range, the error
 //! naming the field.
 
-use super::Scene;
+use super::{Asphalt, Scene};
 use crate::sim::{check_field as check, FieldError};
 
 fn check_point(field: String, p: &[f64]) -> Result<(), FieldError> {
@@ -17,38 +17,72 @@ fn check_point(field: String, p: &[f64]) -> Result<(), FieldError> {
 
 const REFLECTANCE: &str = "a reflectance in [0, 1]";
 
+/// Checks an asphalt-like surface whose fields are `{prefix}.reflectance`…
+fn check_surface(prefix: &str, a: &Asphalt) -> Result<(), FieldError> {
+    let at = |f: &str| format!("{prefix}.{f}");
+    check(at("reflectance"), a.reflectance, 0.0, 1.0, REFLECTANCE)?;
+    check(
+        at("variation"),
+        a.variation,
+        0.0,
+        1.0,
+        "a relative variation in [0, 1]",
+    )?;
+    check(
+        at("grain"),
+        a.grain,
+        0.0,
+        1.0,
+        "a relative contrast in [0, 1]",
+    )?;
+    check(
+        at("grain_m"),
+        a.grain_m,
+        1e-4,
+        10.0,
+        "a grain size in metres in [0.0001, 10]",
+    )
+}
+
 impl Scene {
     /// Checks every value; the error names the field (`scene.sun.level`).
     pub fn validate(&self) -> Result<(), FieldError> {
-        let a = &self.ground.asphalt;
-        check(
-            "scene.ground.asphalt.reflectance",
-            a.reflectance,
-            0.0,
-            1.0,
-            REFLECTANCE,
-        )?;
-        check(
-            "scene.ground.asphalt.variation",
-            a.variation,
-            0.0,
-            1.0,
-            "a relative variation in [0, 1]",
-        )?;
-        check(
-            "scene.ground.asphalt.grain",
-            a.grain,
-            0.0,
-            1.0,
-            "a relative contrast in [0, 1]",
-        )?;
-        check(
-            "scene.ground.asphalt.grain_m",
-            a.grain_m,
-            1e-4,
-            10.0,
-            "a grain size in metres in [0.0001, 10]",
-        )?;
+        check_surface("scene.ground.asphalt", &self.ground.asphalt)?;
+        for (k, p) in self.ground.patches.iter().enumerate() {
+            let at = |f: &str| format!("scene.ground.patches[{k}].{f}");
+            check_point(at("centre_m"), &p.centre_m)?;
+            for (i, &s) in p.size_m.iter().enumerate() {
+                check(
+                    format!("scene.ground.patches[{k}].size_m[{i}]"),
+                    s,
+                    0.01,
+                    1e4,
+                    "a size in metres in [0.01, 10000]",
+                )?;
+            }
+            check(
+                at("yaw_deg"),
+                p.yaw_deg,
+                -360.0,
+                360.0,
+                "an angle in degrees",
+            )?;
+            check_surface(&format!("scene.ground.patches[{k}].surface"), &p.surface)?;
+            check(
+                at("sun"),
+                p.sun,
+                0.0,
+                1.0,
+                "a share of the sunlight in [0, 1]",
+            )?;
+            check(
+                at("sky"),
+                p.sky,
+                0.0,
+                1.0,
+                "a share of the skylight in [0, 1]",
+            )?;
+        }
         for (k, l) in self.ground.lanes.iter().enumerate() {
             let at = |f: &str| format!("scene.ground.lanes[{k}].{f}");
             check_point(at("from_m"), &l.from_m)?;
