@@ -37,7 +37,14 @@
 //!   opens by `narrow_ev`, twice as far with every second further frame
 //!   (the light drifts past it: the camera follows at once, while a run of
 //!   noise at a jump costs one small step);
-//! - ends older than `max_age_frames` go.
+//! - an end that no frame has confirmed for `max_age_frames` frames goes.
+//!   A frame confirms both ends when its mean intensity agrees with each
+//!   end's within half of `light_tolerance` (the same light on the same
+//!   scene, as far as the mean can tell). A balanced camera's frames sit
+//!   on one side of its bracket, away from the end it set long ago; if
+//!   that end went by age alone, the law would step past it once in every
+//!   `max_age_frames`, and the camera would circle around its jump that
+//!   often (snow under the fast law, balanced).
 //!
 //! # Frames that point apart
 //!
@@ -61,7 +68,8 @@ pub struct BracketParams {
     pub narrow_ev: f64,
     /// See `narrow_ev`.
     pub narrow_frames: u32,
-    /// Frames an end is kept.
+    /// Frames an end is kept without a frame that confirms it (module
+    /// documentation).
     pub max_age_frames: u32,
     /// The relative change of mean intensity that counts as a change of
     /// light.
@@ -177,6 +185,11 @@ impl Bracket {
         let changed = |e: &End| !same_scene((e.at, e.mean), (at, mean), tol);
         if self.lo.iter().chain(self.hi.iter()).any(changed) {
             self.reset();
+        }
+        for e in [&mut self.lo, &mut self.hi].into_iter().flatten() {
+            if same_scene((e.at, e.mean), (at, mean), tol / 2.0) {
+                e.frame = frame;
+            }
         }
         if step_ev.abs() < params.dead_band_ev {
             return;
@@ -395,6 +408,32 @@ mod tests {
     fn span(v: &[f64]) -> (f64, f64) {
         v.iter()
             .fold((f64::MAX, f64::MIN), |(a, c), &x| (a.min(x), c.max(x)))
+    }
+
+    #[test]
+    fn an_end_stays_while_frames_of_its_scene_confirm_it_and_goes_when_none_does() {
+        let p = BracketParams::default();
+        let mean = |at: f64| (at - 10.0).exp2() * 0.5;
+        let mut b = Bracket::default();
+        // A frame at 9.9 asks brighter, one at 10.2 darker: the bracket.
+        b.observe(&p, 9.9, mean(9.9), 0.3);
+        b.observe(&p, 10.2, mean(10.2), -0.3);
+        assert_eq!(b.ends(), (Some(9.9), Some(10.2)));
+        // A balanced camera held at 10.25 asks darker frame after frame;
+        // the light stays as it was, and the low end stays with it.
+        for _ in 0..3 * p.max_age_frames {
+            b.observe(&p, 10.25, mean(10.25), -0.3);
+        }
+        assert_eq!(b.ends(), (Some(9.9), Some(10.2)));
+        assert_eq!(b.clamp(9.5), 10.05);
+        // The light brightens by 7 % (within the tolerance of a change of
+        // light, beyond half of it): no frame confirms the ends, and after
+        // `max_age_frames` the low end goes (the high end is renewed).
+        for _ in 0..=p.max_age_frames {
+            b.observe(&p, 10.15, mean(10.15) * 1.07, -0.3);
+        }
+        assert_eq!(b.ends(), (None, Some(10.15)));
+        assert_eq!(b.clamp(9.5), 9.5);
     }
 
     #[test]
