@@ -293,6 +293,15 @@ fn the_quick_evaluation_writes_sane_figures_data_and_report() {
     let (_, rows) = csv(&out.join(rigview::eval::files::PROFILE_CSV));
     assert_eq!(rows.len(), 3 * 6 * 360);
     panorama_seams(&out);
+    // Features across each of the 4 overlaps, per preset and settled
+    // strategy.
+    let (h, rows) = csv(&out.join(rigview::eval::files::OVERLAP_FEATURES_CSV));
+    assert_eq!(h.len(), 5);
+    assert_eq!(
+        rows.len(),
+        3 * rigview::eval::strategy::EvalStrategy::SETTLED.len() * 4
+    );
+    assert!(rows.iter().all(|r| num(&r[4]) >= 0.0));
     let (h, rows) = csv(&out.join(rigview::eval::files::VIEWS_CSV));
     assert_eq!((h.len(), rows.len()), (3 + CAMERAS, 3 * 6));
     let views = png(&out.join(rigview::eval::files::VIEWS_PNG));
@@ -306,9 +315,16 @@ fn the_quick_evaluation_writes_sane_figures_data_and_report() {
     assert_eq!(lines.len(), 2 + 15, "{md}");
     for line in &lines[2..] {
         let cells: Vec<&str> = line.trim_matches('|').split('|').map(str::trim).collect();
-        assert_eq!(cells.len(), 7, "{line}");
+        assert_eq!(cells.len(), 9, "{line}");
         for c in &cells[1..] {
             assert!(*c == "·" || num(c.trim_end_matches(" %")) >= 0.0, "{line}");
+        }
+        // Where experiment 3 settled a strategy, it counted the corners
+        // tracked and matched across the overlaps there.
+        assert_eq!(cells[3] != "·", cells[4] != "·", "{line}");
+        assert_eq!(cells[3] != "·", cells[5] != "·", "{line}");
+        if cells[4] != "·" {
+            assert!(num(cells[4]) > 10.0, "{line}");
         }
         let panorama_run = [
             "fixed manual",
@@ -317,7 +333,7 @@ fn the_quick_evaluation_writes_sane_figures_data_and_report() {
             "gradient balanced (multi)",
         ]
         .contains(&cells[0]);
-        assert_eq!(cells[6] != "·", panorama_run, "{line}");
+        assert_eq!(cells[8] != "·", panorama_run, "{line}");
     }
 
     // The report: self-contained, with its figures inlined.

@@ -139,6 +139,19 @@ pub fn run_source<S: FrameSource>(
     options: LoopOptions,
     tick: &mut dyn FnMut(),
 ) -> Result<Trace> {
+    run_observed(source, rig, settings, options, &mut |_, _| Ok(()), tick)
+}
+
+/// [`run_source`], showing `observe` each set (its index from 0 and its
+/// frames, one per camera in rig order) as it was taken.
+pub fn run_observed<S: FrameSource>(
+    source: S,
+    rig: &Rig,
+    settings: ProcessingSettings,
+    options: LoopOptions,
+    observe: &mut dyn FnMut(usize, &[FrameView<'_>]) -> Result<()>,
+    tick: &mut dyn FnMut(),
+) -> Result<Trace> {
     let cameras = source.cameras().to_vec();
     let n = cameras.len();
     let graph = NeighbourGraph::new(n, &rig.neighbours)?;
@@ -166,6 +179,7 @@ pub fn run_source<S: FrameSource>(
         trace
             .log2_r
             .push(output.pairs.iter().map(|p| p.log2_r).collect());
+        observe(trace.log2_r.len() - 1, &frame_views(&step.set)?)?;
         if let Some(seams) = &seams {
             let gains = (output.display_gains.len() == n).then_some(&output.display_gains[..]);
             let gain = |k: usize| gains.map_or(0.0, |g| f64::from(g[k]).log2());

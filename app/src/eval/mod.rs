@@ -18,6 +18,7 @@
 //! - [`figure`]: the figures (plotters); [`html`]: the report.
 
 pub mod closed_loop;
+pub mod downstream;
 pub mod figure;
 pub mod gamma;
 pub mod html;
@@ -152,6 +153,7 @@ impl Plan {
                 steps: 161,
                 frames: 200,
                 tail: 20,
+                canvas: (2048, 270),
             },
             seams: SeamsPlan {
                 scenarios: seam_scenarios(scenarios),
@@ -239,6 +241,9 @@ pub mod files {
     pub const SWEEP_CSV: &str = "fig3_m_vs_exposure.csv";
     /// Experiment 3's settled exposures.
     pub const SETTLED_CSV: &str = "fig3_settled.csv";
+    /// Experiment 3's features matched across the overlaps where each
+    /// strategy settled.
+    pub const OVERLAP_FEATURES_CSV: &str = "fig3_overlap_features.csv";
     /// Experiment 4's histograms.
     pub const HIST_PNG: &str = "fig4_seam_histograms.png";
     /// Experiment 4's histograms, data.
@@ -266,7 +271,7 @@ pub mod files {
     /// The report's summary table, in Markdown.
     pub const HEADLINE_MD: &str = "headline.md";
     /// Every file.
-    pub const ALL: [&str; 22] = [
+    pub const ALL: [&str; 23] = [
         GAMMA_PNG,
         GAMMA_CSV,
         STEPS_TRACE_PNG,
@@ -276,6 +281,7 @@ pub mod files {
         SWEEP_PNG,
         SWEEP_CSV,
         SETTLED_CSV,
+        OVERLAP_FEATURES_CSV,
         HIST_PNG,
         HIST_CSV,
         PROFILE_PNG,
@@ -631,6 +637,12 @@ fn write_sweep(r: &Results, out: &Path) -> Result<()> {
         files::SETTLED_CSV,
         sweep::Settled::HEADER,
         sw.settled.iter().map(sweep::Settled::csv),
+    )?;
+    write_csv(
+        out,
+        files::OVERLAP_FEATURES_CSV,
+        downstream::OverlapFeatures::HEADER,
+        sw.overlaps.iter().map(downstream::OverlapFeatures::csv),
     )?;
     let panels: Vec<Panel> = sw
         .sweeps

@@ -19,9 +19,11 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 use rigview_core::exposure::{Estimator, EstimatorConfig, Meter};
+use rigview_core::pipeline::PanoramaSettings;
 use rigview_core::sim::truth::Sweep;
 
 use super::closed_loop::{self, LoopOptions};
+use super::downstream::{Downstream, FeatureMeter};
 use super::seams::{self, SeamRun, SeamsResult};
 use super::strategy::EvalStrategy;
 use super::sweep::{CameraSweep, Settled, SweepResult};
@@ -105,16 +107,33 @@ pub fn run(plan: &Plan, dir: &Path, out: &Path) -> Result<Results> {
     let bar = super::progress_bar((STRATEGIES.len() * moments) as u64)?;
     bar.set_message("closed loops on the brackets");
     let mut settled = Vec::new();
+    let mut overlaps = Vec::new();
     let mut runs = Vec::new();
+    let panorama = PanoramaSettings {
+        width: plan.sweep.canvas.0,
+        height: plan.sweep.canvas.1,
+        ..PanoramaSettings::default()
+    };
+    let mut meter = FeatureMeter::new(&rig, &panorama)?;
     for strategy in STRATEGIES {
         let (source, _) = brackets::open_with_rig(dir, None, &options)?;
-        let trace = closed_loop::run_source(
+        meter.reset();
+        let from = moments.saturating_sub(plan.seams.tail + 1);
+        let mut measured = Vec::new();
+        let trace = closed_loop::run_observed(
             source,
             &rig,
             strategy.settings(),
             LoopOptions { view: true },
+            &mut |set, frames| {
+                if set >= from {
+                    measured.push(meter.observe(frames)?);
+                }
+                Ok(())
+            },
             &mut || bar.inc(1),
         )?;
+        let downstream = Downstream::of(&measured);
         let mut m_fraction = Vec::new();
         for (cam, s) in sweeps.iter().enumerate() {
             let log2_e = trace.settled(cam, plan.seams.tail);
@@ -130,8 +149,12 @@ pub fn run(plan: &Plan, dir: &Path, out: &Path) -> Result<Results> {
                     m,
                     fraction,
                     best_log2_e: s.sweep.best.log2(),
+                    tracked: downstream.tracked(cam),
                 });
             }
+        }
+        if strategy != EvalStrategy::MultiComp {
+            overlaps.extend(downstream.overlaps(NAME, strategy, &names));
         }
         let canvas = trace
             .canvas
@@ -149,7 +172,11 @@ pub fn run(plan: &Plan, dir: &Path, out: &Path) -> Result<Results> {
     let results = Results {
         gamma: Vec::new(),
         steps: Default::default(),
-        sweep: SweepResult { sweeps, settled },
+        sweep: SweepResult {
+            sweeps,
+            settled,
+            overlaps,
+        },
         seams: SeamsResult {
             runs,
             seam_angles: vec![(NAME.into(), seams::seam_angles(&view))],

@@ -9,10 +9,12 @@ use super::strategy::EvalStrategy;
 use super::Results;
 
 /// The columns: what each figure is, with its unit.
-pub const COLUMNS: [&str; 6] = [
+pub const COLUMNS: [&str; 8] = [
     "steps of light: frames to settle (median)",
     "steps of light: largest overshoot (EV)",
     "settled M / best (mean)",
+    "settled: corners tracked frame to frame (mean per camera)",
+    "settled: corners matched across an overlap (mean)",
     "surround: mean abs log2 r_ij in the images (EV)",
     "surround: as the view shows it (EV)",
     "panorama: mean abs log2 r_ij, matched patches (EV)",
@@ -46,6 +48,8 @@ pub fn rows(r: &Results) -> Vec<(EvalStrategy, Vec<String>)> {
                     .fold(0.0, f64::max)
             });
             let m = Some(r.sweep.mean_fraction(s));
+            let tracked = Some(r.sweep.mean_tracked(s));
+            let inliers = Some(r.sweep.mean_inliers(s));
             let seams: Vec<_> = r
                 .seams
                 .runs
@@ -62,6 +66,8 @@ pub fn rows(r: &Results) -> Vec<(EvalStrategy, Vec<String>)> {
                 cell(settle, &|v| format!("{v:.0}")),
                 cell(overshoot, &|v| format!("{v:.2}")),
                 cell(m, &|v| format!("{:.1} %", 100.0 * v)),
+                cell(tracked, &|v| format!("{v:.0}")),
+                cell(inliers, &|v| format!("{v:.0}")),
                 cell(mean(|x| x.mean_images), &|v| format!("{v:.2}")),
                 cell(mean(|x| x.mean_view), &|v| format!("{v:.2}")),
                 cell(panorama, &|v| format!("{v:.2}")),

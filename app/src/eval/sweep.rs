@@ -7,12 +7,13 @@
 
 use std::sync::Arc;
 
-use anyhow::Result;
-use rigview_core::pipeline::MeterRoi;
+use anyhow::{Context, Result};
+use rigview_core::pipeline::{MeterRoi, PanoramaSettings};
 use rigview_core::sim::truth::{self, Sweep, SweepOptions};
 use rigview_core::sim::{SimConfig, SimRender};
 
 use super::closed_loop;
+use super::downstream::{mean, Downstream, FeatureMeter, OverlapFeatures};
 use super::strategy::EvalStrategy;
 
 /// What experiment 3 measures.
@@ -32,8 +33,11 @@ pub struct SweepPlan {
     pub steps: usize,
     /// Sets of each closed loop.
     pub frames: usize,
-    /// Frames at the end whose median is the settled exposure.
+    /// Frames at the end whose median is the settled exposure; the
+    /// downstream measures ([`super::downstream`]) are taken over them.
     pub tail: usize,
+    /// The panorama whose overlaps the downstream measures match.
+    pub canvas: (usize, usize),
 }
 
 /// One camera's sweep in one preset.
@@ -64,17 +68,20 @@ pub struct Settled {
     pub fraction: f64,
     /// The sweep's best log2 E.
     pub best_log2_e: f64,
+    /// Corners tracked from frame to frame over the tail, mean per frame
+    /// ([`super::downstream`]).
+    pub tracked: f64,
 }
 
 impl Settled {
     /// The CSV header.
     pub const HEADER: &'static str =
-        "preset,camera,strategy,settled_log2_e,m,m_fraction_of_best,best_log2_e,gap_ev";
+        "preset,camera,strategy,settled_log2_e,m,m_fraction_of_best,best_log2_e,gap_ev,tracked";
 
     /// A CSV line.
     pub fn csv(&self) -> String {
         format!(
-            "{},{},{},{:.4},{:.3},{:.5},{:.4},{:.4}",
+            "{},{},{},{:.4},{:.3},{:.5},{:.4},{:.4},{:.1}",
             self.preset,
             self.camera,
             self.strategy.key(),
@@ -82,7 +89,8 @@ impl Settled {
             self.m,
             self.fraction,
             self.best_log2_e,
-            self.log2_e - self.best_log2_e
+            self.log2_e - self.best_log2_e,
+            self.tracked
         )
     }
 }
@@ -94,6 +102,8 @@ pub struct SweepResult {
     pub sweeps: Vec<CameraSweep>,
     /// The settled exposures.
     pub settled: Vec<Settled>,
+    /// Features matched across each overlap over the tail.
+    pub overlaps: Vec<OverlapFeatures>,
 }
 
 /// Work units of one preset (sweep levels and closed-loop sets).
@@ -133,12 +143,39 @@ pub fn run(
                 sweep,
             });
         }
+        let panorama = PanoramaSettings {
+            width: plan.canvas.0,
+            height: plan.canvas.1,
+            ..PanoramaSettings::default()
+        };
+        let mut meter = FeatureMeter::new(render.rig(), &panorama)?;
+        let names: Vec<String> = render.cameras().iter().map(|c| c.name.clone()).collect();
         for strategy in EvalStrategy::SETTLED {
             let mut settings = strategy.settings();
             if whole {
                 settings.roi = MeterRoi::Full;
             }
-            let trace = closed_loop::run(&render, settings, plan.frames, &mut || tick(1))?;
+            meter.reset();
+            // The tail, and the set before it (the first tracked from).
+            let from = plan.frames.saturating_sub(plan.tail + 1);
+            let mut measured = Vec::new();
+            let trace = closed_loop::run_observed(
+                closed_loop::sim_source(&render, plan.frames)?,
+                render.rig(),
+                settings,
+                Default::default(),
+                &mut |set, frames| {
+                    if set >= from {
+                        measured.push(meter.observe(frames)?);
+                    }
+                    Ok(())
+                },
+                &mut || tick(1),
+            )
+            .with_context(|| format!("the closed loop on {preset} under {}", strategy.key()))?;
+            let downstream = Downstream::of(&measured);
+            out.overlaps
+                .extend(downstream.overlaps(preset, strategy, &names));
             for (cam, s) in out.sweeps[first..].iter().enumerate() {
                 let log2_e = trace.settled(cam, plan.tail);
                 let m = s.sweep.score_at(log2_e.exp2());
@@ -150,6 +187,7 @@ pub fn run(
                     m,
                     fraction: m / s.sweep.best_score.max(f64::MIN_POSITIVE),
                     best_log2_e: s.sweep.best.log2(),
+                    tracked: downstream.tracked(cam),
                 });
             }
         }
@@ -158,18 +196,38 @@ pub fn run(
 }
 
 impl SweepResult {
-    /// The mean of `M/M_best` of `strategy` over every camera and preset.
-    pub fn mean_fraction(&self, strategy: EvalStrategy) -> f64 {
+    /// The mean of `of` over the settled rows of `strategy`, every camera
+    /// and preset (NaN without one).
+    fn mean_settled(&self, strategy: EvalStrategy, of: fn(&Settled) -> f64) -> f64 {
         let v: Vec<f64> = self
             .settled
             .iter()
             .filter(|s| s.strategy == strategy)
-            .map(|s| s.fraction)
+            .map(of)
             .collect();
-        if v.is_empty() {
-            f64::NAN
-        } else {
-            v.iter().sum::<f64>() / v.len() as f64
-        }
+        mean(&v)
+    }
+
+    /// The mean of `M/M_best` of `strategy` over every camera and preset.
+    pub fn mean_fraction(&self, strategy: EvalStrategy) -> f64 {
+        self.mean_settled(strategy, |s| s.fraction)
+    }
+
+    /// Corners `strategy` kept tracked from frame to frame, mean per
+    /// camera over every camera and preset.
+    pub fn mean_tracked(&self, strategy: EvalStrategy) -> f64 {
+        self.mean_settled(strategy, |s| s.tracked)
+    }
+
+    /// Inliers matched across an overlap where `strategy` settled, mean
+    /// per overlap over every overlap and preset.
+    pub fn mean_inliers(&self, strategy: EvalStrategy) -> f64 {
+        let v: Vec<f64> = self
+            .overlaps
+            .iter()
+            .filter(|o| o.strategy == strategy)
+            .map(|o| o.inliers)
+            .collect();
+        mean(&v)
     }
 }

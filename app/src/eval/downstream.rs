@@ -1,0 +1,302 @@
+//! What a consumer of the frames gets from where a strategy holds the
+//! cameras: features, the currency of visual odometry, SLAM and the
+//! panorama's own stitching. Exposure that clips a textured surface or
+//! buries it in noise costs features that no later stage gets back, so the
+//! bracket-benchmark literature scores auto-exposure by them as well as by
+//! a gradient metric.
+//!
+//! Two measures per set, both with the panorama's detector (Harris corners
+//! through OpenCV) and descriptor (BRIEF, mutual matches with a ratio
+//! test):
+//! - **tracked**: per camera, the corners of its frame matched to those of
+//!   its previous frame. The simulated rig stands still, so a true match
+//!   stays where it was: candidates are limited to [`MAX_MOTION_PX`]. What
+//!   the count loses is what noise and clipping take between two frames.
+//! - **across overlaps**: per overlap, the inliers of the panorama's
+//!   matching ([`Panorama::match_pairs`]): corners both cameras see well
+//!   enough to match each other.
+
+use anyhow::{Context, Result};
+use rigview_calib::rig::Rig;
+use rigview_calib::tools::corners::{harris_corners, HarrisParams};
+use rigview_core::features::{match_mutual_where, Descriptor, Smoothed};
+use rigview_core::image::FrameView;
+use rigview_core::panorama::{MatchOptions, Panorama, PanoramaOptions};
+use rigview_core::pipeline::PanoramaSettings;
+
+use super::strategy::EvalStrategy;
+
+/// How far (pixels) a corner may move between two frames of the standing
+/// rig and still count as tracked: noise moves a Harris maximum by a pixel
+/// or so.
+pub const MAX_MOTION_PX: f32 = 2.0;
+
+/// Lowe's ratio test of the frame-to-frame matches.
+pub const RATIO: f32 = 0.8;
+
+/// One camera's corners and their descriptors.
+#[derive(Debug)]
+struct Described {
+    points: Vec<[f32; 2]>,
+    descriptors: Vec<Descriptor>,
+}
+
+/// What one set gave.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct SetFeatures {
+    /// Per camera, corners matched to its previous frame (`None` for the
+    /// first set measured).
+    pub tracked: Vec<Option<usize>>,
+    /// Per overlap (the panorama's bands, in order): cameras `i`, `j` and
+    /// RANSAC's inliers.
+    pub overlaps: Vec<(usize, usize, usize)>,
+}
+
+/// Measures [`SetFeatures`] set after set (module documentation).
+#[derive(Debug)]
+pub struct FeatureMeter {
+    panorama: Panorama,
+    params: HarrisParams,
+    previous: Vec<Option<Described>>,
+}
+
+impl FeatureMeter {
+    /// A meter of the cameras of `rig` (poses in the vehicle frame), whose
+    /// overlaps are matched on the panorama `settings` describe.
+    pub fn new(rig: &Rig, settings: &PanoramaSettings) -> Result<Self> {
+        let panorama = Panorama::build(rig, &settings.spec(), &PanoramaOptions::default())
+            .context("building the panorama whose overlaps are matched")?;
+        Ok(Self {
+            panorama,
+            params: HarrisParams::default(),
+            previous: Vec::new(),
+        })
+    }
+
+    /// Forgets the previous frames (a new run).
+    pub fn reset(&mut self) {
+        self.previous.clear();
+    }
+
+    /// Measures one complete set (one frame per camera, rig order).
+    pub fn observe(&mut self, frames: &[FrameView<'_>]) -> Result<SetFeatures> {
+        self.previous.resize_with(frames.len(), || None);
+        let mut tracked = Vec::with_capacity(frames.len());
+        for (k, frame) in frames.iter().enumerate() {
+            let now = describe(frame, &self.params)
+                .with_context(|| format!("the corners of camera {k}'s frame"))?;
+            tracked.push(
+                self.previous[k]
+                    .as_ref()
+                    .map(|before| matched(before, &now).map(|m| m.len()).unwrap_or_default()),
+            );
+            self.previous[k] = Some(now);
+        }
+        let (pairs, _) = self
+            .panorama
+            .match_pairs(frames, &crate::panorama::detect, &MatchOptions::default())
+            .context("matching the overlaps")?;
+        Ok(SetFeatures {
+            tracked,
+            overlaps: pairs.iter().map(|p| (p.i, p.j, p.inliers)).collect(),
+        })
+    }
+}
+
+/// The corners of `frame` and their descriptors.
+fn describe(frame: &FrameView<'_>, params: &HarrisParams) -> Result<Described> {
+    let (w, h) = (frame.width(), frame.height());
+    let gray = grey(frame);
+    let corners = harris_corners(&gray, w, h, None, params)?;
+    let smoothed = Smoothed::new(&gray, w, h)?;
+    let (points, descriptors) = corners
+        .iter()
+        .zip(smoothed.describe_all(&corners))
+        .filter_map(|(p, d)| Some((*p, d?)))
+        .unzip();
+    Ok(Described {
+        points,
+        descriptors,
+    })
+}
+
+/// Features matched across one overlap where a strategy settled.
+#[derive(Clone, Debug, PartialEq)]
+pub struct OverlapFeatures {
+    /// The preset.
+    pub preset: String,
+    /// The strategy.
+    pub strategy: EvalStrategy,
+    /// The overlap's cameras' names.
+    pub cameras: (String, String),
+    /// RANSAC's inliers of the panorama's matching, mean per set.
+    pub inliers: f64,
+}
+
+impl OverlapFeatures {
+    /// The CSV header.
+    pub const HEADER: &'static str = "preset,strategy,camera_i,camera_j,inliers";
+
+    /// A CSV line.
+    pub fn csv(&self) -> String {
+        format!(
+            "{},{},{},{},{:.1}",
+            self.preset,
+            self.strategy.key(),
+            self.cameras.0,
+            self.cameras.1,
+            self.inliers
+        )
+    }
+}
+
+/// The downstream measures of a run's measured sets.
+#[derive(Debug)]
+pub struct Downstream<'a>(&'a [SetFeatures]);
+
+impl<'a> Downstream<'a> {
+    /// Of the sets `measured`.
+    pub fn of(measured: &'a [SetFeatures]) -> Self {
+        Self(measured)
+    }
+
+    /// Camera `cam`'s corners tracked from frame to frame, mean per frame
+    /// (NaN without a tracked frame).
+    pub fn tracked(&self, cam: usize) -> f64 {
+        let v: Vec<f64> = self
+            .0
+            .iter()
+            .filter_map(|m| m.tracked.get(cam).copied().flatten())
+            .map(|n| n as f64)
+            .collect();
+        mean(&v)
+    }
+
+    /// Inliers across each overlap, mean per set, for the rows of
+    /// `preset` under `strategy`; `names` are the cameras'.
+    pub fn overlaps(
+        &self,
+        preset: &str,
+        strategy: EvalStrategy,
+        names: &[String],
+    ) -> Vec<OverlapFeatures> {
+        let Some(first) = self.0.first() else {
+            return Vec::new();
+        };
+        let name = |k: usize| names.get(k).cloned().unwrap_or_else(|| k.to_string());
+        first
+            .overlaps
+            .iter()
+            .enumerate()
+            .map(|(o, &(i, j, _))| {
+                let inliers: Vec<f64> = self
+                    .0
+                    .iter()
+                    .filter_map(|m| m.overlaps.get(o))
+                    .map(|x| x.2 as f64)
+                    .collect();
+                OverlapFeatures {
+                    preset: preset.to_string(),
+                    strategy,
+                    cameras: (name(i), name(j)),
+                    inliers: mean(&inliers),
+                }
+            })
+            .collect()
+    }
+}
+
+/// The mean of `v` (NaN when empty).
+pub fn mean(v: &[f64]) -> f64 {
+    if v.is_empty() {
+        f64::NAN
+    } else {
+        v.iter().sum::<f64>() / v.len() as f64
+    }
+}
+
+/// Mutual matches of `a`'s and `b`'s descriptors whose corners lie within
+/// [`MAX_MOTION_PX`] of each other.
+fn matched(a: &Described, b: &Described) -> Result<Vec<rigview_core::features::Match>> {
+    let near = |i: usize, j: usize| {
+        let (p, q) = (a.points[i], b.points[j]);
+        (p[0] - q[0]).hypot(p[1] - q[1]) <= MAX_MOTION_PX
+    };
+    Ok(match_mutual_where(
+        &a.descriptors,
+        &b.descriptors,
+        RATIO,
+        near,
+    )?)
+}
+
+/// A frame as an 8-bit grey image, its luminance as the metering reads it.
+fn grey(frame: &FrameView<'_>) -> Vec<u8> {
+    let (w, h) = (frame.width(), frame.height());
+    let mut out = Vec::with_capacity(w * h);
+    for y in 0..h {
+        for x in 0..w {
+            out.push((frame.luma_at(x, y) * 255.0).round().clamp(0.0, 255.0) as u8);
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rigview_core::image::PixelFormat;
+
+    /// A textured grey image: a checkerboard of 8-pixel squares.
+    fn board(w: usize, h: usize, dark: u8, light: u8) -> Vec<u8> {
+        (0..h)
+            .flat_map(|y| {
+                (0..w).map(move |x| {
+                    if (x / 8 + y / 8) % 2 == 0 {
+                        dark
+                    } else {
+                        light
+                    }
+                })
+            })
+            .collect()
+    }
+
+    fn described(data: &[u8], w: usize, h: usize) -> Described {
+        let frame = FrameView::new(PixelFormat::Mono8, w, h, data).unwrap();
+        describe(&frame, &HarrisParams::default()).unwrap()
+    }
+
+    #[test]
+    fn the_same_texture_tracks_and_a_clipped_one_does_not() {
+        let (w, h) = (160, 120);
+        let a = described(&board(w, h, 60, 180), w, h);
+        let b = described(&board(w, h, 62, 178), w, h);
+        let n = matched(&a, &b).unwrap().len();
+        // (The spread keeps at most 12 corners in a 64-pixel cell.)
+        assert!(a.points.len() >= 20, "{} corners", a.points.len());
+        assert!(
+            n * 10 >= a.points.len() * 9,
+            "{n} of {} corners tracked",
+            a.points.len()
+        );
+        // Shifted by 4 pixels: no corner within reach of its own.
+        let shifted: Vec<u8> = (0..h)
+            .flat_map(|y| {
+                (0..w).map(move |x| {
+                    if ((x + 4) / 8 + y / 8) % 2 == 0 {
+                        60
+                    } else {
+                        180
+                    }
+                })
+            })
+            .collect();
+        let c = described(&shifted, w, h);
+        let moved = matched(&a, &c).unwrap().len();
+        assert!(moved < n / 4, "{moved} matched after a shift, {n} before");
+        // Clipped white: nothing to track.
+        let white = described(&vec![255; w * h], w, h);
+        assert_eq!(matched(&a, &white).unwrap().len(), 0);
+    }
+}
