@@ -110,6 +110,8 @@ fn every_strategy_settles_on_brackets_where_it_settles_on_the_simulator() {
             "quick",
             "--brackets",
             dir.path().to_str().unwrap(),
+            "--bracket-mode",
+            "nearest",
             "--out",
             out.to_str().unwrap(),
         ],
@@ -117,7 +119,7 @@ fn every_strategy_settles_on_brackets_where_it_settles_on_the_simulator() {
     );
     let is_level = |v: f64| spec.levels.iter().any(|l| (l.log2() - v).abs() < 1e-3);
     let (h, rows) = common::csv(&out.join("fig3_settled.csv"));
-    assert_eq!(rows.len(), 4 * 7, "{h:?}");
+    assert_eq!(rows.len(), 4 * 12, "{h:?}");
     let col = |name: &str| h.iter().position(|c| c == name).unwrap();
     for r in &rows {
         let num = |name: &str| r[col(name)].parse::<f64>().unwrap();
@@ -144,6 +146,55 @@ fn every_strategy_settles_on_brackets_where_it_settles_on_the_simulator() {
     let html = std::fs::read_to_string(out.join("report.html")).unwrap();
     assert_eq!(html.matches("src=\"data:image/png;base64,").count(), 4);
     assert!(html.contains("bracket sequence") && !html.contains("Fig. 7"));
+
+    emulated_evaluation(dir.path());
+}
+
+/// `rigview eval --brackets DIR` in its default mode, emulation: M(E)
+/// swept densely (0.1 EV over the brackets' span widened by 1 EV each
+/// side), every strategy from the common start, with the frames it took
+/// to settle and its flicker at rest.
+fn emulated_evaluation(dir: &std::path::Path) {
+    let out = dir.join("eval-emulated");
+    common::rigview(
+        &[
+            "eval",
+            "--preset",
+            "quick",
+            "--brackets",
+            dir.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        dir,
+    );
+    // 2^6 to 2^14 µs at 0.1 EV: 81 exposures per camera (fewer where the
+    // last moment's radiance spans less).
+    let (_, rows) = common::csv(&out.join("fig3_m_vs_exposure.csv"));
+    assert!(rows.len() >= 4 * 60, "{} sweep rows", rows.len());
+    let (h, rows) = common::csv(&out.join("fig3_settled.csv"));
+    assert_eq!(rows.len(), 4 * 12, "{h:?}");
+    let col = |name: &str| h.iter().position(|c| c == name).unwrap();
+    for r in &rows {
+        let num = |name: &str| r[col(name)].parse::<f64>().unwrap();
+        println!(
+            "{:>22} {:>6}: settled 2^{:.2}, best 2^{:.2}, M {:.1} % of the best, {} corners tracked",
+            r[col("strategy")],
+            r[col("camera")],
+            num("settled_log2_e"),
+            num("best_log2_e"),
+            100.0 * num("m_fraction_of_best"),
+            r[col("tracked")]
+        );
+        assert!(num("m_fraction_of_best") <= 1.0 + 1e-9, "{r:?}");
+    }
+    let (h, rows) = common::csv(&out.join("brackets_start.csv"));
+    assert_eq!(rows.len(), 4 * 13, "{h:?}");
+    for r in &rows {
+        println!("{}", r.join(" "));
+    }
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert!(html.contains("From the start") && html.contains("emulated"));
 }
 
 /// `rigview run --headless --source brackets:DIR` (emulated, the default)

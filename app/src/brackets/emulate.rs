@@ -141,6 +141,20 @@ impl Emulator {
         cam: usize,
         setting: &ExposureSetting,
     ) -> Result<(ExposureSetting, Decoded)> {
+        self.frame_with(manifest, moment, cam, setting, true)
+    }
+
+    /// [`Self::frame`], with the sensor's noise or without it (`noise`
+    /// false: the expected frame, as the dense sweep of `rigview eval
+    /// --brackets` scores it).
+    pub fn frame_with(
+        &mut self,
+        manifest: &Manifest,
+        moment: usize,
+        cam: usize,
+        setting: &ExposureSetting,
+        noise: bool,
+    ) -> Result<(ExposureSetting, Decoded)> {
         let fresh = !matches!(&self.cache[cam], Some(m) if m.moment == moment);
         if fresh {
             let images: Vec<&BracketImage> = manifest.moments[moment].cameras[cam].iter().collect();
@@ -161,7 +175,7 @@ impl Emulator {
         let taken = Self::clamp(setting, lo * (-MARGIN_EV).exp2(), hi * MARGIN_EV.exp2());
         let mut data = vec![0u8; m.radiance.len() * m.radiance.bytes_per_sample()];
         let options = EmulateOptions {
-            noise: true,
+            noise,
             seed: self.seed,
             camera: cam,
             frame: moment as u64,

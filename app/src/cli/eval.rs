@@ -40,6 +40,11 @@ pub struct EvalArgs {
     /// (docs/brackets.md).
     #[arg(long, value_name = "DIR")]
     pub brackets: Option<PathBuf>,
+    /// With `--brackets`: how the sequence answers the cameras' commands,
+    /// by a frame emulated at the exposure asked (M(E) then swept densely)
+    /// or by the nearest bracket.
+    #[arg(long, value_enum, default_value_t = crate::brackets::BracketMode::Emulate, requires = "brackets")]
+    pub bracket_mode: crate::brackets::BracketMode,
 }
 
 /// What `rigview eval` can do besides the evaluation.
@@ -118,7 +123,7 @@ pub fn run(args: &EvalArgs, out: &mut dyn Write) -> Result<()> {
     let started = Instant::now();
     match &args.brackets {
         Some(b) => {
-            eval::on_brackets::run(&plan, b, dir)?;
+            eval::on_brackets::run(&plan, b, args.bracket_mode, dir)?;
         }
         None => {
             eval::run(&plan, dir)?;

@@ -128,6 +128,51 @@ fn seams_headline(r: &Results) -> String {
 }
 
 /// Mean ± SD of `|log2 r_ij|`, or that no overlap gave a ratio.
+/// From the start to rest on a bracket sequence, per strategy.
+fn start_headline(r: &Results) -> String {
+    let mut h = String::from(
+        "<h3>From the start: frames to settle within 0.1 EV (median over cameras; cameras that \
+         never settled), largest overshoot (EV), flicker at rest (mean and largest step of log2 E \
+         from frame to frame, EV)</h3>\n<table><tr><th>strategy</th><th>frames to settle</th>\
+         <th>never settled</th><th>overshoot</th><th>flicker, mean</th><th>flicker, largest</th></tr>\n",
+    );
+    for s in EvalStrategy::ALL {
+        let rows: Vec<_> = r.start.iter().filter(|x| x.strategy == s).collect();
+        if rows.is_empty() {
+            continue;
+        }
+        let mut settle: Vec<f64> = rows
+            .iter()
+            .filter_map(|x| x.settle_frames)
+            .map(|f| f as f64)
+            .collect();
+        let never = rows.len() - settle.len();
+        let settle = crate::report::quantile(&mut settle, 0.5);
+        let max = |f: fn(&super::start::StartRow) -> f64| {
+            rows.iter()
+                .map(|x| f(x))
+                .filter(|v| v.is_finite())
+                .fold(0.0, f64::max)
+        };
+        let flicker: Vec<f64> = rows
+            .iter()
+            .map(|x| x.flicker_mean_ev)
+            .filter(|v| v.is_finite())
+            .collect();
+        let _ = writeln!(
+            h,
+            "<tr><td>{}</td><td>{}</td><td>{never}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+            swatch(s),
+            num(settle, 0),
+            num(max(|x| x.overshoot_ev), 2),
+            num(super::downstream::mean(&flicker), 3),
+            num(max(|x| x.flicker_max_ev), 3)
+        );
+    }
+    h += "</table>\n";
+    h
+}
+
 fn mean_sd(st: &PanoramaStats) -> String {
     if st.with_ratio == 0 {
         "no ratio".into()
@@ -343,6 +388,9 @@ pub fn report(r: &Results, out: &Path) -> Result<String> {
         escape(&p.sweep.presets.join(", "))
     );
 
+    if !r.start.is_empty() {
+        h += &start_headline(r);
+    }
     h += &seams_headline(r);
     if !r.panorama.runs.is_empty() {
         h += &panorama_headline(r);

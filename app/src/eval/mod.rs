@@ -25,6 +25,7 @@ pub mod html;
 pub mod on_brackets;
 pub mod panorama_seams;
 pub mod seams;
+pub mod start;
 pub mod steps;
 pub mod strategy;
 pub mod summary;
@@ -262,6 +263,9 @@ pub mod files {
     pub const PANORAMA_CSV: &str = "fig5_panorama.csv";
     /// Experiment 5's measurements: every overlap of every measured set.
     pub const PANORAMA_PAIRS_CSV: &str = "fig5_panorama_pairs.csv";
+    /// From the start to rest on a bracket sequence (not in [`ALL`]: the
+    /// simulator's evaluation does not write it).
+    pub const START_CSV: &str = "brackets_start.csv";
     /// Experiment 6's views.
     pub const VIEWS_PNG: &str = "fig6_views.png";
     /// Experiment 6's views: the exposures they were taken with.
@@ -313,6 +317,9 @@ pub struct Results {
     pub seams: SeamsResult,
     /// Experiment 5 (empty where it was not run).
     pub panorama: PanoramaResult,
+    /// From the start to rest, per strategy and camera (a bracket
+    /// sequence only).
+    pub start: Vec<start::StartRow>,
     /// Seconds per experiment.
     pub seconds: Vec<(&'static str, f64)>,
     /// What ran, in words (the simulated rig and its scenario, or a
@@ -384,6 +391,7 @@ pub fn run(plan: &Plan, out: &Path) -> Result<Results> {
         sweep,
         seams,
         panorama,
+        start: Vec::new(),
         seconds,
         source: format!("simulated rig, scenario {}", plan.scenario),
     };
@@ -449,6 +457,14 @@ pub fn write_all(r: &Results, out: &Path) -> Result<()> {
     write_seams(r, out)?;
     if !r.panorama.runs.is_empty() {
         write_panorama(r, out)?;
+    }
+    if !r.start.is_empty() {
+        write_csv(
+            out,
+            files::START_CSV,
+            start::StartRow::HEADER,
+            r.start.iter().map(start::StartRow::csv),
+        )?;
     }
     let md = out.join(files::HEADLINE_MD);
     std::fs::write(&md, summary::markdown(r))

@@ -1,10 +1,16 @@
 //! `rigview eval --brackets DIR`: the experiments that apply to a bracket
 //! sequence (`docs/brackets.md`), on its images instead of the simulator.
 //!
-//! - **Experiment 3**: M(E) per camera from the sequence's own images of
-//!   its last moment (the ground the view shows metered as the controller
-//!   meters it), at the brackets' levels, with where each strategy settles
-//!   on the sequence (the median log2 E of its last frames) marked.
+//! - **Experiment 3**: M(E) per camera of the sequence's last moment (the
+//!   ground the view shows metered as the controller meters it): in
+//!   `emulate` mode (the default) a dense sweep of noise-free emulated
+//!   frames every [`SWEEP_STEP_EV`] over the exposures the source offers,
+//!   in `nearest` mode the brackets themselves; where each strategy settles
+//!   (the median log2 E of its last frames) marked, with the corners it
+//!   keeps tracked and matched across the overlaps there
+//!   ([`super::downstream`]).
+//! - **From the start** ([`super::start`]): frames to settle from the
+//!   common start, the overshoot on the way, and the flicker at rest.
 //! - **Experiments 4 and 6**: the closed loop on the sequence with the view
 //!   composed: `log2 r_ij`, the seam step, M as a fraction of the best,
 //!   the profile across the seams and the last view.
@@ -18,42 +24,50 @@ use std::path::Path;
 use std::time::Instant;
 
 use anyhow::{Context, Result};
-use rigview_core::exposure::{Estimator, EstimatorConfig, Meter};
+use rigview_core::exposure::{Estimator, EstimatorConfig, ExposureSetting, Meter};
 use rigview_core::pipeline::PanoramaSettings;
 use rigview_core::sim::truth::Sweep;
 
 use super::closed_loop::{self, LoopOptions};
 use super::downstream::{Downstream, FeatureMeter};
 use super::seams::{self, SeamRun, SeamsResult};
+use super::start::StartRow;
 use super::strategy::EvalStrategy;
 use super::sweep::{CameraSweep, Settled, SweepResult};
 use super::{write_all, Plan, Results};
-use crate::brackets::{self, read_image, BracketMode, BracketOptions};
+use crate::brackets::{self, read_image, BracketMode, BracketOptions, Emulator};
 use crate::session::BRACKETS_START;
 
 /// The name experiments 3 and 4 give the sequence.
 const NAME: &str = "brackets";
 
-/// The strategies run on brackets: every strategy but the cameras' own AE.
-pub const STRATEGIES: [EvalStrategy; 8] = [
+/// The strategies run on brackets: every strategy but the cameras' own AE,
+/// the gradient ones under both exposure simulations.
+pub const STRATEGIES: [EvalStrategy; 13] = [
     EvalStrategy::Linear,
     EvalStrategy::Nonlinear,
     EvalStrategy::Fast,
     EvalStrategy::Multi,
     EvalStrategy::Pid,
+    EvalStrategy::LinearSc,
+    EvalStrategy::NonlinearSc,
+    EvalStrategy::FastSc,
+    EvalStrategy::MultiSc,
+    EvalStrategy::PidSc,
     EvalStrategy::Mean,
     EvalStrategy::Fixed,
     EvalStrategy::MultiComp,
 ];
 
-/// Runs what applies of `plan` on the bracket sequence in `dir`, writing
-/// into `out`.
-pub fn run(plan: &Plan, dir: &Path, out: &Path) -> Result<Results> {
+/// The steps of the dense emulated sweep of M, EV.
+pub const SWEEP_STEP_EV: f64 = 0.1;
+
+/// Runs what applies of `plan` on the bracket sequence in `dir`, the
+/// cameras answered as `mode` says, writing into `out`.
+pub fn run(plan: &Plan, dir: &Path, mode: BracketMode, out: &Path) -> Result<Results> {
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     let started = Instant::now();
-    // The brackets as they are (section 6 of issue 30 moves this to the
-    // emulation).
-    let options = BracketOptions::new(BRACKETS_START, BracketMode::Nearest);
+    let options = BracketOptions::new(BRACKETS_START, mode);
     let (probe, rig) = brackets::open_with_rig(dir, None, &options)?;
     let moments = probe.manifest().moments.len();
     let view = closed_loop::rig_view(&rig)?;
@@ -65,25 +79,56 @@ pub fn run(plan: &Plan, dir: &Path, out: &Path) -> Result<Results> {
     plan.seams.warmup = plan.seams.warmup.min(moments / 4);
     plan.seams.tail = plan.seams.tail.min(moments / 4).max(1);
 
-    // M(E) of the last moment, from its brackets.
-    let last = probe
-        .manifest()
+    // M(E) of the last moment: from its brackets, or emulated densely
+    // (noise-free) over the exposures the emulating source offers.
+    let manifest = probe.manifest();
+    let last_moment = manifest
         .moments
-        .last()
+        .len()
+        .checked_sub(1)
         .context("a bracket sequence without moments")?;
+    let last = &manifest.moments[last_moment];
     let meter = Meter::new(plan.sweep_metering())?;
     let mut est = Estimator::new(EstimatorConfig::default())?;
+    let mut emulator = match mode {
+        BracketMode::Emulate => Some(Emulator::new(manifest, options.seed)?),
+        BracketMode::Nearest => None,
+    };
     let mut sweeps = Vec::new();
     for (cam, images) in last.cameras.iter().enumerate() {
         let mut exposures = Vec::with_capacity(images.len());
         let mut scores = Vec::with_capacity(images.len());
-        for image in images {
-            let d = read_image(probe.manifest(), image)?;
+        let mut score = |d: &crate::brackets::Decoded, e: f64| -> Result<()> {
             let frame =
                 rigview_core::exposure::FrameView::new(d.format, d.width, d.height, &d.data)?;
             let m = meter.meter(&frame, view.ground_masks().get(cam))?;
-            exposures.push(image.setting.exposure());
-            scores.push(est.score(&m));
+            // (An exposure clamped to the moment's span repeats the last.)
+            if exposures.last().is_none_or(|&l: &f64| e > l * (1.0 + 1e-9)) {
+                exposures.push(e);
+                scores.push(est.score(&m));
+            }
+            Ok(())
+        };
+        match emulator.as_mut() {
+            Some(em) => {
+                let range = em.range(cam);
+                let span = (range.shutter_max_us / range.shutter_min_us).log2();
+                let steps = (span / SWEEP_STEP_EV).floor() as usize;
+                for k in 0..=steps {
+                    let asked = ExposureSetting {
+                        shutter_us: range.shutter_min_us * (k as f64 * SWEEP_STEP_EV).exp2(),
+                        gain_db: 0.0,
+                    };
+                    let (taken, d) = em.frame_with(manifest, last_moment, cam, &asked, false)?;
+                    score(&d, taken.exposure())?;
+                }
+            }
+            None => {
+                for image in images {
+                    let d = read_image(manifest, image)?;
+                    score(&d, image.setting.exposure())?;
+                }
+            }
         }
         let (k, best_score) = scores
             .iter()
@@ -107,6 +152,7 @@ pub fn run(plan: &Plan, dir: &Path, out: &Path) -> Result<Results> {
     let bar = super::progress_bar((STRATEGIES.len() * moments) as u64)?;
     bar.set_message("closed loops on the brackets");
     let mut settled = Vec::new();
+    let mut start = Vec::new();
     let mut overlaps = Vec::new();
     let mut runs = Vec::new();
     let panorama = PanoramaSettings {
@@ -156,6 +202,7 @@ pub fn run(plan: &Plan, dir: &Path, out: &Path) -> Result<Results> {
         if strategy != EvalStrategy::MultiComp {
             overlaps.extend(downstream.overlaps(NAME, strategy, &names));
         }
+        start.extend(StartRow::of(strategy, &trace, &names));
         let canvas = trace
             .canvas
             .clone()
@@ -182,6 +229,7 @@ pub fn run(plan: &Plan, dir: &Path, out: &Path) -> Result<Results> {
             seam_angles: vec![(NAME.into(), seams::seam_angles(&view))],
         },
         panorama: Default::default(),
+        start,
         seconds: vec![
             ("3. M against exposure (the brackets)", t_sweep),
             (
@@ -190,9 +238,15 @@ pub fn run(plan: &Plan, dir: &Path, out: &Path) -> Result<Results> {
             ),
         ],
         source: format!(
-            "the bracket sequence {} ({moments} moments, {} cameras)",
+            "the bracket sequence {} ({moments} moments, {} cameras; {})",
             dir.display(),
-            names.len()
+            names.len(),
+            match mode {
+                BracketMode::Emulate =>
+                    "frames emulated at the exposure asked, M(E) swept at 0.1 EV",
+                BracketMode::Nearest =>
+                    "the bracket nearest the exposure asked, M(E) at the brackets",
+            }
         ),
         plan,
     };
