@@ -450,3 +450,94 @@ fn a_12_bit_bayer_sequence_runs_with_its_view() {
         );
     }
 }
+
+/// `rigview eval import-brackets` on a dataset laid out as
+/// `SRC/<camera>/<exposure>/<image>.png`: the folder it makes holds the
+/// same images at the same exposures as the sequence they were laid out
+/// from; a folder with an image missing is refused, naming it.
+#[test]
+fn import_brackets_makes_a_bracket_folder_of_a_dataset() {
+    let config = SimConfig {
+        scale: 0.125,
+        ..SimConfig::preset("reference").unwrap()
+    };
+    let render = Arc::new(SimRender::new(&config).unwrap());
+    let exported = tempfile::tempdir().unwrap();
+    let spec = ExportSpec {
+        frames: 3,
+        levels: brackets::levels(8.0, 12.0, 3),
+    };
+    brackets::export(&render, &spec, exported.path(), &mut || {}).unwrap();
+    let names: Vec<String> = render.cameras().iter().map(|c| c.name.clone()).collect();
+    let manifest = brackets::read_manifest(exported.path(), &names).unwrap();
+
+    // The dataset: one folder per camera and exposure (in ms, as datasets
+    // name them), the moments' images in each.
+    let src = tempfile::tempdir().unwrap();
+    for (k, moment) in manifest.moments.iter().enumerate() {
+        for (cam, images) in moment.cameras.iter().enumerate() {
+            for image in images {
+                let folder = src
+                    .path()
+                    .join(&names[cam])
+                    .join(format!("{}ms", image.setting.exposure() / 1000.0));
+                std::fs::create_dir_all(&folder).unwrap();
+                std::fs::copy(&image.file, folder.join(format!("frame{k:04}.png"))).unwrap();
+            }
+        }
+    }
+    let rig = exported.path().join("rig.yaml");
+    let stdout = common::rigview(
+        &[
+            "eval",
+            "import-brackets",
+            src.path().to_str().unwrap(),
+            "--rig",
+            rig.to_str().unwrap(),
+            "--bits",
+            "8",
+        ],
+        src.path(),
+    );
+    assert!(stdout.contains("3 moments × 4 cameras"), "{stdout}");
+    let imported = brackets::read_manifest(src.path(), &names).unwrap();
+    assert_eq!(imported.moments.len(), 3);
+    for (a, b) in manifest.moments.iter().zip(&imported.moments) {
+        for (ia, ib) in a.cameras.iter().zip(&b.cameras) {
+            assert_eq!(ia.len(), 3);
+            for (x, y) in ia.iter().zip(ib) {
+                assert!((x.setting.exposure() / y.setting.exposure() - 1.0).abs() < 1e-6);
+                let (dx, dy) = (
+                    brackets::read_image(&manifest, x).unwrap(),
+                    brackets::read_image(&imported, y).unwrap(),
+                );
+                assert_eq!(dx.data, dy.data);
+            }
+        }
+    }
+    // It runs as a bracket source.
+    let out = exported.path().join("run-imported");
+    let stdout = common::rigview(
+        &[
+            "run",
+            "--headless",
+            "--source",
+            &format!("brackets:{}", src.path().display()),
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        src.path(),
+    );
+    assert!(stdout.contains("3 processed"), "{stdout}");
+
+    // One image fewer in one folder.
+    let folder = src.path().join(&names[1]).join("1.024ms");
+    std::fs::remove_file(folder.join("frame0002.png")).unwrap();
+    let output = std::process::Command::new(env!("CARGO_BIN_EXE_rigview"))
+        .args(["eval", "import-brackets", src.path().to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(!output.status.success());
+    let err = String::from_utf8_lossy(&output.stderr);
+    assert!(err.contains("1.024ms") && err.contains("2 images"), "{err}");
+}

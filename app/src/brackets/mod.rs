@@ -30,6 +30,7 @@
 mod check;
 mod emulate;
 mod export;
+mod import;
 mod manifest;
 
 use std::path::Path;
@@ -45,6 +46,7 @@ use rigview_core::source::{
 pub use check::{check_emulation, CheckOptions, CheckReport, LevelFigures};
 pub use emulate::{Emulator, MARGIN_EV};
 pub use export::{export, levels, parse_range_ev, BracketFrame, BracketWriter, ExportSpec};
+pub use import::{import, parse_exposure, ImportSpec, Imported};
 pub use manifest::{
     read_image, read_manifest, read_png, BracketImage, Decoded, Layout, Manifest, Moment,
     ResponseKind, SensorNotes, COLUMNS, MANIFEST, OPTIONAL, RIG,

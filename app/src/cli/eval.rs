@@ -58,6 +58,41 @@ pub enum EvalCommand {
     /// compared with itself (median |error| in stops over its unclipped
     /// samples, PSNR), noise-free and with the sensor's noise.
     CheckEmulation(CheckArgs),
+    /// Write the manifest of a dataset laid out as SRC/<camera>/<exposure>/
+    /// <image>.png (exposure folders such as 1ms, 2000us, 0.004s), making
+    /// SRC a bracket folder (docs/brackets.md).
+    ImportBrackets(ImportArgs),
+}
+
+/// Options of `rigview eval import-brackets`.
+#[derive(Clone, Debug, Args)]
+pub struct ImportArgs {
+    /// The dataset's folder; the manifest is written into it.
+    #[arg(value_name = "SRC")]
+    pub src: PathBuf,
+    /// The rig's calibration (any format `rigview calib` reads), copied to
+    /// SRC/rig.yaml [default: SRC/rig.yaml as it is].
+    #[arg(long, value_name = "FILE")]
+    pub rig: Option<PathBuf>,
+    /// The unit of exposure folders named by a bare number.
+    #[arg(long, value_parser = ["us", "ms", "s"])]
+    pub unit: Option<String>,
+    /// Moments per second (the k-th image of each folder is at k / rate).
+    #[arg(long, default_value_t = 10.0)]
+    pub rate: f64,
+    /// At most this many moments, from the first [default: all].
+    #[arg(long, value_name = "N")]
+    pub moments: Option<usize>,
+    /// The Bayer mosaic's colour order (RGGB, GRBG, GBRG, BGGR) or mono.
+    #[arg(long)]
+    pub pattern: Option<String>,
+    /// Bits of the images' values: 8, 12 or 16 [default: the PNGs' depth].
+    #[arg(long)]
+    pub bits: Option<u32>,
+    /// The sensor's response: linear (raw data) or recover (Debevec–Malik
+    /// from the brackets) [default: linear above 8 bits].
+    #[arg(long, value_parser = ["linear", "recover"])]
+    pub response: Option<String>,
 }
 
 /// Options of `rigview eval check-emulation`.
@@ -113,6 +148,7 @@ pub fn run(args: &EvalArgs, out: &mut dyn Write) -> Result<()> {
     match &args.command {
         Some(EvalCommand::ExportBrackets(e)) => return export(e, out),
         Some(EvalCommand::CheckEmulation(c)) => return check_emulation(c, out),
+        Some(EvalCommand::ImportBrackets(i)) => return import(i, out),
         None => {}
     }
     let dir = args
@@ -174,6 +210,37 @@ fn export(args: &ExportArgs, out: &mut dyn Write) -> Result<()> {
         args.exposures,
         (hi - lo) / (args.exposures - 1) as f64,
         args.out.display()
+    )?;
+    Ok(())
+}
+
+fn import(args: &ImportArgs, out: &mut dyn Write) -> Result<()> {
+    let mut comments = Vec::new();
+    if let Some(p) = &args.pattern {
+        comments.push(("pattern".to_string(), p.clone()));
+    }
+    if let Some(b) = args.bits {
+        comments.push(("bits".to_string(), b.to_string()));
+    }
+    if let Some(r) = &args.response {
+        comments.push(("response".to_string(), r.clone()));
+    }
+    let done = brackets::import(&brackets::ImportSpec {
+        src: args.src.clone(),
+        rig: args.rig.clone(),
+        unit: args.unit.clone(),
+        rate_hz: args.rate,
+        moments: args.moments,
+        comments,
+    })?;
+    writeln!(
+        out,
+        "rigview eval import-brackets: {} moments × {} cameras ({}) × {} exposures; wrote {}",
+        done.moments,
+        done.cameras.len(),
+        done.cameras.join(", "),
+        done.exposures,
+        done.manifest.display()
     )?;
     Ok(())
 }
