@@ -10,8 +10,8 @@ use clap::{Args, Subcommand};
 use indicatif::ProgressBar;
 use rigview_core::sim::{SimConfig, SimRender};
 
-use crate::brackets::{self, ExportSpec};
 use crate::eval::{self, Plan, Preset};
+use crate::session::brackets::{self, ExportSpec};
 
 /// Options of `rigview eval`.
 #[derive(Clone, Debug, Args)]

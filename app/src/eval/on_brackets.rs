@@ -26,7 +26,7 @@ use super::seams::{self, SeamRun, SeamsResult};
 use super::strategy::EvalStrategy;
 use super::sweep::{CameraSweep, Settled, SweepResult};
 use super::{write_all, Plan, Results};
-use crate::brackets::{self, read_image, BracketMode, BracketOptions};
+use crate::session::brackets::{self, read_image, BracketMode, BracketOptions};
 use crate::session::BRACKETS_START;
 
 /// The name experiments 3 and 4 give the sequence.
