@@ -1,49 +1,33 @@
 //! `rigview` as a library: the parts of the application that tests and
-//! other front ends use.
+//! other front ends use, laid out by what the product does.
 //!
 //! - [`cli`]: the command line's arguments, one file per subcommand, and
-//!   how they map to the options below.
-//! - [`brackets`]: exposure brackets (a folder of images at several
-//!   exposures per moment), their frame source and their export from the
-//!   simulated rig.
-//! - [`calibration`]: `rigview calib`'s tools (show, convert, intrinsics,
-//!   ground).
-//! - [`demo`]: the closed loop on the simulated rig, printed.
+//!   how they map to the plain options of the modules below.
+//! - [`gui`]: the desktop app (eframe/egui).
+//! - [`session`]: a source (simulated rig, live cameras, a recording,
+//!   exposure brackets), its calibration's view and the processing
+//!   pipeline on them; recording and replaying a session; brackets.
+//! - [`commands`]: the commands that run once and end (the headless run,
+//!   `live --headless`, the demo, stills composed into a surround view or
+//!   a panorama, the calibration tools, `record`, `recording`).
+//! - [`report`]: what runs report: the summary (drops, latency, CPU use),
+//!   the panorama's per-pair lines, the PNG plot of the exposure state and
+//!   the plots' text.
 //! - [`eval`]: `rigview eval`, the paper's experiments as figures, data
 //!   and a report.
-//! - [`gui`]: the desktop app (eframe/egui).
-//! - [`headless`]: `rigview run --headless` (views, telemetry, plot and
-//!   summary to a folder).
 //! - [`live`]: live capture from GenICam cameras through Aravis (the
-//!   `aravis` feature, on by default), frame-set assembly, stream health and
-//!   `rigview live --headless`.
+//!   `aravis` feature, on by default), frame-set assembly and stream
+//!   health.
 //! - [`logging`]: rigview's messages as `tracing` events, on stderr and in
 //!   the buffer the window and the headless modes show.
-//! - [`panorama`]: the panorama's Harris corners (OpenCV), its per-pair
-//!   report, and `rigview panorama`.
-//! - [`plot_png`]: a PNG plot of the exposure state (plotters).
-//! - [`plot_text`]: the plots' text drawn where its glyphs belong.
-//! - [`report`]: the summary of a run (drops, latency, CPU use).
-//! - [`session`]: a source, its calibration and the processing pipeline.
 //! - [`settings`]: the settings that persist between runs.
-//! - [`stills`]: still images of a calibrated rig composed into a
-//!   bird's-eye view (`rigview surround`).
 
-pub mod brackets;
-pub mod calibration;
 pub mod cli;
-pub mod demo;
+pub mod commands;
 pub mod eval;
 pub mod gui;
-pub mod headless;
 pub mod live;
 pub mod logging;
-pub mod panorama;
-pub mod plot_png;
-pub mod plot_text;
-pub mod record_brackets;
-pub mod recording;
 pub mod report;
 pub mod session;
 pub mod settings;
-pub mod stills;

@@ -40,7 +40,7 @@ fn run() -> Result<()> {
         Some(Command::Panorama(args)) => cli::panorama::run(args, out),
         Some(Command::Live(args)) => cli::live::run(args, &cli.view, out),
         Some(Command::Record(args)) => cli::record::run(args, out),
-        Some(Command::Recording(args)) => cli::record::run_recording(args, out),
+        Some(Command::Recording(args)) => cli::recording::run(args, out),
         Some(Command::Eval(args)) => cli::eval::run(args, out),
     }
 }

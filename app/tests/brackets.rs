@@ -11,9 +11,9 @@ mod common;
 
 use std::sync::Arc;
 
-use rigview::brackets::{self, BracketMode, BracketOptions, ExportSpec};
 use rigview::eval::closed_loop::{self, LoopOptions};
 use rigview::eval::strategy::EvalStrategy;
+use rigview::session::brackets::{self, BracketMode, BracketOptions, ExportSpec};
 use rigview::session::BRACKETS_START;
 use rigview_core::sim::{SimConfig, SimRender};
 use rigview_core::source::FrameSource;

@@ -17,10 +17,10 @@ use std::time::Duration;
 
 use egui_kittest::kittest::{NodeT, Queryable};
 use egui_kittest::{Harness, SnapshotOptions, SnapshotResults};
+use rigview::commands::run::{self as headless, HeadlessRun};
 use rigview::gui::{panels, plots, AppOptions, RigviewApp};
-use rigview::headless::{self, HeadlessRun};
 use rigview::logging::{self, LogBuffer};
-use rigview::recording::RecordSpec;
+use rigview::session::RecordSpec;
 use rigview::session::{self, SimSpec, SourceSpec};
 use rigview_core::exposure::{LawKind, NeighbourGraph};
 use rigview_core::pipeline::{

@@ -13,9 +13,10 @@ use std::path::Path;
 
 use common::{csv, rigview};
 
-use rigview::headless::{self, HeadlessRun};
+use rigview::commands::recording;
+use rigview::commands::run::{self as headless, HeadlessRun};
 use rigview::logging::LogBuffer;
-use rigview::recording::{self, RecordSpec, ReplaySpec};
+use rigview::session::{RecordSpec, ReplaySpec};
 use rigview::session::{SimSpec, SourceSpec};
 use rigview_core::pipeline::ProcessingSettings;
 
@@ -102,7 +103,7 @@ fn a_replayed_recording_measures_what_the_run_measured() {
     }
 
     // info, and repair of a copy cut in its last set.
-    let info = recording::info_text(&file).unwrap();
+    let info = recording::info(&file).unwrap();
     assert!(info.contains("40 complete sets"), "{info}");
     assert!(info.contains("calibration: attached (rig.yaml)"), "{info}");
     assert!(info.contains("/rig/telemetry"), "{info}");
@@ -110,11 +111,11 @@ fn a_replayed_recording_measures_what_the_run_measured() {
     let cut = dir.path().join("cut.mcap");
     let summary_start = bytes.len() * 97 / 100;
     std::fs::write(&cut, &bytes[..summary_start]).unwrap();
-    let info = recording::info_text(&cut).unwrap();
+    let info = recording::info(&cut).unwrap();
     assert!(info.contains("NOT CLOSED"), "{info}");
     assert!(info.contains("calibration: attached (rig.yaml)"), "{info}");
     let fixed = dir.path().join("fixed.mcap");
-    let report = recording::repair_text(&cut, &fixed).unwrap();
+    let report = recording::repair(&cut, &fixed).unwrap();
     assert!(report.contains("complete sets"), "{report}");
     let indexed = rigview_record::IndexedRecording::open(&fixed).unwrap();
     let cut_sets = rigview_record::SetStream::open(&cut, false)

@@ -23,6 +23,8 @@
 //! - [`source`]: the frame-source interface that the simulated rig, live
 //!   cameras and replay implement: frame sets, frame metadata, exposure
 //!   commands, stream health.
+//! - [`stats`]: order statistics of samples (median, nearest-rank
+//!   quantiles), one definition for every part that summarises a sample.
 //! - [`surround`]: the bird's-eye surround view: remap tables from the rig
 //!   calibration, blending, ground masks and overlap patches.
 //! - [`synth`]: small synthetic high-dynamic-range scenes seen by linear
@@ -39,6 +41,7 @@ pub mod panorama;
 pub mod pipeline;
 pub mod sim;
 pub mod source;
+pub mod stats;
 pub mod surround;
 pub mod synth;
 

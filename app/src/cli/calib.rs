@@ -10,7 +10,7 @@ use rigview_calib::formats::Format;
 use rigview_calib::tools::intrinsics::Board;
 use rigview_calib::ModelKind;
 
-use crate::calibration::{self, GroundJob, IntrinsicsJob, Reading, Writing};
+use crate::commands::calib::{self as calibration, GroundJob, IntrinsicsJob, Reading, Writing};
 
 /// Options of `rigview calib`.
 #[derive(Debug, Args)]

@@ -8,8 +8,8 @@ use clap::Args;
 use rigview_core::pipeline::ProcessingSettings;
 use rigview_core::sim::SimConfig;
 
-use super::ControlArgs;
-use crate::demo::{self, Demo};
+use super::options::ControlArgs;
+use crate::commands::demo::{self, Demo};
 
 /// Options of `rigview demo`.
 #[derive(Clone, Debug, Args)]

@@ -10,8 +10,8 @@ use clap::{Args, Subcommand};
 use indicatif::ProgressBar;
 use rigview_core::sim::{SimConfig, SimRender};
 
-use crate::brackets::{self, ExportSpec};
 use crate::eval::{self, Plan, Preset};
+use crate::session::brackets::{self, ExportSpec};
 
 /// Options of `rigview eval`.
 #[derive(Clone, Debug, Args)]
@@ -43,8 +43,8 @@ pub struct EvalArgs {
     /// With `--brackets`: how the sequence answers the cameras' commands,
     /// by a frame emulated at the exposure asked (M(E) then swept densely)
     /// or by the nearest bracket.
-    #[arg(long, value_enum, default_value_t = crate::brackets::BracketMode::Emulate, requires = "brackets")]
-    pub bracket_mode: crate::brackets::BracketMode,
+    #[arg(long, value_enum, default_value_t = crate::session::brackets::BracketMode::Emulate, requires = "brackets")]
+    pub bracket_mode: crate::session::brackets::BracketMode,
 }
 
 /// What `rigview eval` can do besides the evaluation.

@@ -11,8 +11,8 @@ use clap::{Args, ValueEnum};
 use rigview_core::exposure::PixelFormat;
 use rigview_core::pipeline::ProcessingSettings;
 
-use super::{seconds, ProcessingArgs, ViewArgs};
-use crate::live::{self, CaptureConfig, FakeRig, LiveCameras, LiveSpec, Region, TriggerMode};
+use super::options::{parse_pixel_format, seconds, ProcessingArgs, RecordingArgs, ViewArgs};
+use crate::live::{CaptureConfig, FakeRig, LiveCameras, LiveSpec, Region, TriggerMode};
 use crate::logging::LogBuffer;
 use crate::session::SourceSpec;
 
@@ -111,17 +111,7 @@ pub struct LiveArgs {
     pub record: Option<PathBuf>,
     /// How the recording is written.
     #[command(flatten)]
-    pub recording: super::record::RecordingArgs,
-}
-
-pub(crate) fn parse_pixel_format(s: &str) -> std::result::Result<PixelFormat, String> {
-    PixelFormat::ALL
-        .into_iter()
-        .find(|f| f.genicam_name().eq_ignore_ascii_case(s))
-        .ok_or_else(|| {
-            let names: Vec<_> = PixelFormat::ALL.iter().map(|f| f.genicam_name()).collect();
-            format!("unknown pixel format \"{s}\" (known: {})", names.join(", "))
-        })
+    pub recording: RecordingArgs,
 }
 
 impl LiveArgs {
@@ -212,7 +202,7 @@ pub fn headless(
     out: &mut dyn Write,
 ) -> Result<()> {
     let record = args.record.clone().map(|f| args.recording.spec(f));
-    live::headless::run(
+    crate::commands::live::run(
         &args.spec()?,
         args.limit()?,
         settings,

@@ -1,38 +1,16 @@
-//! `rigview record` (capture into a recording without processing) and
-//! `rigview recording info|repair`, and the recording options that `run`
-//! shares.
+//! `rigview record`: capture into a recording without processing, or into
+//! a bracket sequence (`--brackets N`).
 
 use std::path::PathBuf;
 
 use anyhow::Result;
-use clap::{Args, Subcommand};
-use rigview_record::Compression;
+use clap::Args;
 
+use super::options::{parse_pixel_format, RecordingArgs};
+use crate::commands::record::{self, BracketRun, CaptureRun, RecordJob};
 use crate::live::{CaptureConfig, FakeRig, LiveCameras, LiveSpec};
-use crate::recording::{self, CaptureFrom, CaptureRun, RecordSpec};
-
-/// How a recording is written.
-#[derive(Clone, Debug, Default, Args)]
-pub struct RecordingArgs {
-    /// Chunk compression of the recording (none by default: rig frames
-    /// shrink by a sixth at most).
-    #[arg(long, value_name = "none|lz4|zstd", default_value = "none")]
-    pub compression: Compression,
-    /// Free space to leave on the recording's disk, GiB.
-    #[arg(long, value_name = "GIB", default_value_t = 2.0)]
-    pub reserve_gib: f64,
-}
-
-impl RecordingArgs {
-    /// The recording into `file`.
-    pub fn spec(&self, file: PathBuf) -> RecordSpec {
-        RecordSpec {
-            file,
-            compression: self.compression,
-            reserve_bytes: (self.reserve_gib.max(0.0) * f64::from(1u32 << 30)) as u64,
-        }
-    }
-}
+use crate::session::brackets::parse_range_ev;
+use crate::session::capture::CaptureFrom;
 
 /// Options of `rigview record`.
 #[derive(Clone, Debug, Args)]
@@ -48,7 +26,7 @@ pub struct RecordArgs {
     pub sim: bool,
     /// The cameras' pixel format with `--rig` or `--fake` (GenICam name,
     /// e.g. Mono8, BayerRG8) [default: Mono8].
-    #[arg(long, value_name = "FORMAT", value_parser = super::live::parse_pixel_format)]
+    #[arg(long, value_name = "FORMAT", value_parser = parse_pixel_format)]
     pub pixel_format: Option<rigview_core::exposure::PixelFormat>,
     /// The simulation of `--sim` and `--fake`.
     #[arg(long, default_value = "reference")]
@@ -78,32 +56,6 @@ pub struct RecordArgs {
     /// How the recording is written.
     #[command(flatten)]
     pub recording: RecordingArgs,
-}
-
-/// `rigview recording`.
-#[derive(Clone, Debug, Args)]
-pub struct RecordingCmd {
-    /// What to do.
-    #[command(subcommand)]
-    pub action: RecordingAction,
-}
-
-/// What `rigview recording` does.
-#[derive(Clone, Debug, Subcommand)]
-pub enum RecordingAction {
-    /// Duration, sets, topics and drops of a recording.
-    Info {
-        /// The recording.
-        file: PathBuf,
-    },
-    /// Rewrites a recording that was not closed (killed, disk full) with
-    /// its indexes, keeping every complete set.
-    Repair {
-        /// The recording to repair.
-        input: PathBuf,
-        /// The repaired copy.
-        output: PathBuf,
-    },
 }
 
 /// Runs `rigview record`.
@@ -136,39 +88,22 @@ pub fn run(args: &RecordArgs, out: &mut dyn std::io::Write) -> Result<()> {
         },
         _ => anyhow::bail!("rigview record needs one of --rig FILE, --fake or --sim"),
     };
-    if let Some(exposures) = args.brackets {
-        let run = crate::record_brackets::BracketRun {
+    let job = match args.brackets {
+        Some(exposures) => RecordJob::Brackets(BracketRun {
             from,
             dir: args.out.clone(),
             exposures,
-            range_ev: args
-                .range_ev
-                .as_deref()
-                .map(crate::brackets::parse_range_ev)
-                .transpose()?,
+            range_ev: args.range_ev.as_deref().map(parse_range_ev).transpose()?,
             moments: args.moments,
             seconds: args.seconds,
-        };
-        let summary = crate::record_brackets::capture(&run, out)?;
-        writeln!(out, "{summary}")?;
-        return Ok(());
-    }
-    let run = CaptureRun {
-        from,
-        record: args.recording.spec(args.out.clone()),
-        seconds: args.seconds,
+        }),
+        None => RecordJob::Recording(CaptureRun {
+            from,
+            record: args.recording.spec(args.out.clone()),
+            seconds: args.seconds,
+        }),
     };
-    let summary = recording::capture(&run, out)?;
+    let summary = record::run(&job, out)?;
     writeln!(out, "{summary}")?;
-    Ok(())
-}
-
-/// Runs `rigview recording`.
-pub fn run_recording(cmd: &RecordingCmd, out: &mut dyn std::io::Write) -> Result<()> {
-    let text = match &cmd.action {
-        RecordingAction::Info { file } => recording::info_text(file)?,
-        RecordingAction::Repair { input, output } => recording::repair_text(input, output)?,
-    };
-    writeln!(out, "{}", text.trim_end())?;
     Ok(())
 }

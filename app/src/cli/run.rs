@@ -7,8 +7,8 @@ use std::path::PathBuf;
 use anyhow::{Context, Result};
 use clap::Args;
 
-use super::{ProcessingArgs, ViewArgs};
-use crate::headless::{self, HeadlessRun};
+use super::options::{ProcessingArgs, ViewArgs};
+use crate::commands::run::{self as headless, HeadlessRun};
 use crate::live::{CaptureConfig, FakeRig, LiveCameras, LiveSpec};
 use crate::logging::LogBuffer;
 use crate::session::{SimSpec, SourceSpec};
@@ -61,14 +61,14 @@ pub struct RunArgs {
     /// How `--source brackets:DIR` answers a command: `emulate` a frame at
     /// the exposure asked from the moment's brackets, or give the
     /// `nearest` bracket (docs/brackets.md).
-    #[arg(long, value_enum, default_value_t = crate::brackets::BracketMode::Emulate)]
-    pub bracket_mode: crate::brackets::BracketMode,
+    #[arg(long, value_enum, default_value_t = crate::session::brackets::BracketMode::Emulate)]
+    pub bracket_mode: crate::session::brackets::BracketMode,
     /// Record every processed set into this MCAP file.
     #[arg(long, value_name = "FILE")]
     pub record: Option<PathBuf>,
     /// How the recording is written.
     #[command(flatten)]
-    pub recording: super::record::RecordingArgs,
+    pub recording: super::options::RecordingArgs,
     /// Frame sets to run (headless) [default: 100].
     #[arg(long, value_name = "N")]
     pub frames: Option<u64>,
@@ -113,7 +113,7 @@ impl RunArgs {
                 if self.fake {
                     anyhow::bail!("--fake is an option of --source live");
                 }
-                Ok(SourceSpec::Replay(crate::recording::ReplaySpec {
+                Ok(SourceSpec::Replay(crate::session::ReplaySpec {
                     file: file.clone(),
                     rig: self.rig.clone(),
                     interactive: !headless,
@@ -230,14 +230,14 @@ mod tests {
             (
                 PathBuf::from("seq"),
                 None,
-                crate::brackets::BracketMode::Emulate
+                crate::session::brackets::BracketMode::Emulate
             )
         );
         let run = run_args(&["--source", "brackets:seq", "--bracket-mode", "nearest"]);
         let Ok(SourceSpec::Brackets(b)) = run.source(true) else {
             panic!("not a bracket source");
         };
-        assert_eq!(b.mode, crate::brackets::BracketMode::Nearest);
+        assert_eq!(b.mode, crate::session::brackets::BracketMode::Nearest);
         let e = "brackets:".parse::<SourceKind>().unwrap_err();
         assert!(e.contains("brackets:DIR"), "{e}");
     }

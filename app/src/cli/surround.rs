@@ -8,7 +8,7 @@ use anyhow::Result;
 use clap::Args;
 use rigview_core::surround::{BlendMode, CanvasSpec};
 
-use crate::stills::{self, Stills};
+use crate::commands::surround::{self, Stills};
 
 /// A calibrated rig, one still image per camera, and how to blend them:
 /// what `rigview surround` and `rigview panorama` compose.
@@ -90,5 +90,5 @@ impl SurroundArgs {
 
 /// Runs `rigview surround`, reporting to `out`.
 pub fn run(args: &SurroundArgs, out: &mut dyn Write) -> Result<()> {
-    stills::run(&args.stills(), out)
+    surround::run(&args.stills(), out)
 }

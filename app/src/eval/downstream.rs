@@ -94,7 +94,7 @@ impl FeatureMeter {
         }
         let (pairs, _) = self
             .panorama
-            .match_pairs(frames, &crate::panorama::detect, &MatchOptions::default())
+            .match_pairs(frames, &crate::session::view::detect, &MatchOptions::default())
             .context("matching the overlaps")?;
         Ok(SetFeatures {
             tracked,

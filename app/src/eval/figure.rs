@@ -6,7 +6,7 @@ use std::path::Path;
 use anyhow::{Context, Result};
 use plotters::prelude::*;
 
-use crate::plot_png::{register_font, FONT};
+use crate::report::glyphs::{register_font, FONT};
 
 /// How a series is drawn.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -58,7 +58,7 @@ pub fn write(path: &Path, panels: &[Panel], cols: usize, panel_w: u32, panel_h: 
     let (w, h) = (panel_w * cols as u32, panel_h * rows as u32);
     let mut buf = vec![0u8; w as usize * h as usize * 3];
     {
-        let root = crate::plot_text::Glyphs::new(BitMapBackend::with_buffer(&mut buf, (w, h)))
+        let root = crate::report::glyphs::Glyphs::new(BitMapBackend::with_buffer(&mut buf, (w, h)))
             .into_drawing_area();
         root.fill(&WHITE)
             .map_err(|e| anyhow::anyhow!("figure: {e}"))?;
@@ -69,7 +69,7 @@ pub fn write(path: &Path, panels: &[Panel], cols: usize, panel_w: u32, panel_h: 
         root.present().map_err(|e| anyhow::anyhow!("figure: {e}"))?;
     }
     let img = image::RgbImage::from_raw(w, h, buf).context("figure: wrong buffer size")?;
-    crate::plot_png::save_png(&img, path)
+    crate::report::plot::save_png(&img, path)
         .with_context(|| format!("writing the figure {}", path.display()))
 }
 
@@ -92,7 +92,7 @@ fn bounds(panel: &Panel) -> (f64, f64, f64, f64) {
 }
 
 fn draw(
-    area: &DrawingArea<crate::plot_text::Glyphs<BitMapBackend<'_>>, plotters::coord::Shift>,
+    area: &DrawingArea<crate::report::glyphs::Glyphs<BitMapBackend<'_>>, plotters::coord::Shift>,
     panel: &Panel,
 ) -> Result<()> {
     let title = panel.title.as_str();

@@ -378,7 +378,7 @@ pub fn run(plan: &Plan, out: &Path) -> Result<Results> {
     let panorama = panorama_seams::run(
         &plan.panorama,
         &|p| plan.sim(p),
-        &crate::panorama::shared_detector(),
+        &crate::session::view::shared_detector(),
         &mut |k| bar.inc(k),
     )?;
     seconds.push(("5. panorama seams", t.elapsed().as_secs_f64()));

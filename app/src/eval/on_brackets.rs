@@ -35,7 +35,7 @@ use super::start::StartRow;
 use super::strategy::EvalStrategy;
 use super::sweep::{CameraSweep, Settled, SweepResult};
 use super::{write_all, Plan, Results};
-use crate::brackets::{self, read_image, BracketMode, BracketOptions, Emulator};
+use crate::session::brackets::{self, read_image, BracketMode, BracketOptions, Emulator};
 use crate::session::BRACKETS_START;
 
 /// The name experiments 3 and 4 give the sequence.
@@ -98,7 +98,7 @@ pub fn run(plan: &Plan, dir: &Path, mode: BracketMode, out: &Path) -> Result<Res
     for (cam, images) in last.cameras.iter().enumerate() {
         let mut exposures = Vec::with_capacity(images.len());
         let mut scores = Vec::with_capacity(images.len());
-        let mut score = |d: &crate::brackets::Decoded, e: f64| -> Result<()> {
+        let mut score = |d: &brackets::Decoded, e: f64| -> Result<()> {
             let frame =
                 rigview_core::exposure::FrameView::new(d.format, d.width, d.height, &d.data)?;
             let m = meter.meter(&frame, view.ground_masks().get(cam))?;

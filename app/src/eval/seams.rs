@@ -31,7 +31,7 @@ use rigview_core::surround::{Canvas, SurroundView};
 
 use super::closed_loop::{self, LoopOptions, Trace};
 use super::strategy::EvalStrategy;
-use crate::plot_png::{register_font, FONT};
+use crate::report::glyphs::{register_font, FONT};
 
 /// Histogram bins of `log2 r_ij`: from −HIST_EV to +HIST_EV.
 pub const HIST_EV: f64 = 3.0;
@@ -378,7 +378,7 @@ pub fn write_views(result: &SeamsResult, scenarios: &[String], path: &Path) -> R
         }
     }
     {
-        let root = crate::plot_text::Glyphs::new(BitMapBackend::with_buffer(
+        let root = crate::report::glyphs::Glyphs::new(BitMapBackend::with_buffer(
             &mut buf,
             (w as u32, h as u32),
         ))
@@ -397,6 +397,6 @@ pub fn write_views(result: &SeamsResult, scenarios: &[String], path: &Path) -> R
         root.present().map_err(|e| anyhow::anyhow!("views: {e}"))?;
     }
     let img = image::RgbImage::from_raw(w as u32, h as u32, buf).context("views: buffer size")?;
-    crate::plot_png::save_png(&img, path)
+    crate::report::plot::save_png(&img, path)
         .with_context(|| format!("writing the views {}", path.display()))
 }

@@ -8,95 +8,45 @@
 //! processing thread. A slow window skips outputs; it never slows capture or
 //! processing.
 
+//!
+//! `RigviewApp` holds the session and what the window shows of it; the
+//! parts with a life of their own are types of their own: the messages
+//! ([`messages`]), the Record button and the recordings it closes
+//! ([`recording`]), the file dialogs and the views built in the background
+//! ([`background`]), and closing on time or after a screenshot
+//! ([`closing`]). What is drawn is in [`panels`], [`controls`] and
+//! [`plots`].
+
+pub mod background;
+pub mod closing;
+pub mod controls;
+pub mod messages;
 pub mod panels;
 pub mod plots;
+pub mod recording;
 
 use std::path::{Path, PathBuf};
-use std::sync::mpsc::{self, Receiver};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use anyhow::Result;
 use egui::{Color32, ColorImage, TextureHandle, TextureOptions};
 use rigview_core::pipeline::{
-    Control, Notify, Output, PipelineOptions, PipelineStatus, ProcessingSettings, ViewKind,
+    Control, Notify, Output, PipelineOptions, PipelineStatus, ProcessingSettings,
 };
 use rigview_record::Recorder;
 
-use crate::logging::{self, LogBuffer, StatusLog};
-use crate::recording::{RecordSpec, ReplayControl, ReplaySpec};
+use self::background::{Background, Loaded, Loading, Pick};
+use self::closing::Closing;
+pub use self::messages::Message;
+use self::messages::Messages;
+pub use self::recording::recording_text;
+use self::recording::RecordButton;
+use crate::logging::{self, LogBuffer};
+use crate::report::CpuMeter;
 use crate::session::{self, Session, SourceSpec};
+use crate::session::{RecordSpec, ReplayControl, ReplaySpec};
 use crate::settings::{Settings, SettingsStore};
-
-/// A message shown in the window: an event that reached the app's
-/// [`LogBuffer`].
-#[derive(Clone, Debug)]
-pub struct Message {
-    /// The text.
-    pub text: String,
-    /// A problem (red: a warning or an error) or a note.
-    pub error: bool,
-}
-
-/// Messages the window keeps.
-const MESSAGES: usize = 20;
-
-type Loaded = Result<session::BuiltView>;
-
-/// What is being built in the background.
-#[derive(Clone, Debug, PartialEq)]
-enum Loading {
-    /// A calibration file and its view.
-    Calibration(PathBuf),
-    /// Another view of the calibration in use.
-    View(ViewKind),
-}
-
-/// What a file dialog is picking.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Pick {
-    Calibration,
-    Recording,
-    /// Where to save the panorama's refined rig.
-    SaveRig,
-}
-
-/// The recording in progress, as the window shows it.
-#[derive(Debug)]
-struct Recording {
-    recorder: Arc<Recorder>,
-    started: Instant,
-    /// A moment and the bytes written by then, for the rate.
-    mark: (Instant, u64),
-    /// MB/s over the last second or so.
-    rate_mb_s: f64,
-    /// Whether its stop has been told to the operator.
-    stop_told: bool,
-}
-
-impl Recording {
-    fn new(recorder: Arc<Recorder>) -> Self {
-        let now = Instant::now();
-        Self {
-            recorder,
-            started: now,
-            mark: (now, 0),
-            rate_mb_s: 0.0,
-            stop_told: false,
-        }
-    }
-}
-
-/// The Record button's line: elapsed time, size, rate and drops.
-pub fn recording_text(elapsed: Duration, bytes: u64, rate_mb_s: f64, dropped: u64) -> String {
-    let s = elapsed.as_secs();
-    format!(
-        "REC {:02}:{:02} · {:.1} MB · {rate_mb_s:.1} MB/s · dropped {dropped}",
-        s / 60,
-        s % 60,
-        bytes as f64 / 1e6
-    )
-}
 
 /// The app's state.
 pub struct RigviewApp {
@@ -109,29 +59,19 @@ pub struct RigviewApp {
     status: Option<PipelineStatus>,
     canvas_tex: Option<TextureHandle>,
     thumb_tex: Vec<Option<TextureHandle>>,
-    messages: Vec<Message>,
-    loading: Option<(Loading, Receiver<Loaded>)>,
-    dialog: Option<(Pick, Receiver<Option<PathBuf>>)>,
+    messages: Messages,
+    background: Background,
     open_path: String,
     recording_path: String,
-    record_path: String,
-    recording: Option<Recording>,
-    /// Recordings being finished in the background, with their summaries.
-    finishing: Vec<Receiver<(String, bool)>>,
+    record: RecordButton,
     pipeline_options: PipelineOptions,
     notify: Notify,
     manual: Vec<(bool, f64)>,
     calibration: String,
     shown: u64,
-    log: LogBuffer,
-    log_seen: u64,
-    status_log: StatusLog,
     displayed_trigger: Option<u64>,
-    quit_at: Option<Instant>,
-    want_close: bool,
-    screenshot: Option<(PathBuf, Instant)>,
-    screenshot_done: Option<Receiver<Result<()>>>,
-    cpu: crate::report::CpuMeter,
+    closing: Closing,
+    cpu: CpuMeter,
 }
 
 impl std::fmt::Debug for RigviewApp {
@@ -167,7 +107,7 @@ impl RigviewApp {
     /// Starts the session; a failure is shown in the window, which stays
     /// open so that the operator can read it.
     pub fn new(ctx: &egui::Context, options: AppOptions) -> Self {
-        let log_seen = options.log.next_seq();
+        let messages = Messages::new(options.log);
         let mut store = SettingsStore::new(options.settings);
         let (mut settings, settings_error) = store.load();
         if let Some(e) = settings_error {
@@ -201,10 +141,7 @@ impl RigviewApp {
                 None
             }
         };
-        let recording = session
-            .as_ref()
-            .and_then(Session::recorder)
-            .map(Recording::new);
+        let record = RecordButton::new(session.as_ref().and_then(Session::recorder));
         let n = session.as_ref().map_or(0, |s| s.pipeline.cameras().len());
         let start_level = settings.processing.controller.fixed_exposure;
         let calibration = session
@@ -219,36 +156,25 @@ impl RigviewApp {
             status: None,
             canvas_tex: None,
             thumb_tex: vec![None; n],
-            messages: Vec::new(),
-            loading: None,
-            dialog: None,
+            messages,
+            background: Background::default(),
             open_path: String::new(),
             recording_path: String::new(),
-            record_path: recording.as_ref().map_or_else(default_record_path, |r| {
-                r.recorder.file().display().to_string()
-            }),
-            recording,
-            finishing: Vec::new(),
+            record,
             pipeline_options: options.pipeline,
             notify,
             manual: vec![(false, start_level); n],
             calibration,
             shown: 0,
-            log: options.log,
-            log_seen,
-            status_log: StatusLog::default(),
             displayed_trigger: None,
-            quit_at: options.quit_after.map(|d| Instant::now() + d),
-            want_close: false,
-            screenshot: options.screenshot.map(|(p, d)| (p, Instant::now() + d)),
-            screenshot_done: None,
-            cpu: crate::report::CpuMeter::start(),
+            closing: Closing::new(options.quit_after, options.screenshot),
+            cpu: CpuMeter::start(),
         };
-        if let Some(r) = &app.recording {
-            let text = format!("recording into {}", r.recorder.file().display());
+        if let Some(r) = app.record.recorder() {
+            let text = format!("recording into {}", r.file().display());
             app.note(text, false);
         }
-        app.read_log();
+        app.messages.read();
         app
     }
 
@@ -264,7 +190,7 @@ impl RigviewApp {
 
     /// The messages in the window.
     pub fn messages(&self) -> &[Message] {
-        &self.messages
+        self.messages.list()
     }
 
     /// The settings as the operator set them.
@@ -292,12 +218,17 @@ impl RigviewApp {
 
     /// Whether a calibration is being loaded.
     pub fn is_loading(&self) -> bool {
-        self.loading.is_some()
+        self.background.is_loading()
     }
 
     /// Whether the app asked to close (its time is up).
     pub fn wants_close(&self) -> bool {
-        self.want_close
+        self.closing.wants_close()
+    }
+
+    /// Closes the window at its next frame (*File → Quit*).
+    pub fn close(&mut self) {
+        self.closing.close();
     }
 
     /// The replay's controls, when the source is a recording.
@@ -307,105 +238,31 @@ impl RigviewApp {
 
     /// The recording in progress.
     pub fn recorder(&self) -> Option<&Arc<Recorder>> {
-        self.recording.as_ref().map(|r| &r.recorder)
+        self.record.recorder()
     }
 
     /// Whether recordings stopped by the operator are still being closed.
     pub fn is_finishing_recording(&self) -> bool {
-        !self.finishing.is_empty()
+        self.record.is_finishing()
     }
 
     /// The file the Record button records into.
     pub fn set_record_path(&mut self, path: &Path) {
-        self.record_path = path.display().to_string();
+        self.record.path = path.display().to_string();
     }
 
     /// Starts recording the session's sets into `spec`'s file (the Record
     /// button, `--record`); a failure is shown and the view goes on.
     pub fn start_recording(&mut self, spec: &RecordSpec) {
-        let Some(s) = &self.session else {
-            self.note("no source is running: nothing to record".into(), true);
-            return;
-        };
-        if s.replay.is_some() {
-            self.note(
-                "a replay is not recorded again: its recording is the file".into(),
-                true,
-            );
-            return;
-        }
-        match s.start_recording(spec) {
-            Ok(r) => {
-                self.note(format!("recording into {}", spec.file.display()), false);
-                self.recording = Some(Recording::new(r));
-            }
-            Err(e) => self.note(format!("{e:#}"), true),
-        }
+        self.record
+            .start(self.session.as_ref(), spec, &mut self.messages);
     }
 
     /// Stops the recording in progress: no set is offered to it after
     /// this, and its file is closed in the background (its summary then
     /// goes to the Messages panel).
     pub fn stop_recording(&mut self) {
-        let Some(rec) = self.recording.take() else {
-            return;
-        };
-        if let Some(s) = &self.session {
-            s.stop_recording();
-        }
-        let (tx, rx) = mpsc::channel();
-        let r = rec.recorder;
-        let spawned = std::thread::Builder::new()
-            .name("rigview-recording-end".into())
-            .spawn(move || {
-                let stats = r.finish();
-                let _ = tx.send((
-                    crate::recording::describe(r.file(), &stats),
-                    stats.stopped.is_some() || !stats.finished,
-                ));
-            });
-        match spawned {
-            Ok(_) => self.finishing.push(rx),
-            Err(e) => self.note(format!("cannot close the recording: {e}"), true),
-        }
-    }
-
-    /// Follows the recording in progress: its rate, and a stop of its own
-    /// (disk full, reserve reached, write error) told to the operator once.
-    fn poll_recording(&mut self) {
-        let mut told = None;
-        if let Some(rec) = &mut self.recording {
-            let stats = rec.recorder.stats();
-            let (t0, b0) = rec.mark;
-            let dt = t0.elapsed().as_secs_f64();
-            if dt >= 1.0 {
-                rec.rate_mb_s = stats.bytes.saturating_sub(b0) as f64 / 1e6 / dt;
-                rec.mark = (Instant::now(), stats.bytes);
-            }
-            if let (Some(why), false) = (&stats.stopped, rec.stop_told) {
-                rec.stop_told = true;
-                rec.rate_mb_s = 0.0;
-                told = Some(format!(
-                    "the recording {} stopped ({why}); it is readable up to its last set, and the view goes on",
-                    rec.recorder.file().display()
-                ));
-            }
-        }
-        if let Some(t) = told {
-            self.note(t, true);
-        }
-        let mut done = Vec::new();
-        self.finishing.retain(|rx| match rx.try_recv() {
-            Ok(d) => {
-                done.push(d);
-                false
-            }
-            Err(mpsc::TryRecvError::Empty) => true,
-            Err(mpsc::TryRecvError::Disconnected) => false,
-        });
-        for (text, problem) in done {
-            self.note(text, problem);
-        }
+        self.record.stop(self.session.as_ref(), &mut self.messages);
     }
 
     /// Switches the window's source to a replay of `path`, with the
@@ -458,24 +315,7 @@ impl RigviewApp {
 
     /// Reports a problem (`error`) or a note as an event, and shows it.
     fn note(&mut self, text: String, error: bool) {
-        if error {
-            tracing::error!("{text}");
-        } else {
-            tracing::info!("{text}");
-        }
-        self.read_log();
-    }
-
-    /// Shows the events that reached the log since the last call.
-    fn read_log(&mut self) {
-        for e in self.log.read(&mut self.log_seen) {
-            self.messages.push(Message {
-                error: e.is_problem(),
-                text: e.message,
-            });
-        }
-        let extra = self.messages.len().saturating_sub(MESSAGES);
-        self.messages.drain(..extra);
+        self.messages.note(text, error);
     }
 
     /// Sends the processing settings to the pipeline and marks them for
@@ -520,9 +360,11 @@ impl RigviewApp {
         let cameras = s.pipeline.cameras().to_vec();
         let processing = self.settings.processing.clone();
         let p = path.to_path_buf();
-        self.build_in_background(Loading::Calibration(path.to_path_buf()), move || {
-            session::load_calibration(&p, &cameras, &processing)
-        });
+        self.background.build(
+            Loading::Calibration(path.to_path_buf()),
+            move || session::load_calibration(&p, &cameras, &processing),
+            &mut self.messages,
+        );
     }
 
     /// Switches the big view to `mode`: the pipeline goes on with the view
@@ -546,10 +388,14 @@ impl RigviewApp {
         };
         let cameras = s.pipeline.cameras().to_vec();
         let processing = self.settings.processing.clone();
-        self.build_in_background(Loading::View(mode.kind()), move || {
-            let (view, graph) = session::view_for(&rig, &cameras, &processing)?;
-            Ok((view, graph, rig))
-        });
+        self.background.build(
+            Loading::View(mode.kind()),
+            move || {
+                let (view, graph) = session::view_for(&rig, &cameras, &processing)?;
+                Ok((view, graph, rig))
+            },
+            &mut self.messages,
+        );
     }
 
     /// Asks the panorama for a refinement of its rotations (in the
@@ -588,86 +434,22 @@ impl RigviewApp {
         }
     }
 
-    fn build_in_background(
-        &mut self,
-        what: Loading,
-        build: impl FnOnce() -> Loaded + Send + 'static,
-    ) {
-        let (tx, rx) = mpsc::channel();
-        let spawned = std::thread::Builder::new()
-            .name("rigview-view-build".into())
-            .spawn(move || {
-                let _ = tx.send(build());
-            });
-        match spawned {
-            Ok(_) => self.loading = Some((what, rx)),
-            Err(e) => self.note(format!("cannot start building the view: {e}"), true),
-        }
-    }
-
     /// Opens the native file dialog in the background.
-    fn open_dialog(&mut self, pick: Pick) {
-        let (tx, rx) = mpsc::channel();
-        let spawned = std::thread::Builder::new()
-            .name("rigview-dialog".into())
-            .spawn(move || {
-                let dialog = match pick {
-                    Pick::Calibration => rfd::FileDialog::new()
-                        .set_title("Open a rig or calibration file")
-                        .add_filter("calibration", &["yaml", "yml", "xml", "json"]),
-                    Pick::Recording => rfd::FileDialog::new()
-                        .set_title("Open a recording")
-                        .add_filter("recording (MCAP)", &["mcap"]),
-                    Pick::SaveRig => rfd::FileDialog::new()
-                        .set_title("Save the refined rig")
-                        .set_file_name("refined.rig.yaml")
-                        .add_filter("rig", &["yaml", "yml", "xml", "json"]),
-                };
-                let picked = match pick {
-                    Pick::SaveRig => dialog.save_file(),
-                    _ => dialog.pick_file(),
-                };
-                let _ = tx.send(picked);
-            });
-        match spawned {
-            Ok(_) => self.dialog = Some((pick, rx)),
-            Err(e) => self.note(format!("cannot open the file dialog: {e}"), true),
-        }
+    pub(super) fn open_dialog(&mut self, pick: Pick) {
+        self.background.open_dialog(pick, &mut self.messages);
     }
 
+    /// Carries out what the background finished: a file picked, a view
+    /// built.
     fn poll_background(&mut self) {
-        if let Some((pick, rx)) = &self.dialog {
-            let pick = *pick;
-            match rx.try_recv() {
-                Ok(Some(path)) => {
-                    self.dialog = None;
-                    match pick {
-                        Pick::Calibration => self.open_calibration(&path),
-                        Pick::Recording => self.open_recording(&path),
-                        Pick::SaveRig => self.save_rig(&path),
-                    }
-                }
-                Ok(None) => self.dialog = None,
-                Err(mpsc::TryRecvError::Empty) => {}
-                Err(mpsc::TryRecvError::Disconnected) => {
-                    self.dialog = None;
-                    self.note(
-                        "the file dialog failed (no desktop portal?): type the path under File instead".into(),
-                        true,
-                    );
-                }
+        if let Some((pick, path)) = self.background.poll_dialog(&mut self.messages) {
+            match pick {
+                Pick::Calibration => self.open_calibration(&path),
+                Pick::Recording => self.open_recording(&path),
+                Pick::SaveRig => self.save_rig(&path),
             }
         }
-        let done = match &self.loading {
-            Some((what, rx)) => match rx.try_recv() {
-                Ok(r) => Some((what.clone(), Some(r))),
-                Err(mpsc::TryRecvError::Empty) => None,
-                Err(mpsc::TryRecvError::Disconnected) => Some((what.clone(), None)),
-            },
-            None => None,
-        };
-        if let Some((what, result)) = done {
-            self.loading = None;
+        if let Some((what, result)) = self.background.poll_loading() {
             self.view_built(what, result);
         }
     }
@@ -709,15 +491,6 @@ impl RigviewApp {
         }
     }
 
-    /// Passes the pipeline's new messages and problems on as events, and
-    /// shows what reached the log.
-    fn take_messages(&mut self) {
-        if let Some(st) = &self.status {
-            self.status_log.forward(st);
-        }
-        self.read_log();
-    }
-
     /// Takes the newest output and uploads its images.
     fn take_output(&mut self, ctx: &egui::Context) {
         let Some(out) = self.session.as_ref().and_then(|s| s.pipeline.latest()) else {
@@ -757,14 +530,16 @@ impl RigviewApp {
     pub fn show(&mut self, ui: &mut egui::Ui) {
         let ctx = ui.ctx().clone();
         self.poll_background();
-        self.poll_recording();
+        self.record.poll(&mut self.messages);
         self.status = self.session.as_ref().map(|s| s.pipeline.status());
-        self.take_messages();
+        // The pipeline's new messages and problems pass on as events, and
+        // what reached the log is shown.
+        self.messages.forward(self.status.as_ref());
         self.take_output(&ctx);
         panels::menu_bar(self, ui);
         panels::replay_bar(self, ui);
         panels::status_bar(self, ui);
-        panels::controls(self, ui);
+        controls::controls(self, ui);
         plots::plot_panel(self, ui);
         panels::cameras_panel(self, ui);
         panels::central(self, ui);
@@ -783,74 +558,10 @@ impl RigviewApp {
         {
             self.save_settings();
         }
-        if self.quit_at.is_some_and(|t| Instant::now() >= t) {
-            self.want_close = true;
-        }
-        self.poll_screenshot(&ctx);
-        if self.loading.is_some()
-            || self.dialog.is_some()
-            || self.recording.is_some()
-            || !self.finishing.is_empty()
-            || self.replay().is_some()
-        {
+        self.closing.poll(&ctx);
+        if self.background.is_busy() || self.record.is_busy() || self.replay().is_some() {
             ctx.request_repaint_after(Duration::from_millis(50));
         }
-    }
-
-    fn poll_screenshot(&mut self, ctx: &egui::Context) {
-        if let Some(rx) = &self.screenshot_done {
-            match rx.try_recv() {
-                Ok(r) => {
-                    self.screenshot_done = None;
-                    if let Err(e) = r {
-                        tracing::error!("{e:#}");
-                    }
-                    self.want_close = true;
-                }
-                Err(mpsc::TryRecvError::Empty) => {
-                    ctx.request_repaint_after(Duration::from_millis(50));
-                }
-                Err(mpsc::TryRecvError::Disconnected) => {
-                    self.screenshot_done = None;
-                    self.want_close = true;
-                }
-            }
-            return;
-        }
-        let due = self
-            .screenshot
-            .as_ref()
-            .is_some_and(|(_, t)| Instant::now() >= *t);
-        if !due {
-            if self.screenshot.is_some() {
-                ctx.request_repaint_after(Duration::from_millis(100));
-            }
-            return;
-        }
-        let Some((path, _)) = self.screenshot.take() else {
-            return;
-        };
-        let (tx, rx) = mpsc::channel();
-        let repaint = ctx.clone();
-        ctx.send_viewport_cmd(egui::ViewportCommand::Screenshot(
-            egui::ScreenshotCallback::new(move |img| {
-                let [w, h] = img.size;
-                let rgba: Vec<u8> = img.pixels.iter().flat_map(|c| c.to_array()).collect();
-                let r = match (u32::try_from(w), u32::try_from(h)) {
-                    (Ok(w), Ok(h)) => image::RgbaImage::from_raw(w, h, rgba)
-                        .ok_or_else(|| anyhow::anyhow!("the screenshot has the wrong size"))
-                        .and_then(|i| {
-                            i.save(&path).map_err(|e| {
-                                anyhow::anyhow!("writing the screenshot {}: {e}", path.display())
-                            })
-                        }),
-                    _ => Err(anyhow::anyhow!("the screenshot is too large")),
-                };
-                let _ = tx.send(r);
-                repaint.request_repaint();
-            }),
-        ));
-        self.screenshot_done = Some(rx);
     }
 
     fn save_settings(&mut self) {
@@ -869,10 +580,7 @@ impl RigviewApp {
         };
         // The pipeline first, so that every set it processed is recorded.
         s.pipeline.stop();
-        let recorded = self.recording.take().map(|rec| {
-            s.stop_recording();
-            crate::recording::describe(rec.recorder.file(), &rec.recorder.finish())
-        });
+        let recorded = self.record.finish(s);
         let status = s.pipeline.status();
         let mut summary = format!(
             "source: {}\n{}",
@@ -892,7 +600,7 @@ impl RigviewApp {
 impl eframe::App for RigviewApp {
     fn ui(&mut self, ui: &mut egui::Ui, _frame: &mut eframe::Frame) {
         self.show(ui);
-        if self.want_close {
+        if self.closing.wants_close() {
             ui.ctx().send_viewport_cmd(egui::ViewportCommand::Close);
         }
     }
@@ -914,13 +622,6 @@ pub fn camera_colour(k: usize) -> Color32 {
         Color32::from_rgb(90, 210, 200),
     ];
     C[k % C.len()]
-}
-
-/// Where the Record button records unless the operator says: a new file
-/// in the working folder, named by the time.
-fn default_record_path() -> String {
-    let secs = rigview_record::writer::unix_now_ns() / 1_000_000_000;
-    format!("rigview-{secs}.mcap")
 }
 
 /// Runs the window until it is closed.
@@ -945,17 +646,4 @@ pub fn run(options: AppOptions) -> Result<()> {
         Box::new(move |cc| Ok(Box::new(RigviewApp::new(&cc.egui_ctx, options)))),
     )
     .map_err(|e| anyhow::anyhow!("the window failed: {e}"))
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn the_recording_line_says_time_size_rate_and_drops() {
-        assert_eq!(
-            recording_text(Duration::from_millis(125_900), 2_345_600_000, 98.74, 3),
-            "REC 02:05 · 2345.6 MB · 98.7 MB/s · dropped 3"
-        );
-    }
 }

@@ -17,7 +17,7 @@ use rigview_core::exposure::{ExposureRange, ExposureSetting};
 use rigview_core::source::CameraInfo;
 
 use super::config::CaptureConfig;
-use super::error::CameraError;
+use super::error::{CameraError, Named};
 use super::fake::{self, FakeView};
 use super::health::StreamCounts;
 use super::trigger;
@@ -74,44 +74,6 @@ impl GainUnit {
             GainUnit::Db => db,
             GainUnit::Raw { db_per_step } => (db / db_per_step).round(),
             GainUnit::None => 0.0,
-        }
-    }
-}
-
-/// Errors of one camera's features, naming the camera.
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct Named<'a>(pub &'a str);
-
-impl Named<'_> {
-    pub fn set(
-        self,
-        feature: &'static str,
-        value: impl std::fmt::Display,
-    ) -> impl FnOnce(aravis::glib::Error) -> CameraError {
-        let (camera, value) = (self.0.to_owned(), value.to_string());
-        move |source| CameraError::Set {
-            camera,
-            feature,
-            value,
-            source,
-        }
-    }
-
-    pub fn read(self, feature: &'static str) -> impl FnOnce(aravis::glib::Error) -> CameraError {
-        let camera = self.0.to_owned();
-        move |source| CameraError::Read {
-            camera,
-            feature,
-            source,
-        }
-    }
-
-    pub fn command(self, command: &'static str) -> impl FnOnce(aravis::glib::Error) -> CameraError {
-        let camera = self.0.to_owned();
-        move |source| CameraError::Command {
-            camera,
-            command,
-            source,
         }
     }
 }

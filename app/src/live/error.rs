@@ -127,3 +127,42 @@ pub enum CameraError {
         camera: String,
     },
 }
+
+#[cfg(feature = "aravis")]
+/// Errors of one camera's features, naming the camera.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Named<'a>(pub &'a str);
+
+impl Named<'_> {
+    pub fn set(
+        self,
+        feature: &'static str,
+        value: impl std::fmt::Display,
+    ) -> impl FnOnce(aravis::glib::Error) -> CameraError {
+        let (camera, value) = (self.0.to_owned(), value.to_string());
+        move |source| CameraError::Set {
+            camera,
+            feature,
+            value,
+            source,
+        }
+    }
+
+    pub fn read(self, feature: &'static str) -> impl FnOnce(aravis::glib::Error) -> CameraError {
+        let camera = self.0.to_owned();
+        move |source| CameraError::Read {
+            camera,
+            feature,
+            source,
+        }
+    }
+
+    pub fn command(self, command: &'static str) -> impl FnOnce(aravis::glib::Error) -> CameraError {
+        let camera = self.0.to_owned();
+        move |source| CameraError::Command {
+            camera,
+            command,
+            source,
+        }
+    }
+}

@@ -45,7 +45,7 @@ pub struct FakeView {
 /// The fake camera's timestamp clock now: Aravis's in-process fake camera
 /// stamps each frame with the host's wall clock, ns since the Unix epoch.
 pub fn clock_ns() -> u64 {
-    super::host_now_ns()
+    super::clock::host_now_ns()
 }
 
 impl FakeView {
@@ -318,7 +318,31 @@ fn fill(view: FakeView, db_per_step: f64) -> Box<super::ffi::FillFn> {
     })
 }
 
-/// The fake cameras of a [`FakeRig`](super::open::FakeRig), ready to open.
+/// The simulated rig that fake cameras show.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FakeRig {
+    /// A simulation preset (reference, steps, ramp, tunnel, backlight,
+    /// overcast, sky, tunnel-exit, snow, lawn) or a simulation file.
+    pub scenario: String,
+    /// The fraction of the simulated rig's resolution rendered (0.25:
+    /// 322×241).
+    pub scale: f64,
+    /// The rate the fake cameras fire at, Hz (they ignore software
+    /// triggers and fire on their own clock, like a trigger box).
+    pub rate_hz: f64,
+}
+
+impl Default for FakeRig {
+    fn default() -> Self {
+        Self {
+            scenario: "reference".into(),
+            scale: 1.0,
+            rate_hz: 20.0,
+        }
+    }
+}
+
+/// The fake cameras of a [`FakeRig`], ready to open.
 #[cfg(feature = "aravis")]
 #[derive(Debug)]
 pub(crate) struct FakeCameras {
@@ -336,7 +360,7 @@ pub(crate) struct FakeCameras {
 /// they fire on their own clock, like a trigger box.
 #[cfg(feature = "aravis")]
 pub(crate) fn cameras(
-    fake: &super::open::FakeRig,
+    fake: &FakeRig,
     capture: &super::CaptureConfig,
 ) -> anyhow::Result<FakeCameras> {
     use anyhow::Context;

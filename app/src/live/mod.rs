@@ -13,12 +13,13 @@
 //! | [`fake`] | what Aravis's in-process fake cameras show: the simulated rig ([`rigview_core::sim`]), each frame rendered at the fake camera's exposure time and gain, with the noise of its frame id and the light of its timestamp; and the fake cameras' wiring (their fill callback and region) |
 //! | `error` | [`LiveError`] when capture starts, [`CameraError`] naming the camera and the feature |
 //! | `open` | which cameras a live source opens ([`LiveSpec`]: a rig file's, or fake cameras showing a simulated rig) and opening them |
-//! | [`headless`] | `rigview live --headless`: capture and exposure control without the window, with a status block per second |
+//! | `clock` | the host's wall clock that frames are stamped with |
 //!
 //! Everything that needs Aravis is behind the `aravis` feature (on by
 //! default).
 
 pub mod assemble;
+mod clock;
 pub mod config;
 #[cfg(feature = "aravis")]
 mod device;
@@ -26,7 +27,6 @@ mod error;
 pub mod fake;
 #[cfg(feature = "aravis")]
 pub mod ffi;
-pub mod headless;
 pub mod health;
 mod open;
 #[cfg(feature = "aravis")]
@@ -43,16 +43,10 @@ pub use device::DeviceSpec;
 #[cfg(feature = "aravis")]
 pub use error::CameraError;
 pub use error::LiveError;
+pub use fake::FakeRig;
 pub use health::CameraStatus;
 #[cfg(feature = "aravis")]
 pub use open::{open, Opened};
-pub use open::{FakeRig, LiveCameras, LiveSpec};
+pub use open::{LiveCameras, LiveSpec};
 #[cfg(feature = "aravis")]
 pub use source::{CameraSpec, LiveSource, LiveStatus};
-
-/// The host's wall clock: ns since the Unix epoch.
-pub(crate) fn host_now_ns() -> u64 {
-    std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0, |d| u64::try_from(d.as_nanos()).unwrap_or(u64::MAX))
-}

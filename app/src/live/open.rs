@@ -5,6 +5,7 @@
 use std::path::PathBuf;
 
 use super::config::CaptureConfig;
+use super::fake::FakeRig;
 
 /// What a live source opens, and how it captures.
 #[derive(Clone, Debug, PartialEq)]
@@ -26,30 +27,6 @@ pub enum LiveCameras {
     /// Aravis's in-process fake cameras showing a simulated rig, one per
     /// simulated camera; the simulated rig's calibration gives the view.
     Fake(FakeRig),
-}
-
-/// The simulated rig that fake cameras show.
-#[derive(Clone, Debug, PartialEq)]
-pub struct FakeRig {
-    /// A simulation preset (reference, steps, ramp, tunnel, backlight,
-    /// overcast, sky, tunnel-exit, snow, lawn) or a simulation file.
-    pub scenario: String,
-    /// The fraction of the simulated rig's resolution rendered (0.25:
-    /// 322×241).
-    pub scale: f64,
-    /// The rate the fake cameras fire at, Hz (they ignore software
-    /// triggers and fire on their own clock, like a trigger box).
-    pub rate_hz: f64,
-}
-
-impl Default for FakeRig {
-    fn default() -> Self {
-        Self {
-            scenario: "reference".into(),
-            scale: 1.0,
-            rate_hz: 20.0,
-        }
-    }
 }
 
 impl LiveSpec {

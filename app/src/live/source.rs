@@ -15,11 +15,11 @@ use rigview_core::source::{
 };
 
 use super::assemble::{Assembler, SetCounters};
+use super::clock::host_now_ns;
 use super::config::{CaptureConfig, TriggerMode};
 use super::device::DeviceSpec;
 use super::error::{CameraError, LiveError};
 use super::health::{CameraStatus, HealthCell};
-use super::host_now_ns;
 use super::trigger::Schedule;
 use super::worker::{CameraCommand, Event, Worker};
 

@@ -8,8 +8,7 @@ use aravis::prelude::*;
 use aravis::Camera;
 
 use super::config::TriggerMode;
-use super::device::Named;
-use super::error::CameraError;
+use super::error::{CameraError, Named};
 
 /// Sets `camera` up for `mode`: a hardware line, software triggers, or
 /// free run at a frame rate.
@@ -54,7 +53,7 @@ impl Schedule {
     pub fn starting_now(period: Duration) -> Self {
         Self {
             epoch: Instant::now(),
-            epoch_wall_ns: super::host_now_ns(),
+            epoch_wall_ns: super::clock::host_now_ns(),
             period,
         }
     }

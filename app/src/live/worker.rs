@@ -385,7 +385,7 @@ impl Worker {
     ) -> Arrived {
         let id = ids.unwrap(buffer.frame_id());
         let host_ns = match buffer.system_timestamp() {
-            0 => super::host_now_ns(),
+            0 => super::clock::host_now_ns(),
             t => t,
         };
         let timestamp_ns = match buffer.timestamp() {

@@ -48,6 +48,7 @@ use serde::{Deserialize, Serialize};
 
 use super::bracket::same_scene;
 use crate::error::{check_range, Error, Result};
+use crate::stats::median;
 
 /// Parameters of the balancing.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -154,7 +155,7 @@ pub fn pair_ratio(patches: &[PatchPair], params: &BalanceParams) -> Option<f64> 
     if ratios.len() < params.min_patches {
         return None;
     }
-    Some(median(&mut ratios))
+    median(&mut ratios)
 }
 
 /// Whether most of a pair's patches are left out because either camera
@@ -235,20 +236,6 @@ impl HeldRatios {
     /// Forgets every pair.
     pub fn clear(&mut self) {
         self.held.clear();
-    }
-}
-
-/// The median (mean of the two middle values for an even count).
-pub fn median(values: &mut [f64]) -> f64 {
-    values.sort_by(f64::total_cmp);
-    let n = values.len();
-    if n == 0 {
-        return f64::NAN;
-    }
-    if n % 2 == 1 {
-        values[n / 2]
-    } else {
-        0.5 * (values[n / 2 - 1] + values[n / 2])
     }
 }
 

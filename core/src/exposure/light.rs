@@ -36,6 +36,7 @@ use serde::{Deserialize, Serialize};
 
 use super::metering::Metered;
 use crate::error::{check_range, Result};
+use crate::stats::quantile;
 
 /// Parameters of the light tracking.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -198,12 +199,6 @@ fn classify(params: &LightParams, metered: &Metered, k: usize) -> Pixel {
     }
 }
 
-/// The `q`-quantile (in [0, 1]) of `v`, reordering it.
-fn quantile(v: &mut [f32], q: f64) -> f32 {
-    let k = ((v.len() - 1) as f64 * q).round() as usize;
-    *v.select_nth_unstable_by(k, f32::total_cmp).1
-}
-
 impl LightTracker {
     /// Forgets the reference.
     pub fn reset(&mut self) {
@@ -315,10 +310,13 @@ impl LightTracker {
         if ratios.len() >= min {
             // Quantiles of the ratios are the ratios of the quantiles of
             // their logarithms: one log2 per quantile, not per pixel.
-            let q1 = ev(quantile(&mut ratios, 0.25));
-            let q3 = ev(quantile(&mut ratios, 0.75));
-            let median = ev(quantile(&mut ratios, 0.5));
-            return Some(change(median, q3 - q1, ratios.len(), false));
+            let pixels = ratios.len();
+            let q1 = quantile(&mut ratios, 0.25).map(ev);
+            let q3 = quantile(&mut ratios, 0.75).map(ev);
+            let median = quantile(&mut ratios, 0.5).map(ev);
+            if let (Some(q1), Some(q3), Some(median)) = (q1, q3, median) {
+                return Some(change(median, q3 - q1, pixels, false));
+            }
         }
         // Too few pixels left in range: when most of the reference's went
         // out of it the same way, those nearest the edge of the range
@@ -330,8 +328,11 @@ impl LightTracker {
         } else {
             (&mut below, BOUND_QUANTILE)
         };
-        (out.len() >= min && 2 * out.len() > all)
-            .then(|| change(ev(quantile(out, q)), 0.0, out.len(), true))
+        let pixels = out.len();
+        if pixels < min || 2 * pixels <= all {
+            return None;
+        }
+        quantile(out, q).map(|r| change(ev(r), 0.0, pixels, true))
     }
 }
 

@@ -81,6 +81,7 @@ use crate::features::{
     match_mutual_where, AlignOptions, Aligner, Descriptor, Gray, Match, Smoothed, PATCH_RADIUS,
 };
 use crate::image::FrameView;
+use crate::stats::median;
 use crate::surround::{Canvas, Composer};
 
 /// The part of the canvas where two neighbours overlap.
@@ -523,8 +524,8 @@ impl Panorama {
                     .filter_map(|((a, b), _)| geometry.error_px(a, &(q * b)))
                     .collect()
             };
-            result.error_before_px = median(errors(&Rotation3::identity()));
-            result.error_after_px = median(errors(&q));
+            result.error_before_px = median(&mut errors(&Rotation3::identity()));
+            result.error_after_px = median(&mut errors(&q));
             result.rotation = Some(q);
             result.patches = matches
                 .iter()
@@ -763,20 +764,6 @@ fn ransac(
         m.inlier = inlier(&q, r).is_some();
     }
     Some(q)
-}
-
-/// The median of `values`, or `None` when empty.
-pub(crate) fn median(mut values: Vec<f64>) -> Option<f64> {
-    if values.is_empty() {
-        return None;
-    }
-    values.sort_by(f64::total_cmp);
-    let n = values.len();
-    Some(if n % 2 == 1 {
-        values[n / 2]
-    } else {
-        0.5 * (values[n / 2 - 1] + values[n / 2])
-    })
 }
 
 /// The patch means and saturated fractions around an inlier in both warps,

@@ -41,9 +41,10 @@ use nalgebra::{Rotation3, Vector3};
 use rigview_calib::rig::Rig;
 use rigview_calib::Pose;
 
-use super::matching::{median, PairGeometry, RayPair};
+use super::matching::{PairGeometry, RayPair};
 use super::{PairMatches, Panorama};
 use crate::error::{check_range, Error, Result};
+use crate::stats::median;
 
 /// The prior (σ, degrees; the bound if smaller) on each rotation in the
 /// first stage, of the epipolar errors alone: see the module
@@ -348,9 +349,10 @@ fn median_error(
     qj: &Rotation3<f64>,
 ) -> Option<f64> {
     median(
-        rays.iter()
+        &mut rays
+            .iter()
             .filter_map(|(a, b)| g.error_px(&(qi * a), &(qj * b)))
-            .collect(),
+            .collect::<Vec<_>>(),
     )
 }
 

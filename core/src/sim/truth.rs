@@ -17,11 +17,11 @@
 
 use super::render::{FillRequest, SimRender};
 use crate::error::{Error, Result};
-use crate::exposure::balance::median;
 use crate::exposure::{
     Darker, EstimateOptions, Estimator, EstimatorConfig, ExposureSetting, FrameView, Meter,
     Metered, MeteringConfig, MetricParams, RoiMask,
 };
+use crate::stats::median;
 use crate::surround::SurroundView;
 
 /// What a sweep covers and how it meters.
@@ -323,8 +323,8 @@ pub fn overlap_ratios(
                 .filter(|p| !p.pixels_i.is_empty() && !p.pixels_j.is_empty())
                 .map(|p| mean(o.j, &p.pixels_j) / mean(o.i, &p.pixels_i).max(1e-30))
                 .collect();
-            let ratio = (!r.is_empty()).then(|| median(&mut r));
-            let spread = ratio.map(|m| {
+            let ratio = median(&mut r);
+            let spread = ratio.and_then(|m| {
                 let mut d: Vec<f64> = r.iter().map(|p| (p / m).log2().abs()).collect();
                 median(&mut d)
             });

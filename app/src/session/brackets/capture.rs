@@ -1,6 +1,6 @@
 //! `rigview record --brackets N`: the cameras cycle through N exposures
 //! per moment, and every frame that shows a commanded exposure is written
-//! into a bracket sequence (see [`crate::brackets`] and
+//! into a bracket sequence (see [`super`] and
 //! `docs/brackets.md`).
 //!
 //! Each step of a bracket commands one exposure on every camera, then reads
@@ -19,8 +19,8 @@ use anyhow::{bail, Context, Result};
 use rigview_core::exposure::{ExposureSetting, SplitParams, Splitter};
 use rigview_core::source::{ExposureCommand, Frame};
 
-use crate::brackets::{BracketFrame, BracketWriter};
-use crate::recording::{self, CaptureFrom};
+use super::export::{levels, BracketFrame, BracketWriter};
+use crate::session::capture::{self, CaptureFrom};
 
 /// A frame is taken as showing a commanded exposure when its own exposure
 /// lies this close to it (EV): cameras round the exposure time to their
@@ -61,7 +61,7 @@ pub fn capture(run: &BracketRun, out: &mut dyn std::io::Write) -> Result<String>
             run.exposures
         );
     }
-    let opened = recording::open(&run.from)?;
+    let opened = capture::open(&run.from)?;
     let mut source = opened.source;
     let cameras = source.cameras().to_vec();
     let names: Vec<String> = cameras.iter().map(|c| c.name.clone()).collect();
@@ -90,7 +90,7 @@ pub fn capture(run: &BracketRun, out: &mut dyn std::io::Write) -> Result<String>
         let mut splitter = Splitter::new(cam.range, SplitParams::default())
             .with_context(|| format!("camera \"{}\": its exposure ranges", cam.name))?;
         let (min, max) = (splitter.min_exposure(), splitter.max_exposure());
-        let settings: Vec<ExposureSetting> = crate::brackets::levels(lo, hi, run.exposures)
+        let settings: Vec<ExposureSetting> = levels(lo, hi, run.exposures)
             .into_iter()
             .map(|level| splitter.split(level.clamp(min, max)).0)
             .collect();
@@ -102,7 +102,7 @@ pub fn capture(run: &BracketRun, out: &mut dyn std::io::Write) -> Result<String>
     );
     let mut writer = BracketWriter::create(&run.dir, opened.rig.as_ref(), &names, &title)?;
     let started = Instant::now();
-    let limit = recording::time_limit(run.seconds)?;
+    let limit = capture::time_limit(run.seconds)?;
     let mut t0 = None;
     'moments: while run.moments.is_none_or(|m| writer.moments() < m)
         && limit.is_none_or(|l| started.elapsed() < l)

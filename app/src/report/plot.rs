@@ -2,29 +2,12 @@
 //! and M per camera, and log2 r_ij per overlap, against time.
 
 use std::path::Path;
-use std::sync::Once;
 
 use anyhow::{Context, Result};
 use plotters::prelude::*;
 use rigview_core::pipeline::{Telemetry, TelemetryRow};
 
-/// The font every plot is drawn in.
-pub const FONT: &str = "rigview-sans";
-
-/// Registers [`FONT`] with plotters (once).
-pub fn register_font() -> Result<()> {
-    static ONCE: Once = Once::new();
-    let mut result = Ok(());
-    ONCE.call_once(|| {
-        result = plotters::style::register_font(
-            FONT,
-            FontStyle::Normal,
-            epaint_default_fonts::UBUNTU_LIGHT,
-        )
-        .map_err(|_| anyhow::anyhow!("the plot font cannot be read"));
-    });
-    result
-}
+use super::glyphs::{register_font, Glyphs, FONT};
 
 const COLOURS: [RGBColor; 6] = [
     RGBColor(220, 70, 50),
@@ -61,8 +44,7 @@ pub fn write_with(
     let mut buf = vec![0u8; width as usize * height as usize * 3];
     {
         let root =
-            crate::plot_text::Glyphs::new(BitMapBackend::with_buffer(&mut buf, (width, height)))
-                .into_drawing_area();
+            Glyphs::new(BitMapBackend::with_buffer(&mut buf, (width, height))).into_drawing_area();
         root.fill(&WHITE)
             .map_err(|e| anyhow::anyhow!("plot: {e}"))?;
         let panels = root.split_evenly((if commands { 6 } else { 5 }, 1));
@@ -141,7 +123,7 @@ pub fn save_png(img: &image::RgbImage, path: &Path) -> Result<()> {
 }
 
 fn panel(
-    area: &DrawingArea<crate::plot_text::Glyphs<BitMapBackend<'_>>, plotters::coord::Shift>,
+    area: &DrawingArea<Glyphs<BitMapBackend<'_>>, plotters::coord::Shift>,
     title: &str,
     series: &[(String, Vec<(f64, f64)>)],
 ) -> Result<()> {

@@ -1,25 +1,25 @@
-//! A running session: a source (the simulated rig or live cameras), its
-//! calibration's surround view, and the processing pipeline on them. The
-//! window and the headless mode both start one.
+//! Where a session's frame sets come from (`SourceSpec`: the simulated
+//! rig, live cameras, a recording or a bracket sequence) and starting a
+//! session on each: the source opened, its calibration's view built, and
+//! the pipeline started on them.
 
-use std::path::Path;
 use std::sync::Arc;
 use std::time::Instant;
 
 use anyhow::{Context, Result};
-use rigview_calib::rig::Rig;
-use rigview_core::exposure::NeighbourGraph;
-use rigview_core::pipeline::{
-    check_view, Notify, PanoramaSettings, Pipeline, PipelineOptions, ProcessingSettings, Processor,
-    View, ViewKind,
-};
+use rigview_core::exposure::{ExposureSetting, NeighbourGraph};
+use rigview_core::pipeline::{Notify, PipelineOptions, ProcessingSettings, Processor};
 use rigview_core::sim::{Pacing, SimConfig, SimRender, SimRig, SimRigOptions};
-use rigview_core::source::{Budget, CameraInfo, FrameSource};
-use rigview_core::surround::CanvasSpec;
+#[cfg(feature = "aravis")]
+use rigview_core::source::Budget;
+use rigview_core::source::FrameSource;
 
+use super::brackets::{self, BracketMode, BracketOptions};
+use super::record::RecordSpec;
+use super::replay::{start_replay, ReplaySpec};
+use super::start::{start_session, Origin, Session};
+use super::view::view_for;
 use crate::live::LiveSpec;
-use crate::recording::{start_session, Origin, RecordSlot, RecordSpec, ReplayControl};
-use rigview_record::Recorder;
 
 /// The simulated rig to run.
 #[derive(Clone, Debug, PartialEq)]
@@ -54,8 +54,8 @@ pub enum SourceSpec {
     /// Live cameras.
     Live(LiveSpec),
     /// A recording replayed.
-    Replay(crate::recording::ReplaySpec),
-    /// A bracket sequence ([`crate::brackets`]).
+    Replay(ReplaySpec),
+    /// A bracket sequence ([`super::brackets`]).
     Brackets(BracketSpec),
 }
 
@@ -67,119 +67,7 @@ pub struct BracketSpec {
     /// Its calibration, if not `dir/rig.yaml`.
     pub rig: Option<std::path::PathBuf>,
     /// How commands are answered: the nearest bracket or an emulated frame.
-    pub mode: crate::brackets::BracketMode,
-}
-
-/// A running session.
-#[derive(Debug)]
-pub struct Session {
-    /// The pipeline.
-    pub pipeline: Pipeline,
-    /// What the source is, in words.
-    pub source_name: String,
-    /// Where the calibration came from, in words.
-    pub calibration: String,
-    /// Whether the cameras have their own auto-exposure.
-    pub camera_auto: bool,
-    /// The recording the pipeline hands its sets to (`--record`, the
-    /// window's Record button).
-    pub record: Arc<RecordSlot>,
-    /// What a recording of this session says about its source.
-    pub record_setup: rigview_record::RecordingSetup,
-    /// The window's hold on a replay (a replay session only).
-    pub replay: Option<ReplayControl>,
-    /// The calibration in use (`None`: none), from which another view is
-    /// built.
-    pub rig: Option<Rig>,
-}
-
-impl Session {
-    /// The cameras' names, in rig order.
-    pub fn camera_names(&self) -> Vec<String> {
-        self.pipeline
-            .cameras()
-            .iter()
-            .map(|c| c.name.clone())
-            .collect()
-    }
-
-    /// The recording in progress.
-    pub fn recorder(&self) -> Option<Arc<Recorder>> {
-        self.record.recorder()
-    }
-
-    /// Starts recording the sets from now on into `spec`'s file; an error
-    /// if a recording is in progress or the file cannot be created.
-    pub fn start_recording(&self, spec: &RecordSpec) -> Result<Arc<Recorder>> {
-        if let Some(r) = self.record.recorder() {
-            anyhow::bail!(
-                "already recording into {}: stop that recording first",
-                r.file().display()
-            );
-        }
-        let recorder = Arc::new(spec.create_for(&self.record_setup)?);
-        self.record.replace(Some(recorder.clone()));
-        Ok(recorder)
-    }
-
-    /// Takes the recording in progress out of the pipeline's way (no set
-    /// is offered to it after this); the caller finishes it.
-    pub fn stop_recording(&self) -> Option<Arc<Recorder>> {
-        self.record.replace(None)
-    }
-}
-
-/// The canvas every session composes on: 10 m × 10 m at 100 px/m.
-pub fn canvas_spec() -> CanvasSpec {
-    CanvasSpec::default()
-}
-
-/// A view built for a session: the view, the neighbour graph and the rig
-/// it was built from.
-pub type BuiltView = (View, NeighbourGraph, Rig);
-
-/// The view `kind` (the panorama as `panorama` says) and neighbour graph
-/// of `rig` for `cameras`.
-pub fn view_of(
-    rig: &Rig,
-    cameras: &[CameraInfo],
-    kind: ViewKind,
-    panorama: &PanoramaSettings,
-) -> Result<(View, NeighbourGraph)> {
-    let view = View::build(
-        kind,
-        rig,
-        &canvas_spec(),
-        panorama,
-        crate::panorama::shared_detector(),
-    )
-    .with_context(|| format!("building the {} view", kind.name()))?;
-    check_view(view.mosaic(), cameras)?;
-    let graph = NeighbourGraph::new(cameras.len(), &rig.neighbours)?;
-    Ok((view, graph))
-}
-
-/// The view `processing` asks for, of `rig` for `cameras`.
-pub fn view_for(
-    rig: &Rig,
-    cameras: &[CameraInfo],
-    processing: &ProcessingSettings,
-) -> Result<(View, NeighbourGraph)> {
-    view_of(rig, cameras, processing.view, &processing.panorama)
-}
-
-/// Loads a calibration file (any supported format) and builds the view
-/// `processing` asks for, for `cameras`; errors name the file.
-pub fn load_calibration(
-    path: &Path,
-    cameras: &[CameraInfo],
-    processing: &ProcessingSettings,
-) -> Result<BuiltView> {
-    let loaded = rigview_calib::formats::load(path, None, None)
-        .with_context(|| format!("cannot load the calibration {}", path.display()))?;
-    let (view, graph) = view_for(&loaded.rig, cameras, processing)
-        .with_context(|| format!("cannot use the calibration {}", path.display()))?;
-    Ok((view, graph, loaded.rig))
+    pub mode: BracketMode,
 }
 
 /// Starts a session.
@@ -204,19 +92,16 @@ pub fn start_recording(
     match spec {
         SourceSpec::Sim(s) => start_sim(s, processing, options, notify, record),
         SourceSpec::Live(live) => start_live(live, processing, options, notify, record),
-        SourceSpec::Replay(r) => {
-            crate::recording::start_replay(r, processing, options, notify, record)
-        }
+        SourceSpec::Replay(r) => start_replay(r, processing, options, notify, record),
         SourceSpec::Brackets(b) => start_brackets(b, processing, options, notify, record),
     }
 }
 
 /// Where a bracket sequence's cameras start: the simulated rig's start.
-pub const BRACKETS_START: rigview_core::exposure::ExposureSetting =
-    rigview_core::exposure::ExposureSetting {
-        shutter_us: 2000.0,
-        gain_db: 0.0,
-    };
+pub const BRACKETS_START: ExposureSetting = ExposureSetting {
+    shutter_us: 2000.0,
+    gain_db: 0.0,
+};
 
 fn start_brackets(
     spec: &BracketSpec,
@@ -225,8 +110,8 @@ fn start_brackets(
     notify: Notify,
     record: Option<&RecordSpec>,
 ) -> Result<Session> {
-    let opening = crate::brackets::BracketOptions::new(BRACKETS_START, spec.mode);
-    let (source, rig) = crate::brackets::open_with_rig(&spec.dir, spec.rig.as_deref(), &opening)?;
+    let opening = BracketOptions::new(BRACKETS_START, spec.mode);
+    let (source, rig) = brackets::open_with_rig(&spec.dir, spec.rig.as_deref(), &opening)?;
     let cameras = source.cameras().to_vec();
     let (view, graph) = view_for(&rig, &cameras, processing)
         .with_context(|| format!("the calibration of the brackets {}", spec.dir.display()))?;
@@ -239,7 +124,7 @@ fn start_brackets(
             cameras.len(),
             spec.mode
         ),
-        calibration: format!("{}", spec.dir.join(crate::brackets::RIG).display()),
+        calibration: format!("{}", spec.dir.join(brackets::RIG).display()),
         rig: Some(&rig),
         time_offset_ns: rigview_record::writer::unix_now_ns(),
     };

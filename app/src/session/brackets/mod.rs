@@ -26,7 +26,14 @@
 //!
 //! Either way the frame's metadata carries the exposure the frame was
 //! made at, so the controller sees what it got.
+//!
+//! The folder's manifest is `manifest.rs`, the emulation's cache
+//! `emulate.rs`, the leave-one-out check (`rigview eval check-emulation`)
+//! `check.rs`, the writer and the export from the simulated rig
+//! `export.rs`, and the capture from cameras (`rigview record --brackets`)
+//! [`capture`].
 
+pub mod capture;
 mod check;
 mod emulate;
 mod export;

@@ -27,7 +27,7 @@ pub struct HeadlessRun {
     /// Write the composed view of every `every`-th set (and of the last).
     pub every: u64,
     /// Record every processed set.
-    pub record: Option<crate::recording::RecordSpec>,
+    pub record: Option<crate::session::RecordSpec>,
 }
 
 fn write_canvas(c: &Canvas, path: &Path) -> Result<()> {
@@ -132,7 +132,7 @@ pub fn run(
     bar.finish_and_clear();
     let recorded = session
         .recorder()
-        .map(|r| crate::recording::describe(r.file(), &r.finish()));
+        .map(|r| crate::session::describe(r.file(), &r.finish()));
     if let Some(o) = &last {
         if o.trigger % every != 0 {
             if let Some(c) = &o.canvas {
@@ -163,7 +163,7 @@ pub fn run(
     // the chosen strategy would have sent.
     let replay = matches!(spec, SourceSpec::Replay(_));
     let height = if replay { 1800 } else { 1500 };
-    crate::plot_png::write_with(&telemetry, &out.join("exposure.png"), 1400, height, replay)?;
+    crate::report::plot::write_with(&telemetry, &out.join("exposure.png"), 1400, height, replay)?;
     let of = if frames == u64::MAX {
         "all".to_owned()
     } else {
@@ -180,7 +180,7 @@ pub fn run(
         report::summary(&status, &telemetry)
     );
     if let Some(o) = &last {
-        for line in crate::panorama::live_lines(telemetry.camera_names(), o) {
+        for line in crate::report::panorama::live_lines(telemetry.camera_names(), o) {
             summary += &format!("\n{line}");
         }
     }

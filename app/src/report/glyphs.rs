@@ -1,4 +1,5 @@
-//! Text in the PNG plots, drawn where its glyphs belong.
+//! Text in the PNG plots: the font every plot is drawn in ([`FONT`],
+//! registered with plotters once), drawn where its glyphs belong.
 //!
 //! plotters' `ab_glyph` backend (0.3) draws each glyph at its advance
 //! position without the glyph's left side bearing, so that every letter
@@ -8,14 +9,33 @@
 //! the same layout (advances and kerning) with each glyph at its bounds.
 //! Text in any other font is drawn by the wrapped backend.
 
+use std::sync::Once;
+
 use ab_glyph::{Font, FontRef, ScaleFont};
+use anyhow::Result;
 use plotters::prelude::*;
 use plotters_backend::{
     text_anchor::{HPos, VPos},
     BackendColor, BackendCoord, BackendStyle, BackendTextStyle, DrawingErrorKind, FontFamily,
 };
 
-use crate::plot_png::FONT;
+/// The font every plot is drawn in.
+pub const FONT: &str = "rigview-sans";
+
+/// Registers [`FONT`] with plotters (once).
+pub fn register_font() -> Result<()> {
+    static ONCE: Once = Once::new();
+    let mut result = Ok(());
+    ONCE.call_once(|| {
+        result = plotters::style::register_font(
+            FONT,
+            FontStyle::Normal,
+            epaint_default_fonts::UBUNTU_LIGHT,
+        )
+        .map_err(|_| anyhow::anyhow!("the plot font cannot be read"));
+    });
+    result
+}
 
 /// A drawing backend whose text in [`FONT`] is drawn glyph by glyph at the
 /// glyphs' bounds (see the module documentation).
@@ -215,7 +235,7 @@ mod tests {
     /// position, which runs the letters of a word together).
     #[test]
     fn a_glyph_is_drawn_at_its_bearing() {
-        crate::plot_png::register_font().unwrap();
+        register_font().unwrap();
         let font = FontRef::try_from_slice(epaint_default_fonts::UBUNTU_LIGHT).unwrap();
         let size = 60.0;
         let scaled = font.as_scaled(size);

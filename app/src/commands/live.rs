@@ -9,7 +9,7 @@ use anyhow::Result;
 use rigview_core::pipeline::{Output, PipelineOptions, PipelineStatus, ProcessingSettings};
 use rigview_core::source::StreamState;
 
-use super::open::LiveSpec;
+use crate::live::LiveSpec;
 use crate::logging::{LogBuffer, StatusLog};
 use crate::session::{self, SourceSpec};
 
@@ -108,7 +108,7 @@ pub fn run(
     limit: Option<Duration>,
     settings: &ProcessingSettings,
     log: &LogBuffer,
-    record: Option<&crate::recording::RecordSpec>,
+    record: Option<&crate::session::RecordSpec>,
     out: &mut dyn Write,
 ) -> Result<()> {
     writeln!(
@@ -166,11 +166,7 @@ pub fn run(
             let block = format_status(t0.elapsed(), &names, &status, last.as_deref());
             write!(out, "{block}")?;
             if let Some(r) = &recorder {
-                writeln!(
-                    out,
-                    "  {}",
-                    crate::recording::describe(r.file(), &r.stats())
-                )?;
+                writeln!(out, "  {}", crate::session::describe(r.file(), &r.stats()))?;
             }
             next_print += Duration::from_secs(1);
         }
@@ -189,7 +185,7 @@ pub fn run(
         status.sets, status.processed, status.incomplete, status.capture_queue.dropped
     )?;
     if let Some(r) = &recorder {
-        writeln!(out, "{}", crate::recording::describe(r.file(), &r.finish()))?;
+        writeln!(out, "{}", crate::session::describe(r.file(), &r.finish()))?;
     }
     Ok(())
 }

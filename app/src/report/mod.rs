@@ -1,4 +1,11 @@
-//! The summary of a run: sets, drops, latency percentiles and CPU use.
+//! What runs report: the summary of a run (sets, drops, latency
+//! percentiles and CPU use) here; the panorama's per-pair lines
+//! ([`panorama`]); the PNG plot of the exposure state ([`plot`]) and the
+//! plots' font and text ([`glyphs`]).
+
+pub mod glyphs;
+pub mod panorama;
+pub mod plot;
 
 use std::time::Instant;
 
@@ -17,14 +24,11 @@ pub fn control(settings: &ProcessingSettings) -> String {
     )
 }
 
-/// The `q`-quantile of `values` (sorted in place); NaN when empty.
+/// The `q`-quantile of `values` by nearest rank
+/// ([`rigview_core::stats::quantile`], reordering them), NaN when empty:
+/// the reports' tables print a missing figure as NaN.
 pub fn quantile(values: &mut [f64], q: f64) -> f64 {
-    if values.is_empty() {
-        return f64::NAN;
-    }
-    values.sort_by(f64::total_cmp);
-    let k = ((values.len() - 1) as f64 * q.clamp(0.0, 1.0)).round() as usize;
-    values[k]
+    rigview_core::stats::quantile(values, q).unwrap_or(f64::NAN)
 }
 
 /// CPU time this process has used (user + system), seconds, from

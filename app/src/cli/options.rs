@@ -1,0 +1,252 @@
+//! The options several commands share: the window's (`--settings`,
+//! `--quit-after`, `--screenshot`), the processing overrides
+//! (`--strategy`, `--law`, `--simulation`, `--meter`, `--probe`,
+//! `--blend`, `--view` and the panorama's), how a recording is written,
+//! and the parsers of values several commands take.
+
+use std::path::PathBuf;
+use std::time::Duration;
+
+use anyhow::{Context, Result};
+use clap::Args;
+use rigview_core::exposure::{LawKind, PixelFormat, ProbeParams, Simulation};
+use rigview_core::pipeline::{MeterRoi, PipelineOptions, ProcessingSettings, Strategy, ViewKind};
+use rigview_core::surround::BlendMode;
+use rigview_record::Compression;
+
+use crate::gui::{self, AppOptions};
+use crate::logging::LogBuffer;
+use crate::session::{RecordSpec, SourceSpec};
+use crate::settings::{Settings, SettingsStore, ViewMode};
+
+/// Options of the window and of `rigview run`.
+#[derive(Clone, Debug, Default, Args)]
+pub struct ViewArgs {
+    /// The settings file [default: ~/.config/rigview/settings.yaml].
+    #[arg(long, value_name = "FILE", global = true)]
+    pub settings: Option<PathBuf>,
+    /// Close the window after this many seconds (for scripted runs).
+    #[arg(long, value_name = "S", global = true)]
+    pub quit_after: Option<f64>,
+    /// Save a screenshot of the window to FILE (PNG) after
+    /// `--screenshot-after` seconds, then close it.
+    #[arg(long, value_name = "FILE", global = true)]
+    pub screenshot: Option<PathBuf>,
+    /// Seconds before the screenshot.
+    #[arg(long, value_name = "S", default_value_t = 8.0, global = true)]
+    pub screenshot_after: f64,
+}
+
+impl ViewArgs {
+    /// The saved settings (`--settings FILE` or the default file), with
+    /// `overrides` applied; a settings file that cannot be read is reported
+    /// on stderr and the defaults are used.
+    pub fn settings(&self, overrides: &ProcessingArgs) -> Settings {
+        let mut store = SettingsStore::new(self.settings.clone());
+        let (mut settings, err) = store.load();
+        if let Some(e) = err {
+            tracing::warn!("{e:#}");
+        }
+        overrides.apply(&mut settings.processing);
+        settings
+    }
+
+    /// `--screenshot` and `--screenshot-after`.
+    pub fn screenshot(&self) -> Result<Option<(PathBuf, Duration)>> {
+        let Some(p) = &self.screenshot else {
+            return Ok(None);
+        };
+        let after = Duration::try_from_secs_f64(self.screenshot_after)
+            .context("--screenshot-after: expected a number of seconds ≥ 0")?;
+        Ok(Some((p.clone(), after)))
+    }
+
+    /// `--quit-after` as a duration.
+    pub fn quit_after(&self) -> Result<Option<Duration>> {
+        self.quit_after
+            .map(Duration::try_from_secs_f64)
+            .transpose()
+            .context("--quit-after: expected a number of seconds ≥ 0")
+    }
+
+    /// The window on `source`, with `overrides` saved into the settings it
+    /// opens with.
+    pub fn window(
+        &self,
+        overrides: &ProcessingArgs,
+        source: SourceSpec,
+        record: Option<RecordSpec>,
+    ) -> Result<()> {
+        let mut store = SettingsStore::new(self.settings.clone());
+        let (mut settings, err) = store.load();
+        if let Some(e) = err {
+            tracing::warn!("{e:#}");
+        } else {
+            overrides.apply(&mut settings.processing);
+            if let Some(v) = overrides.view {
+                settings.window.view = match v {
+                    ViewKind::Surround => ViewMode::Surround,
+                    ViewKind::Panorama => ViewMode::Panorama,
+                };
+            }
+            store.save(&settings)?;
+        }
+        gui::run(AppOptions {
+            source,
+            settings: self.settings.clone(),
+            quit_after: self.quit_after()?,
+            screenshot: self.screenshot()?,
+            pipeline: PipelineOptions::default(),
+            log: LogBuffer::global().clone(),
+            record,
+        })
+    }
+}
+
+/// Options of the control loop, for every command that runs it: they
+/// override the saved settings (`rigview demo`: the built-in defaults).
+#[derive(Clone, Debug, Default, Args)]
+pub struct ControlArgs {
+    /// How exposure is decided.
+    #[arg(long, value_enum)]
+    pub strategy: Option<Strategy>,
+    /// The update law.
+    #[arg(long, value_enum)]
+    pub law: Option<LawKind>,
+    /// The estimator's exposure simulation.
+    #[arg(long, value_enum)]
+    pub simulation: Option<Simulation>,
+    /// Which pixels are metered.
+    #[arg(long, value_enum, value_name = "ROI")]
+    pub meter: Option<MeterRoi>,
+    /// Darker probes of a camera under its own law (`off` for measuring
+    /// the law alone).
+    #[arg(long, value_enum, value_name = "ON|OFF")]
+    pub probe: Option<Switch>,
+}
+
+/// Processing options that override the saved settings, for every command
+/// that runs the processor and composes a view: the control loop's, and
+/// the view's blending.
+#[derive(Clone, Debug, Default, Args)]
+pub struct ProcessingArgs {
+    /// The control loop's options.
+    #[command(flatten)]
+    pub control: ControlArgs,
+    /// How the overlaps of the view are blended (overrides the saved
+    /// choice).
+    #[arg(long, value_enum)]
+    pub blend: Option<BlendMode>,
+    /// The view composed (and what is metered, and where the overlap
+    /// ratios come from): the bird's-eye surround view, or the
+    /// cylindrical panorama with ratios from matched features.
+    #[arg(long, value_enum)]
+    pub view: Option<ViewKind>,
+    /// The panorama's radius, metres: what stands this far from the rig's
+    /// centre lines up across the seams; nearer things show parallax.
+    #[arg(long, value_name = "M")]
+    pub radius_m: Option<f64>,
+    /// Match the panorama's features on every N-th set (in the background).
+    #[arg(long, value_name = "N")]
+    pub match_every: Option<u64>,
+    /// Refine the panorama's rotations in the background every N sets (0:
+    /// never).
+    #[arg(long, value_name = "N")]
+    pub refine_every: Option<u64>,
+}
+
+/// A setting switched on or off on the command line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Switch {
+    /// On.
+    On,
+    /// Off.
+    Off,
+}
+
+impl ControlArgs {
+    /// Applies the options given to `p`.
+    pub fn apply(&self, p: &mut ProcessingSettings) {
+        if let Some(s) = self.strategy {
+            p.strategy = s;
+        }
+        if let Some(l) = self.law {
+            p.controller.law.kind = l;
+        }
+        if let Some(s) = self.simulation {
+            p.controller.estimator.simulation = s;
+        }
+        if let Some(m) = self.meter {
+            p.roi = m;
+        }
+        match self.probe {
+            Some(Switch::Off) => p.controller.probe = None,
+            Some(Switch::On) => {
+                p.controller.probe.get_or_insert_with(ProbeParams::default);
+            }
+            None => {}
+        }
+    }
+}
+
+impl ProcessingArgs {
+    /// Applies the options given to `p`.
+    pub fn apply(&self, p: &mut ProcessingSettings) {
+        self.control.apply(p);
+        if let Some(b) = self.blend {
+            p.blend = b;
+        }
+        if let Some(v) = self.view {
+            p.view = v;
+        }
+        if let Some(r) = self.radius_m {
+            p.panorama.radius_m = r;
+        }
+        if let Some(n) = self.match_every {
+            p.panorama.match_every = n;
+        }
+        if let Some(n) = self.refine_every {
+            p.panorama.refine_every = n;
+        }
+    }
+}
+
+/// A number of seconds ≥ 0 given as `--what`.
+pub(crate) fn seconds(what: &str, s: f64) -> Result<Duration> {
+    Duration::try_from_secs_f64(s)
+        .with_context(|| format!("--{what} {s}: expected a number of seconds ≥ 0"))
+}
+
+/// How a recording is written.
+#[derive(Clone, Debug, Default, Args)]
+pub struct RecordingArgs {
+    /// Chunk compression of the recording (none by default: rig frames
+    /// shrink by a sixth at most).
+    #[arg(long, value_name = "none|lz4|zstd", default_value = "none")]
+    pub compression: Compression,
+    /// Free space to leave on the recording's disk, GiB.
+    #[arg(long, value_name = "GIB", default_value_t = 2.0)]
+    pub reserve_gib: f64,
+}
+
+impl RecordingArgs {
+    /// The recording into `file`.
+    pub fn spec(&self, file: PathBuf) -> RecordSpec {
+        RecordSpec {
+            file,
+            compression: self.compression,
+            reserve_bytes: (self.reserve_gib.max(0.0) * f64::from(1u32 << 30)) as u64,
+        }
+    }
+}
+
+/// A pixel format by its GenICam name (any case), for `--pixel-format`.
+pub fn parse_pixel_format(s: &str) -> std::result::Result<PixelFormat, String> {
+    PixelFormat::ALL
+        .into_iter()
+        .find(|f| f.genicam_name().eq_ignore_ascii_case(s))
+        .ok_or_else(|| {
+            let names: Vec<_> = PixelFormat::ALL.iter().map(|f| f.genicam_name()).collect();
+            format!("unknown pixel format \"{s}\" (known: {})", names.join(", "))
+        })
+}

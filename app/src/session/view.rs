@@ -1,0 +1,78 @@
+//! The view a session composes and meters: the surround view or the
+//! panorama of a calibration, checked against the source's cameras, with
+//! the rig's neighbour graph; and the Harris corners (OpenCV) the live
+//! panorama's matching is given.
+
+use std::path::Path;
+
+use anyhow::{Context, Result};
+use rigview_calib::rig::Rig;
+use rigview_calib::tools::corners::{harris_corners, HarrisParams};
+use rigview_core::exposure::NeighbourGraph;
+use rigview_core::pipeline::{check_view, PanoramaSettings, ProcessingSettings, View, ViewKind};
+use rigview_core::source::CameraInfo;
+use rigview_core::surround::CanvasSpec;
+
+/// The canvas every session composes on: 10 m × 10 m at 100 px/m.
+pub fn canvas_spec() -> CanvasSpec {
+    CanvasSpec::default()
+}
+
+/// A view built for a session: the view, the neighbour graph and the rig
+/// it was built from.
+pub type BuiltView = (View, NeighbourGraph, Rig);
+
+/// The view `kind` (the panorama as `panorama` says) and neighbour graph
+/// of `rig` for `cameras`.
+pub fn view_of(
+    rig: &Rig,
+    cameras: &[CameraInfo],
+    kind: ViewKind,
+    panorama: &PanoramaSettings,
+) -> Result<(View, NeighbourGraph)> {
+    let view = View::build(kind, rig, &canvas_spec(), panorama, shared_detector())
+        .with_context(|| format!("building the {} view", kind.name()))?;
+    check_view(view.mosaic(), cameras)?;
+    let graph = NeighbourGraph::new(cameras.len(), &rig.neighbours)?;
+    Ok((view, graph))
+}
+
+/// The view `processing` asks for, of `rig` for `cameras`.
+pub fn view_for(
+    rig: &Rig,
+    cameras: &[CameraInfo],
+    processing: &ProcessingSettings,
+) -> Result<(View, NeighbourGraph)> {
+    view_of(rig, cameras, processing.view, &processing.panorama)
+}
+
+/// Loads a calibration file (any supported format) and builds the view
+/// `processing` asks for, for `cameras`; errors name the file.
+pub fn load_calibration(
+    path: &Path,
+    cameras: &[CameraInfo],
+    processing: &ProcessingSettings,
+) -> Result<BuiltView> {
+    let loaded = rigview_calib::formats::load(path, None, None)
+        .with_context(|| format!("cannot load the calibration {}", path.display()))?;
+    let (view, graph) = view_for(&loaded.rig, cameras, processing)
+        .with_context(|| format!("cannot use the calibration {}", path.display()))?;
+    Ok((view, graph, loaded.rig))
+}
+
+/// Harris corners through OpenCV with the default spread, as the
+/// panorama's matching asks for them, at positions refined to a fraction
+/// of a pixel (the refinement of the rotations needs them).
+pub fn detect(gray: &[u8], w: usize, h: usize, mask: &[u8]) -> rigview_core::Result<Vec<[f32; 2]>> {
+    let params = HarrisParams {
+        subpixel: true,
+        ..HarrisParams::default()
+    };
+    harris_corners(gray, w, h, Some(mask), &params)
+        .map_err(|e| rigview_core::Error::InvalidConfig(format!("Harris corners: {e}")))
+}
+
+/// [`detect`] as the live panorama's detector.
+pub fn shared_detector() -> rigview_core::pipeline::SharedDetector {
+    std::sync::Arc::new(detect)
+}
