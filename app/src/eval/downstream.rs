@@ -94,7 +94,11 @@ impl FeatureMeter {
         }
         let (pairs, _) = self
             .panorama
-            .match_pairs(frames, &crate::session::view::detect, &MatchOptions::default())
+            .match_pairs(
+                frames,
+                &crate::session::view::detect,
+                &MatchOptions::default(),
+            )
             .context("matching the overlaps")?;
         Ok(SetFeatures {
             tracked,
