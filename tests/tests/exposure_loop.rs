@@ -150,7 +150,12 @@ fn two_illumination_levels_have_two_fixed_points() {
     )
     .unwrap();
     let cam = LinearCamera::default();
-    let mut est = rigview_core::exposure::Estimator::new(EstimatorConfig::default()).unwrap();
+    // The γ-mapping's fixed points, as the loop below runs it.
+    let mut est = rigview_core::exposure::Estimator::new(EstimatorConfig {
+        simulation: Simulation::Gamma,
+        ..EstimatorConfig::default()
+    })
+    .unwrap();
     let grid: Vec<f64> = (0..=130).map(|k| 4.0 + 0.1 * f64::from(k)).collect();
     let g: Vec<f64> = grid
         .iter()
