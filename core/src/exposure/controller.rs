@@ -287,13 +287,6 @@ pub struct CameraController {
     passed: Option<ProbeFrame>,
     /// The bracket of the best exposure under the camera's own law.
     bracket: Bracket,
-    /// The bracket of the balanced fixed point (Eq. 5's): where the
-    /// camera's own estimate jumps (a surface saturating), the balanced
-    /// target climbs below the jump and falls above it, and the balanced
-    /// fixed point is the jump itself. Bisecting it there, as the own
-    /// law's bracket does, stops the saw-tooth that damping alone only
-    /// slows.
-    balanced: Bracket,
     /// The fast law's choice between frames that point apart.
     repeller: Repeller,
     /// The reference frame a change of light is measured against.
@@ -372,7 +365,6 @@ impl CameraController {
             darker: None,
             passed: None,
             bracket: Bracket::default(),
-            balanced: Bracket::default(),
             repeller: Repeller::default(),
             light: LightTracker::default(),
             kept_light_ev: 0.0,
@@ -908,12 +900,6 @@ pub struct PairRatio {
     pub r_ij: Option<f64>,
 }
 
-/// How many times longer a run of frames asking one way must be before
-/// the balanced bracket opens than the camera's own: the balanced target
-/// carries the noise of every neighbour's overlap, and at a jump of the
-/// camera's own estimate the frames ask either way by chance.
-const BALANCED_RUN: u32 = 5;
-
 /// One camera's outcome of a rig step (also its telemetry).
 #[derive(Clone, Debug, PartialEq)]
 pub struct CameraStep {
@@ -1162,55 +1148,39 @@ impl RigController {
             };
             // A camera following a change of light goes where its
             // balanced command would have gone in the reference's light.
-            let (target, alpha, damping) = match balancing
-                .filter(|_| !neighbour.is_empty() && u.light.is_none())
-            {
-                Some(params) => {
-                    // Under the fast law a change of light is measured
-                    // (the camera follows it, and the damping starts
-                    // again); the frames' means guess at it otherwise,
-                    // and frames that commands in flight leave at
-                    // several exposures would read as changes.
-                    if config.law.kind != LawKind::Fast {
-                        cam.damping.observe(
-                            input.info.taken.exposure().log2(),
-                            f64::from(input.metered.stats().mean),
-                            config.bracket.light_tolerance,
-                        );
+            let (target, alpha, damping) =
+                match balancing.filter(|_| !neighbour.is_empty() && u.light.is_none()) {
+                    Some(params) => {
+                        // Under the fast law a change of light is measured
+                        // (the camera follows it, and the damping starts
+                        // again); the frames' means guess at it otherwise,
+                        // and frames that commands in flight leave at
+                        // several exposures would read as changes.
+                        if config.law.kind != LawKind::Fast {
+                            cam.damping.observe(
+                                input.info.taken.exposure().log2(),
+                                f64::from(input.metered.stats().mean),
+                                config.bracket.light_tolerance,
+                            );
+                        }
+                        let b = balance::balance(u.desired, bases[i], &neighbour);
+                        // On fixed levels the walker keeps a camera from
+                        // circling, and a damped step would only add up
+                        // more slowly.
+                        let (e, kappa) = if cam.has_levels() {
+                            (b.exposure, 1.0)
+                        } else if u.hold.is_some() {
+                            (b.exposure, cam.damping.kappa())
+                        } else {
+                            cam.damping.apply(bases[i], b.exposure, &params.damping)
+                        };
+                        (e, Some(b.alpha), Some(kappa))
                     }
-                    let b = balance::balance(u.desired, bases[i], &neighbour);
-                    // On fixed levels the walker keeps a camera from
-                    // circling, and a damped step would only add up
-                    // more slowly.
-                    let (e, kappa) = if cam.has_levels() {
-                        (b.exposure, 1.0)
-                    } else if u.hold.is_some() {
-                        (b.exposure, cam.damping.kappa())
-                    } else {
-                        let taken = input.info.taken.exposure();
-                        cam.balanced.observe(
-                            &BracketParams {
-                                narrow_frames: config
-                                    .bracket
-                                    .narrow_frames
-                                    .saturating_mul(BALANCED_RUN),
-                                ..config.bracket
-                            },
-                            taken.log2(),
-                            f64::from(input.metered.stats().mean),
-                            (b.exposure / taken).log2(),
-                        );
-                        let (e, kappa) = cam.damping.apply(bases[i], b.exposure, &params.damping);
-                        (cam.balanced.clamp(e.log2()).exp2(), kappa)
-                    };
-                    (e, Some(b.alpha), Some(kappa))
-                }
-                None => {
-                    cam.damping.reset();
-                    cam.balanced.reset();
-                    (u.desired, None, None)
-                }
-            };
+                    None => {
+                        cam.damping.reset();
+                        (u.desired, None, None)
+                    }
+                };
             let (command, clamped, hold) = if u.hold.is_some() {
                 (None, None, u.hold)
             } else {
