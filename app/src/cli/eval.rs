@@ -20,7 +20,7 @@ pub struct EvalArgs {
     /// Something else than the evaluation.
     #[command(subcommand)]
     pub command: Option<EvalCommand>,
-    /// How much to measure: `quick` (reduced, about half a minute) or
+    /// How much to measure: `quick` (reduced, about a minute and a half) or
     /// `full`.
     #[arg(long, value_enum, default_value_t = Preset::Full)]
     pub preset: Preset,
