@@ -25,7 +25,6 @@ use rigview::eval::closed_loop;
 use rigview::eval::downstream::{Downstream, FeatureMeter};
 use rigview::eval::strategy::EvalStrategy;
 use rigview_core::pipeline::MeterRoi;
-use rigview_core::pipeline::PanoramaSettings;
 use rigview_core::sim::config::LAWN_START_US;
 use rigview_core::sim::truth::{self, Sweep, SweepOptions};
 use rigview_core::sim::{SimConfig, SimRender};
@@ -98,31 +97,20 @@ fn measure(preset: &str) -> Measured {
     let render = render(preset);
     let roi = roi(preset);
     let sweeps = sweeps(&render, roi);
-    let panorama = PanoramaSettings {
-        width: 2048,
-        height: 270,
-        ..PanoramaSettings::default()
-    };
-    let mut meter = FeatureMeter::new(render.rig(), &panorama).unwrap();
+    let mut meter = FeatureMeter::new(render.rig(), (2048, 270)).unwrap();
     let mut features = Vec::new();
     let fractions = STRATEGIES
         .iter()
         .map(|&s| {
             let mut settings = s.settings();
             settings.roi = roi;
-            meter.reset();
             let mut measured = Vec::new();
             let trace = closed_loop::run_observed(
                 closed_loop::sim_source(&render, FRAMES).unwrap(),
                 render.rig(),
                 settings,
                 Default::default(),
-                &mut |set, frames| {
-                    if set + TAIL >= FRAMES {
-                        measured.push(meter.observe(frames)?);
-                    }
-                    Ok(())
-                },
+                &mut meter.from_set(FRAMES - TAIL, &mut measured),
                 &mut || {},
             )
             .unwrap();

@@ -25,6 +25,7 @@ use rigview_core::panorama::{MatchOptions, Panorama, PanoramaOptions};
 use rigview_core::pipeline::PanoramaSettings;
 
 use super::strategy::EvalStrategy;
+use crate::report::mean;
 
 /// How far (pixels) a corner may move between two frames of the standing
 /// rig and still count as tracked: noise moves a Harris maximum by a pixel
@@ -62,8 +63,14 @@ pub struct FeatureMeter {
 
 impl FeatureMeter {
     /// A meter of the cameras of `rig` (poses in the vehicle frame), whose
-    /// overlaps are matched on the panorama `settings` describe.
-    pub fn new(rig: &Rig, settings: &PanoramaSettings) -> Result<Self> {
+    /// overlaps are matched on a panorama of `canvas` (width, height)
+    /// pixels, the rest of its settings rigview's defaults.
+    pub fn new(rig: &Rig, canvas: (usize, usize)) -> Result<Self> {
+        let settings = PanoramaSettings {
+            width: canvas.0,
+            height: canvas.1,
+            ..PanoramaSettings::default()
+        };
         let panorama = Panorama::build(rig, &settings.spec(), &PanoramaOptions::default())
             .context("building the panorama whose overlaps are matched")?;
         Ok(Self {
@@ -76,6 +83,23 @@ impl FeatureMeter {
     /// Forgets the previous frames (a new run).
     pub fn reset(&mut self) {
         self.previous.clear();
+    }
+
+    /// An observer for [`super::closed_loop::run_observed`] that measures
+    /// every set from index `from` on into `out` (after a
+    /// [`Self::reset`]).
+    pub fn from_set<'a>(
+        &'a mut self,
+        from: usize,
+        out: &'a mut Vec<SetFeatures>,
+    ) -> impl FnMut(usize, &[FrameView<'_>]) -> Result<()> + 'a {
+        self.reset();
+        move |set, frames| {
+            if set >= from {
+                out.push(self.observe(frames)?);
+            }
+            Ok(())
+        }
     }
 
     /// Measures one complete set (one frame per camera, rig order).
@@ -207,15 +231,6 @@ impl<'a> Downstream<'a> {
                 }
             })
             .collect()
-    }
-}
-
-/// The mean of `v` (NaN when empty).
-pub fn mean(v: &[f64]) -> f64 {
-    if v.is_empty() {
-        f64::NAN
-    } else {
-        v.iter().sum::<f64>() / v.len() as f64
     }
 }
 

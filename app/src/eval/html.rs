@@ -165,7 +165,7 @@ fn start_headline(r: &Results) -> String {
             swatch(s),
             num(settle, 0),
             num(max(|x| x.overshoot_ev), 2),
-            num(super::downstream::mean(&flicker), 3),
+            num(crate::report::mean(&flicker), 3),
             num(max(|x| x.flicker_max_ev), 3)
         );
     }

@@ -25,7 +25,6 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 use rigview_core::exposure::{Estimator, EstimatorConfig, ExposureSetting, Meter};
-use rigview_core::pipeline::PanoramaSettings;
 use rigview_core::sim::truth::Sweep;
 
 use super::closed_loop::{self, LoopOptions};
@@ -155,15 +154,9 @@ pub fn run(plan: &Plan, dir: &Path, mode: BracketMode, out: &Path) -> Result<Res
     let mut start = Vec::new();
     let mut overlaps = Vec::new();
     let mut runs = Vec::new();
-    let panorama = PanoramaSettings {
-        width: plan.sweep.canvas.0,
-        height: plan.sweep.canvas.1,
-        ..PanoramaSettings::default()
-    };
-    let mut meter = FeatureMeter::new(&rig, &panorama)?;
+    let mut meter = FeatureMeter::new(&rig, plan.sweep.canvas)?;
     for strategy in STRATEGIES {
         let (source, _) = brackets::open_with_rig(dir, None, &options)?;
-        meter.reset();
         let from = moments.saturating_sub(plan.seams.tail + 1);
         let mut measured = Vec::new();
         let trace = closed_loop::run_observed(
@@ -171,12 +164,7 @@ pub fn run(plan: &Plan, dir: &Path, mode: BracketMode, out: &Path) -> Result<Res
             &rig,
             strategy.settings(),
             LoopOptions { view: true },
-            &mut |set, frames| {
-                if set >= from {
-                    measured.push(meter.observe(frames)?);
-                }
-                Ok(())
-            },
+            &mut meter.from_set(from, &mut measured),
             &mut || bar.inc(1),
         )?;
         let downstream = Downstream::of(&measured);

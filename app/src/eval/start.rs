@@ -94,7 +94,7 @@ impl StartRow {
                     end_log2_e: e[e.len() - 1],
                     settle_frames: settled,
                     overshoot_ev: response.map_or(f64::NAN, |r| r.overshoot_ev),
-                    flicker_mean_ev: super::downstream::mean(&steps),
+                    flicker_mean_ev: crate::report::mean(&steps),
                     flicker_max_ev: steps.iter().copied().fold(0.0, f64::max),
                 }
             })

@@ -8,13 +8,14 @@
 use std::sync::Arc;
 
 use anyhow::{Context, Result};
-use rigview_core::pipeline::{MeterRoi, PanoramaSettings};
+use rigview_core::pipeline::MeterRoi;
 use rigview_core::sim::truth::{self, Sweep, SweepOptions};
 use rigview_core::sim::{SimConfig, SimRender};
 
 use super::closed_loop;
-use super::downstream::{mean, Downstream, FeatureMeter, OverlapFeatures};
+use super::downstream::{Downstream, FeatureMeter, OverlapFeatures};
 use super::strategy::EvalStrategy;
+use crate::report::mean;
 
 /// What experiment 3 measures.
 #[derive(Clone, Debug, PartialEq)]
@@ -143,19 +144,13 @@ pub fn run(
                 sweep,
             });
         }
-        let panorama = PanoramaSettings {
-            width: plan.canvas.0,
-            height: plan.canvas.1,
-            ..PanoramaSettings::default()
-        };
-        let mut meter = FeatureMeter::new(render.rig(), &panorama)?;
+        let mut meter = FeatureMeter::new(render.rig(), plan.canvas)?;
         let names: Vec<String> = render.cameras().iter().map(|c| c.name.clone()).collect();
         for strategy in EvalStrategy::SETTLED {
             let mut settings = strategy.settings();
             if whole {
                 settings.roi = MeterRoi::Full;
             }
-            meter.reset();
             // The tail, and the set before it (the first tracked from).
             let from = plan.frames.saturating_sub(plan.tail + 1);
             let mut measured = Vec::new();
@@ -164,12 +159,7 @@ pub fn run(
                 render.rig(),
                 settings,
                 Default::default(),
-                &mut |set, frames| {
-                    if set >= from {
-                        measured.push(meter.observe(frames)?);
-                    }
-                    Ok(())
-                },
+                &mut meter.from_set(from, &mut measured),
                 &mut || tick(1),
             )
             .with_context(|| format!("the closed loop on {preset} under {}", strategy.key()))?;

@@ -31,6 +31,15 @@ pub fn quantile(values: &mut [f64], q: f64) -> f64 {
     rigview_core::stats::quantile(values, q).unwrap_or(f64::NAN)
 }
 
+/// The mean of `values`, NaN when empty (as [`quantile`]).
+pub fn mean(values: &[f64]) -> f64 {
+    if values.is_empty() {
+        f64::NAN
+    } else {
+        values.iter().sum::<f64>() / values.len() as f64
+    }
+}
+
 /// CPU time this process has used (user + system), seconds, from
 /// `/proc/self/stat` (Linux; `None` elsewhere).
 pub fn cpu_seconds() -> Option<f64> {
