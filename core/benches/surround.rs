@@ -883,7 +883,7 @@ fn panorama(c: &mut Criterion) {
             ..HarrisParams::default()
         };
         harris_corners(gray, w, h, Some(mask), &params)
-            .map_err(|e| rigview_core::Error::InvalidConfig(e.to_string()))
+            .map_err(|e| rigview_core::Error::calibration("Harris corners", e))
     };
     let options = MatchOptions::default();
     let refine_options = RefineOptions::default();

@@ -4,7 +4,7 @@
 ///
 /// Each variant names the offending input and what was expected, so that an
 /// application can show it to the user as it is.
-#[derive(Debug, thiserror::Error, Clone, PartialEq)]
+#[derive(Debug, thiserror::Error)]
 pub enum Error {
     /// An image has no pixels.
     #[error("{what}: the image is empty ({width}×{height})")]
@@ -52,9 +52,57 @@ pub enum Error {
         /// What was expected, in words.
         expected: &'static str,
     },
-    /// A configuration is inconsistent as a whole.
-    #[error("{0}")]
-    InvalidConfig(String),
+    /// A value of a configuration or of an input is not what it must be.
+    #[error("{what}: {field}: expected {expected}, found {found}")]
+    Invalid {
+        /// What holds the value: the configuration, view or step.
+        what: String,
+        /// The value's name (a field, a size, a count).
+        field: String,
+        /// What a valid value looks like.
+        expected: String,
+        /// What was found instead.
+        found: String,
+    },
+    /// Something about one camera of a view is wrong.
+    #[error("{view}: camera {camera} (\"{name}\"): {source}")]
+    Camera {
+        /// The view (surround view, panorama).
+        view: &'static str,
+        /// The camera's index in the rig.
+        camera: usize,
+        /// Its name.
+        name: String,
+        /// What is wrong.
+        #[source]
+        source: Box<Error>,
+    },
+    /// A rig, pose or lens could not be made or read.
+    #[error("{what}: {source}")]
+    Calibration {
+        /// What was being made or read.
+        what: String,
+        /// What the calibration library said.
+        #[source]
+        source: Box<rigview_calib::CalibError>,
+    },
+    /// A description could not be written as YAML.
+    #[error("{what}: {source}")]
+    Yaml {
+        /// What was being written.
+        what: String,
+        /// What the YAML writer said.
+        #[source]
+        source: serde_norway::Error,
+    },
+    /// A numerical solution has none, or left its bounds.
+    #[error("{what}: {reason}")]
+    Solver {
+        /// What was being solved.
+        what: &'static str,
+        /// Why there is no solution.
+        reason: String,
+    },
     /// A camera index is not part of the rig.
     #[error("camera index {index} is out of range: the rig has {count} cameras")]
     CameraIndex {
@@ -96,17 +144,43 @@ pub enum Error {
         cameras: usize,
     },
     /// One of the pipeline's threads could not be started.
-    #[error("cannot start the pipeline's {thread} thread: {reason}")]
+    #[error("cannot start the pipeline's {thread} thread: {source}")]
     ThreadStart {
         /// Which thread.
         thread: &'static str,
         /// What the system said.
-        reason: String,
+        #[source]
+        source: std::io::Error,
     },
     /// The pipeline's processing thread has stopped and takes no more
     /// changes.
     #[error("the pipeline's processing thread has stopped")]
     PipelineStopped,
+}
+
+impl Error {
+    /// An [`Error::Invalid`].
+    pub fn invalid(
+        what: impl Into<String>,
+        field: impl Into<String>,
+        expected: impl Into<String>,
+        found: impl std::fmt::Display,
+    ) -> Self {
+        Self::Invalid {
+            what: what.into(),
+            field: field.into(),
+            expected: expected.into(),
+            found: found.to_string(),
+        }
+    }
+
+    /// An [`Error::Calibration`].
+    pub fn calibration(what: impl Into<String>, source: rigview_calib::CalibError) -> Self {
+        Self::Calibration {
+            what: what.into(),
+            source: Box::new(source),
+        }
+    }
 }
 
 /// `Result` with [`Error`].

@@ -6,13 +6,15 @@
 
 use std::sync::Arc;
 
+pub mod strip;
+
 use rigview_core::exposure::{
     ControllerConfig, Estimator, EstimatorConfig, ExposureRange, ExposureSetting, FrameInfo,
     FrameView, Meter, Metered, MeteringConfig, NeighbourGraph, PixelFormat, RigController,
 };
 use rigview_core::pipeline::{LockStep, ProcessingSettings, Processor};
-use rigview_core::sim::{SimRender, SimRig, SimRigOptions};
-use rigview_core::source::SourceError;
+use rigview_core::sim::{Actuation, SimRender, SimRig, SimRigOptions};
+use rigview_core::source::{ExposureCommand, SourceError};
 use rigview_core::surround::SurroundView;
 use rigview_core::synth::{HdrScene, LinearCamera};
 use rigview_core::Result;
@@ -122,12 +124,10 @@ pub fn run_single(
         shutter_us: start_log2.exp2(),
         gain_db: 0.0,
     };
-    let mut queue: Vec<(usize, ExposureSetting)> = Vec::new();
+    let mut actuation = Actuation::new(latency as u64);
     let mut out = Vec::with_capacity(frames);
     for f in 0..frames {
-        if let Some(pos) = queue.iter().position(|(at, _)| *at <= f) {
-            current = queue.remove(pos).1;
-        }
+        actuation.apply_due(f as u64, std::slice::from_mut(&mut current));
         let metered = meter_at(scene, camera, current.exposure())?;
         out.push(current.exposure().log2());
         let step = rig.step(
@@ -140,8 +140,8 @@ pub fn run_single(
             }],
             &[],
         )?;
-        if let Some(cmd) = step.cameras[0].command {
-            queue.push((f + 1 + latency, cmd));
+        if let Some(setting) = step.cameras[0].command {
+            actuation.send(f as u64 + 1, ExposureCommand { camera: 0, setting });
         }
     }
     Ok(out)
@@ -152,7 +152,7 @@ pub fn run_single(
 pub fn harris(gray: &[u8], w: usize, h: usize, mask: &[u8]) -> Result<Vec<[f32; 2]>> {
     use rigview_calib::tools::corners::{harris_corners, HarrisParams};
     harris_corners(gray, w, h, Some(mask), &HarrisParams::default())
-        .map_err(|e| rigview_core::Error::InvalidConfig(e.to_string()))
+        .map_err(|e| rigview_core::Error::calibration("Harris corners", e))
 }
 
 /// [`harris`] with positions refined to a fraction of a pixel (the Harris
@@ -164,5 +164,5 @@ pub fn harris_subpixel(gray: &[u8], w: usize, h: usize, mask: &[u8]) -> Result<V
         ..HarrisParams::default()
     };
     harris_corners(gray, w, h, Some(mask), &params)
-        .map_err(|e| rigview_core::Error::InvalidConfig(e.to_string()))
+        .map_err(|e| rigview_core::Error::calibration("Harris corners", e))
 }

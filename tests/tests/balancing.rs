@@ -8,7 +8,8 @@ use rigview_core::exposure::{
     ControllerConfig, ExposureRange, ExposureSetting, MeteringConfig, NeighbourGraph,
     RigController, RigStep,
 };
-use rigview_core::synth::{LinearCamera, StripHarness, StripRig};
+use rigview_core::synth::{LinearCamera, StripRig};
+use rigview_tests::strip::StripHarness;
 
 fn median_log_ratio(step: &RigStep) -> f64 {
     let mut v: Vec<f64> = step

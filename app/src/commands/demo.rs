@@ -14,7 +14,8 @@ use anyhow::{Context, Result};
 use rigview_core::exposure::NeighbourGraph;
 use rigview_core::pipeline::{LockStep, MeterRoi, ProcessingSettings, Processor};
 use rigview_core::sim::{truth, Pacing, SimConfig, SimRender, SimRig, SimRigOptions};
-use rigview_core::surround::{CanvasSpec, SurroundOptions, SurroundView};
+
+use crate::session::view::{build_view, canvas_spec, ViewSpec};
 
 /// A demo run.
 #[derive(Clone, Debug)]
@@ -41,12 +42,8 @@ pub fn run(demo: &Demo, settings: &ProcessingSettings, out: &mut dyn Write) -> R
     let traced = started.elapsed().as_secs_f64();
     let cams = render.cameras();
     let n = cams.len();
-    let view = SurroundView::build(
-        render.rig(),
-        &CanvasSpec::default(),
-        &SurroundOptions::default(),
-    )
-    .context("building the surround view of the simulated rig")?;
+    let view = build_view(render.rig(), &ViewSpec::surround(canvas_spec()))
+        .context("building the surround view of the simulated rig")?;
     let dr = truth::dynamic_range(&render, 0.0)?;
     let frames = demo
         .frames
@@ -65,7 +62,7 @@ pub fn run(demo: &Demo, settings: &ProcessingSettings, out: &mut dyn Write) -> R
             ..Default::default()
         },
     )?;
-    let mut processor = Processor::new(cams.to_vec(), Some(view.into()), graph, settings.clone())?;
+    let mut processor = Processor::new(cams.to_vec(), Some(view), graph, settings.clone())?;
     processor.set_compose(false);
     let mut lp = LockStep::new(source, processor)?;
 

@@ -12,7 +12,9 @@ use rigview_core::exposure::NeighbourGraph;
 use rigview_core::pipeline::{LockStep, ProcessingSettings, Processor};
 use rigview_core::sim::{SimRender, SimRig, SimRigOptions};
 use rigview_core::source::{FrameSet, FrameSource};
-use rigview_core::surround::{Canvas, CanvasSpec, SeamBands, SurroundOptions, SurroundView};
+use rigview_core::surround::{Canvas, CanvasSpec, SeamBands, SurroundView};
+
+use crate::session::view::{build_view, ViewSpec};
 
 /// The surround view the evaluation meters and measures: the rig's ground
 /// at 25 px/m.
@@ -20,17 +22,20 @@ pub fn eval_view(render: &SimRender) -> Result<SurroundView> {
     rig_view(render.rig()).context("building the surround view of the simulated rig")
 }
 
-/// [`eval_view`] of any rig calibrated in the vehicle frame.
-pub fn rig_view(rig: &Rig) -> Result<SurroundView> {
-    let spec = CanvasSpec {
+/// The view the evaluation's processor composes: the surround view on
+/// [`eval_view`]'s canvas.
+fn eval_spec() -> ViewSpec {
+    ViewSpec::surround(CanvasSpec {
         px_per_m: 25.0,
         ..Default::default()
-    };
-    Ok(SurroundView::build(
-        rig,
-        &spec,
-        &SurroundOptions::default(),
-    )?)
+    })
+}
+
+/// [`eval_view`] of any rig calibrated in the vehicle frame.
+pub fn rig_view(rig: &Rig) -> Result<SurroundView> {
+    build_view(rig, &eval_spec())?
+        .into_surround()
+        .context("the evaluation's view is the surround view")
 }
 
 /// How far (canvas pixels) from a seam its step is measured.
@@ -155,7 +160,8 @@ pub fn run_observed<S: FrameSource>(
     let cameras = source.cameras().to_vec();
     let n = cameras.len();
     let graph = NeighbourGraph::new(n, &rig.neighbours)?;
-    let mut processor = Processor::new(cameras, Some(rig_view(rig)?.into()), graph, settings)?;
+    let view = build_view(rig, &eval_spec())?;
+    let mut processor = Processor::new(cameras, Some(view), graph, settings)?;
     processor.set_compose(options.view);
     let seams = match (options.view, processor.view()) {
         (true, Some(v)) => Some(SeamBands::new(v, SEAM_BAND_PX)),

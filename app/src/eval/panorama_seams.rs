@@ -39,13 +39,14 @@ use rigview_core::exposure::balance::{clipped, pair_ratio};
 use rigview_core::exposure::{BalanceParams, NeighbourGraph};
 use rigview_core::panorama::MatchOptions;
 use rigview_core::pipeline::{
-    LivePanorama, LockStep, PanoramaSettings, Processor, SharedDetector, View, ViewKind,
+    LockStep, PanoramaSettings, Processor, SharedDetector, View, ViewKind,
 };
 use rigview_core::sim::{SimConfig, SimRender};
 
 use super::closed_loop;
 use super::seams::{frames_of, histogram, mean_sd_abs};
 use super::strategy::EvalStrategy;
+use crate::session::view::{build_view, ViewSpec};
 
 /// What experiment 5 measures.
 #[derive(Clone, Debug, PartialEq)]
@@ -226,9 +227,15 @@ fn run_loop(
     let cameras = render.cameras().to_vec();
     let rig = render.rig().clone();
     let graph = NeighbourGraph::new(cameras.len(), &rig.neighbours)?;
-    let live = LivePanorama::new(rig, &settings.panorama, detector.clone())
-        .context("building the panorama of the simulated rig")?;
-    let mut processor = Processor::new(cameras, Some(View::from(live)), graph, settings)?;
+    let view = build_view(
+        &rig,
+        &ViewSpec {
+            detector: detector.clone(),
+            ..ViewSpec::session(ViewKind::Panorama, &settings.panorama)
+        },
+    )
+    .context("building the panorama of the simulated rig")?;
+    let mut processor = Processor::new(cameras, Some(view), graph, settings)?;
     processor.set_compose(false);
     let mut lp = LockStep::new(closed_loop::sim_source(render, frames)?, processor)?;
     let options = MatchOptions::default();

@@ -1,6 +1,7 @@
 //! The few Aravis calls that the safe `aravis` crate lacks: enabling an
 //! interface, shutting the library down, and the fill callback of the
-//! in-process fake camera. Every `unsafe` block of rigview lives here.
+//! in-process fake camera. Every `unsafe` block of the app lives here (core keeps
+//! its SIMD kernels' and one `libc` call's; ARCHITECTURE.md lists them).
 
 #![allow(unsafe_code)]
 

@@ -9,7 +9,9 @@ use anyhow::{Context, Result};
 use rigview_calib::rig::Rig;
 use rigview_calib::tools::corners::{harris_corners, HarrisParams};
 use rigview_core::exposure::NeighbourGraph;
-use rigview_core::pipeline::{check_view, PanoramaSettings, ProcessingSettings, View, ViewKind};
+use rigview_core::pipeline::{
+    check_view, PanoramaSettings, ProcessingSettings, SharedDetector, View, ViewKind,
+};
 use rigview_core::source::CameraInfo;
 use rigview_core::surround::CanvasSpec;
 
@@ -22,6 +24,76 @@ pub fn canvas_spec() -> CanvasSpec {
 /// it was built from.
 pub type BuiltView = (View, NeighbourGraph, Rig);
 
+/// Everything besides the rig that decides a view.
+#[derive(Clone)]
+pub struct ViewSpec {
+    /// Which view.
+    pub kind: ViewKind,
+    /// The surround view's canvas.
+    pub canvas: CanvasSpec,
+    /// The panorama's settings.
+    pub panorama: PanoramaSettings,
+    /// The live panorama's corner detector.
+    pub detector: SharedDetector,
+}
+
+impl std::fmt::Debug for ViewSpec {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ViewSpec")
+            .field("kind", &self.kind)
+            .field("canvas", &self.canvas)
+            .field("panorama", &self.panorama)
+            .finish_non_exhaustive()
+    }
+}
+
+impl ViewSpec {
+    /// The view `kind` of a session: on [`canvas_spec`], the panorama as
+    /// `panorama` says, with [`shared_detector`].
+    pub fn session(kind: ViewKind, panorama: &PanoramaSettings) -> Self {
+        Self {
+            kind,
+            canvas: canvas_spec(),
+            panorama: panorama.clone(),
+            detector: shared_detector(),
+        }
+    }
+
+    /// The surround view on `canvas`.
+    pub fn surround(canvas: CanvasSpec) -> Self {
+        Self {
+            canvas,
+            ..Self::session(ViewKind::Surround, &PanoramaSettings::default())
+        }
+    }
+}
+
+/// Builds the view `spec` asks for of `rig`: the one way every command,
+/// the window and the evaluation build the view the processor composes.
+pub fn build_view(rig: &Rig, spec: &ViewSpec) -> Result<View> {
+    View::build(
+        spec.kind,
+        rig,
+        &spec.canvas,
+        &spec.panorama,
+        spec.detector.clone(),
+    )
+    .with_context(|| format!("building the {} view", spec.kind.name()))
+}
+
+/// The view `spec` asks for of `rig`, checked against `cameras`, with the
+/// rig's neighbour graph.
+pub fn view_with(
+    rig: &Rig,
+    cameras: &[CameraInfo],
+    spec: &ViewSpec,
+) -> Result<(View, NeighbourGraph)> {
+    let view = build_view(rig, spec)?;
+    check_view(view.mosaic(), cameras)?;
+    let graph = NeighbourGraph::new(cameras.len(), &rig.neighbours)?;
+    Ok((view, graph))
+}
+
 /// The view `kind` (the panorama as `panorama` says) and neighbour graph
 /// of `rig` for `cameras`.
 pub fn view_of(
@@ -30,11 +102,7 @@ pub fn view_of(
     kind: ViewKind,
     panorama: &PanoramaSettings,
 ) -> Result<(View, NeighbourGraph)> {
-    let view = View::build(kind, rig, &canvas_spec(), panorama, shared_detector())
-        .with_context(|| format!("building the {} view", kind.name()))?;
-    check_view(view.mosaic(), cameras)?;
-    let graph = NeighbourGraph::new(cameras.len(), &rig.neighbours)?;
-    Ok((view, graph))
+    view_with(rig, cameras, &ViewSpec::session(kind, panorama))
 }
 
 /// The view `processing` asks for, of `rig` for `cameras`.
@@ -69,7 +137,7 @@ pub fn detect(gray: &[u8], w: usize, h: usize, mask: &[u8]) -> rigview_core::Res
         ..HarrisParams::default()
     };
     harris_corners(gray, w, h, Some(mask), &params)
-        .map_err(|e| rigview_core::Error::InvalidConfig(format!("Harris corners: {e}")))
+        .map_err(|e| rigview_core::Error::calibration("Harris corners", e))
 }
 
 /// [`detect`] as the live panorama's detector.

@@ -440,9 +440,12 @@ impl NeighbourGraph {
                 }
             }
             if i == j {
-                return Err(Error::InvalidConfig(format!(
-                    "neighbour graph: camera {i} cannot be its own neighbour"
-                )));
+                return Err(Error::invalid(
+                    "neighbour graph",
+                    format!("camera {i}'s neighbour"),
+                    "another camera",
+                    "itself",
+                ));
             }
             let e = (i.min(j), i.max(j));
             if !out.contains(&e) {

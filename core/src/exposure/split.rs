@@ -92,10 +92,15 @@ impl ExposureRange {
             "a gain in dB not below gain_min_db",
         )?;
         if self.shutter_max_us <= self.shutter_min_us && self.gain_max_db <= self.gain_min_db {
-            return Err(Error::InvalidConfig(format!(
-                "exposure range: shutter {} µs and gain {} dB are both fixed: expected a range to control",
-                self.shutter_min_us, self.gain_min_db
-            )));
+            return Err(Error::invalid(
+                "exposure range",
+                "shutter and gain",
+                "a range to control",
+                format_args!(
+                    "both fixed, shutter {} µs and gain {} dB",
+                    self.shutter_min_us, self.gain_min_db
+                ),
+            ));
         }
         Ok(())
     }

@@ -101,7 +101,12 @@ impl Smoothed {
             });
         }
         let expected = width.checked_mul(height).ok_or_else(|| {
-            Error::InvalidConfig(format!("BRIEF image: {width}×{height} is too large"))
+            Error::invalid(
+                "BRIEF image",
+                "size",
+                "a pixel count that fits in memory",
+                format_args!("{width}×{height}"),
+            )
         })?;
         if gray.len() != expected {
             return Err(Error::BufferSize {

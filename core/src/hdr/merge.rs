@@ -64,19 +64,28 @@ struct Level {
 /// exposure level (see the module documentation).
 pub fn merge(shots: &[Shot<'_>], config: &MergeConfig) -> Result<Radiance> {
     if shots.is_empty() {
-        return Err(Error::InvalidConfig("merging a bracket: no images".into()));
+        return Err(Error::invalid(
+            "merging a bracket",
+            "images",
+            "at least one",
+            "no images",
+        ));
     }
     if !(config.clip_fraction > 0.0 && config.clip_fraction <= 1.0 && config.floor_dn >= 0.0) {
-        return Err(Error::InvalidConfig(format!(
-            "merging a bracket: clip fraction {} and floor {} DN: expected a fraction in (0, 1] and a floor ≥ 0",
-            config.clip_fraction, config.floor_dn
-        )));
+        return Err(Error::invalid(
+            "merging a bracket",
+            "clip fraction and floor",
+            "a fraction in (0, 1] and a floor ≥ 0 DN",
+            format_args!("{} and {} DN", config.clip_fraction, config.floor_dn),
+        ));
     }
     if !config.response.is_linear() && config.noise.bits != 8 {
-        return Err(Error::InvalidConfig(format!(
-            "merging a bracket: a response curve is for 8-bit images, these have {} bits",
-            config.noise.bits
-        )));
+        return Err(Error::invalid(
+            "merging a bracket",
+            "bits of images with a response curve",
+            "8",
+            config.noise.bits,
+        ));
     }
     let wide = config.noise.bits > 8;
     let bytes = config.samples * if wide { 2 } else { 1 };

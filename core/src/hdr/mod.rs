@@ -86,10 +86,12 @@ impl SensorNoise {
             && sensor.read_noise_e.is_finite()
             && sensor.read_noise_e >= 0.0)
         {
-            return Err(crate::Error::InvalidConfig(format!(
-                "sensor noise: full well {} e⁻, read noise {} e⁻: expected a full well ≥ 1 e⁻ and a read noise ≥ 0",
-                sensor.full_well_e, sensor.read_noise_e
-            )));
+            return Err(crate::Error::invalid(
+                "sensor noise",
+                "full well and read noise",
+                "a full well ≥ 1 e⁻ and a read noise ≥ 0",
+                format_args!("{} e⁻ and {} e⁻", sensor.full_well_e, sensor.read_noise_e),
+            ));
         }
         let max_dn = f64::from((1u32 << bits) - 1);
         Ok(Self {

@@ -42,10 +42,12 @@ impl Response {
     /// non-decreasing and scaled to end at 255).
     pub fn from_inverse(inverse: &[f32]) -> Result<Self> {
         if inverse.len() != CODES || inverse.iter().any(|v| !v.is_finite() || *v < 0.0) {
-            return Err(Error::InvalidConfig(format!(
-                "an 8-bit response needs 256 finite values ≥ 0, got {}",
-                inverse.len()
-            )));
+            return Err(Error::invalid(
+                "an 8-bit response",
+                "inverse",
+                "256 finite values ≥ 0",
+                format_args!("{} values", inverse.len()),
+            ));
         }
         let mut inv: Vec<f32> = Vec::with_capacity(CODES);
         let mut top = 0.0f32;
@@ -54,8 +56,11 @@ impl Response {
             inv.push(top);
         }
         if top <= 0.0 {
-            return Err(Error::InvalidConfig(
-                "an 8-bit response that is zero everywhere".into(),
+            return Err(Error::invalid(
+                "an 8-bit response",
+                "inverse",
+                "a value above zero",
+                "zero everywhere",
             ));
         }
         for v in &mut inv {
@@ -86,10 +91,12 @@ impl Response {
     /// default is 10). Needs at least two exposures.
     pub fn recover(shots: &[Shot<'_>], samples: usize, points: usize, lambda: f64) -> Result<Self> {
         if shots.len() < 2 {
-            return Err(Error::InvalidConfig(format!(
-                "recovering a response needs images at two exposures or more, got {}",
-                shots.len()
-            )));
+            return Err(Error::invalid(
+                "recovering a response",
+                "images",
+                "two exposures or more",
+                shots.len(),
+            ));
         }
         if let Some(s) = shots.iter().find(|s| s.data.len() < samples) {
             return Err(Error::BufferSize {
@@ -109,8 +116,11 @@ impl Response {
             .collect();
         let (p, n) = (picked.len(), shots.len());
         if p < 2 {
-            return Err(Error::InvalidConfig(
-                "recovering a response: no sample is between black and clipped in any image".into(),
+            return Err(Error::invalid(
+                "recovering a response",
+                "samples",
+                "at least two between black and clipped",
+                p,
             ));
         }
         let rows = p * n + 1 + (CODES - 2);
@@ -142,7 +152,10 @@ impl Response {
         let x = a
             .svd(true, true)
             .solve(&b, 1e-10)
-            .map_err(|e| Error::InvalidConfig(format!("recovering a response: {e}")))?;
+            .map_err(|e| Error::Solver {
+                what: "recovering a response",
+                reason: e.into(),
+            })?;
         let g: Vec<f32> = (0..CODES).map(|z| x[z].exp() as f32).collect();
         Self::from_inverse(&g)
     }

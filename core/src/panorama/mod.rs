@@ -145,10 +145,15 @@ impl CylinderSpec {
             "an angle of −80° to 80° above the horizon",
         )?;
         if self.above_deg + self.below_deg < 1.0 {
-            return Err(Error::InvalidConfig(format!(
-                "panorama: the band from {}° below to {}° above the horizon is empty: expected at least 1° of elevation",
-                self.below_deg, self.above_deg
-            )));
+            return Err(Error::invalid(
+                "panorama",
+                "band",
+                "at least 1° of elevation",
+                format_args!(
+                    "{}° below to {}° above the horizon, which is empty",
+                    self.below_deg, self.above_deg
+                ),
+            ));
         }
         Ok(())
     }
@@ -335,15 +340,19 @@ impl Panorama {
                 }
             },
             |k| {
-                Error::InvalidConfig(format!(
-                    "panorama: camera `{}` sees none of the cylinder (radius {} m, {}° below to {}° above the horizon, azimuths within {:.0}° of its heading {:.1}°): expected a camera looking outwards",
-                    cameras.sources[k].0,
-                    spec.radius_m,
-                    spec.below_deg,
-                    spec.above_deg,
-                    options.overlap_deg,
-                    headings[k].to_degrees()
-                ))
+                Error::invalid(
+                    "panorama",
+                    format!("camera `{}`'s view of the cylinder", cameras.sources[k].0),
+                    "a camera looking outwards",
+                    format_args!(
+                        "none of it (radius {} m, {}° below to {}° above the horizon, azimuths within {:.0}° of its heading {:.1}°)",
+                        spec.radius_m,
+                        spec.below_deg,
+                        spec.above_deg,
+                        options.overlap_deg,
+                        headings[k].to_degrees()
+                    ),
+                )
             },
         )?;
         let masks =
@@ -511,11 +520,12 @@ fn cylinder_hit(o: &Vector3<f64>, d: &Vector3<f64>, r: f64) -> Option<Vector3<f6
 fn check_overlaps(mosaic: &Mosaic, overlaps: &[Overlap]) -> Result<()> {
     if let Some(o) = overlaps.iter().find(|o| o.pixels == 0) {
         let name = |k: usize| mosaic.layers().get(k).map_or("?", |l| l.name.as_str());
-        return Err(Error::InvalidConfig(format!(
-            "panorama: cameras `{}` and `{}` are neighbours in the rig but share no pixel of the cylinder: expected overlapping views (check their poses and the panorama's band)",
-            name(o.i),
-            name(o.j)
-        )));
+        return Err(Error::invalid(
+            "panorama",
+            format!("neighbours `{}` and `{}`", name(o.i), name(o.j)),
+            "overlapping views (check their poses and the panorama's band)",
+            "views that share no pixel of the cylinder",
+        ));
     }
     Ok(())
 }

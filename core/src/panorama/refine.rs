@@ -17,9 +17,9 @@
 //!    narrow overlap whose curves run nearly level, a camera's turn about
 //!    the vertical is hardly seen. This stage's prior is σ = 1° (the bound
 //!    if smaller): a camera with inliers in one of its pairs only would
-//!    otherwise turn about the vertical as far as the bound (on the
-//!    simulated rig, 3° the wrong way), and the ground stage would find no
-//!    matches on the ground.
+//!    otherwise turn about the vertical as far as the bound, and the
+//!    ground stage would find no matches on the ground (what it did on the
+//!    simulated rig: `docs/panorama.md`, In rounds).
 //! 2. **Points on the ground.** A match whose two rays meet the ground
 //!    (z = 0) within [`RefineOptions::ground_px`] of each other is taken for
 //!    a point on it: where one camera's ray meets the ground, seen from
@@ -122,7 +122,12 @@ impl Refinement {
             if let Some(pose) = cam.pose {
                 let r = q.matrix() * pose.rotation_matrix();
                 cam.pose = Some(Pose::new(r, *pose.translation()).map_err(|e| {
-                    Error::InvalidConfig(format!("refined camera `{}`: {e}", cam.name))
+                    Error::invalid(
+                        format!("refined camera `{}`", cam.name),
+                        e.field,
+                        e.expected,
+                        e.found,
+                    )
                 })?);
             }
         }
@@ -146,11 +151,11 @@ impl Panorama {
     /// their patches, the cameras see the overlaps alike enough for patches
     /// to tell, and only the aligned ones are taken: an inlier whose
     /// patches do not align is then likely no single scene point (an edge
-    /// one camera sees in front of another object), and on the simulated
-    /// rig such inliers turned a camera by tenths of a degree. Where fewer
-    /// align (the real surround-nz stills, whose overlaps lie at the
-    /// fisheyes' edges and see near objects from metres apart: about half),
-    /// every inlier is taken.
+    /// one camera sees in front of another object), and such inliers turn
+    /// the cameras. Where fewer align (as where the overlaps lie at the
+    /// fisheyes' edges and see near objects from metres apart), every inlier
+    /// is taken. The measurements on the simulated rig and the real stills
+    /// are in `docs/panorama.md`, In rounds.
     pub fn inlier_rays(&self, pairs: &[PairMatches]) -> InlierRays {
         let n = self.origins.len();
         let inliers = || {
@@ -218,9 +223,10 @@ impl Panorama {
             .map(|(i, j, rays)| ((*i, *j), self.pair_geometry(*i, *j), rays.as_slice()))
             .collect();
         if data.iter().all(|(_, _, rays)| rays.is_empty()) {
-            return Err(Error::InvalidConfig(
-                "panorama refinement: no pair has inliers to refine the rotations with".into(),
-            ));
+            return Err(Error::Solver {
+                what: "panorama refinement",
+                reason: "no pair has inliers to refine the rotations with".into(),
+            });
         }
         // First the epipolar errors alone, every camera but the fixed one
         // turning (about its three axes; the fixed one about none).
@@ -240,8 +246,9 @@ impl Panorama {
                 (bound, sigma, scale, options.iterations, ROUGH),
                 &vec![Rotation3::identity(); n],
             )
-            .ok_or_else(|| {
-                Error::InvalidConfig("panorama refinement: the solution left its bound".into())
+            .ok_or_else(|| Error::Solver {
+                what: "panorama refinement",
+                reason: "the solution left its bound".into(),
             })?;
         // Then the matches on the ground, whose depth the ground gives, with
         // their full two-dimensional errors, and every camera turning: with

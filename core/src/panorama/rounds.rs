@@ -152,11 +152,12 @@ pub fn refine_in_rounds(
             .enumerate()
             .find(|(_, t)| t.angle().to_degrees() > bound + 1e-9)
         {
-            return Err(Error::InvalidConfig(format!(
-                "panorama refinement: camera `{}` would turn by {:.2}° in {round} rounds, more than the bound of {bound}°: the calibration is kept",
-                rig.cameras[k].name,
-                t.angle().to_degrees(),
-            )));
+            return Err(Error::invalid(
+                "panorama refinement (the calibration is kept)",
+                format!("camera `{}`'s turn in {round} rounds", rig.cameras[k].name),
+                format!("at most the bound of {bound}°"),
+                format_args!("{:.2}°", t.angle().to_degrees()),
+            ));
         }
         // The errors of these inliers with the calibration given (the
         // whole turn undone) and with this round's rig.

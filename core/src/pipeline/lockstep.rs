@@ -36,11 +36,12 @@ impl<S: FrameSource> LockStep<S> {
     pub fn new(mut source: S, processor: Processor) -> Result<Self, SourceError> {
         let (a, b) = (source.cameras(), processor.cameras());
         if a.len() != b.len() {
-            return Err(Error::InvalidConfig(format!(
-                "lock step: the source has {} cameras, the processor {}",
+            return Err(Error::invalid(
+                "lock step",
+                "the source's cameras",
+                format!("the processor's {}", b.len()),
                 a.len(),
-                b.len()
-            ))
+            )
             .into());
         }
         if let Some((s, p)) = a
@@ -48,10 +49,12 @@ impl<S: FrameSource> LockStep<S> {
             .zip(b)
             .find(|(s, p)| (s.width, s.height) != (p.width, p.height))
         {
-            return Err(Error::InvalidConfig(format!(
-                "lock step: camera \"{}\" gives {}×{} images, the processor expects {}×{}",
-                s.name, s.width, s.height, p.width, p.height
-            ))
+            return Err(Error::invalid(
+                "lock step",
+                format!("camera \"{}\"'s image size", s.name),
+                format!("the processor's {}×{}", p.width, p.height),
+                format_args!("{}×{}", s.width, s.height),
+            )
             .into());
         }
         if processor.settings().strategy == Strategy::CameraAuto {

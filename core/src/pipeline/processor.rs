@@ -28,18 +28,24 @@ const SEAM_SAMPLES: usize = 512;
 /// image sizes).
 pub fn check_view(view: &Mosaic, cameras: &[CameraInfo]) -> Result<()> {
     if view.layers().len() != cameras.len() {
-        return Err(Error::InvalidConfig(format!(
-            "the calibration has {} cameras, the source {}",
+        return Err(Error::invalid(
+            "the calibration",
+            "cameras",
+            format!("the source's {}", cameras.len()),
             view.layers().len(),
-            cameras.len()
-        )));
+        ));
     }
     for (layer, cam) in view.layers().iter().zip(cameras) {
         if layer.source != (cam.width, cam.height) {
-            return Err(Error::InvalidConfig(format!(
-                "camera {} (\"{}\"): the calibration is for {}×{} images, the camera gives {}×{}",
-                layer.camera, cam.name, layer.source.0, layer.source.1, cam.width, cam.height
-            )));
+            return Err(Error::invalid(
+                format!("camera {} (\"{}\")", layer.camera, cam.name),
+                "image size",
+                format!("the camera's {}×{}", cam.width, cam.height),
+                format_args!(
+                    "the calibration is for {}×{} images",
+                    layer.source.0, layer.source.1
+                ),
+            ));
         }
     }
     Ok(())
@@ -160,8 +166,11 @@ impl Processor {
                 p.request_refine();
                 Ok(())
             }
-            None => Err(Error::InvalidConfig(
-                "refinement is for the panorama: switch the view to the panorama first".into(),
+            None => Err(Error::invalid(
+                "refinement",
+                "view",
+                "the panorama (switch the view to the panorama first)",
+                "another view",
             )),
         }
     }
@@ -226,11 +235,12 @@ impl Processor {
     /// after the cameras' own start-up auto-exposure), in rig order.
     pub fn sync(&mut self, settings: &[ExposureSetting]) -> Result<()> {
         if settings.len() != self.cameras.len() {
-            return Err(Error::InvalidConfig(format!(
-                "{} starting settings for {} cameras",
+            return Err(Error::invalid(
+                "starting settings",
+                "count",
+                format!("one for each of {} cameras", self.cameras.len()),
                 settings.len(),
-                self.cameras.len()
-            )));
+            ));
         }
         for (i, s) in settings.iter().enumerate() {
             self.controller.camera_mut(i)?.sync(*s);

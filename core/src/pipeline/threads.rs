@@ -168,11 +168,12 @@ impl Pipeline {
     ) -> Result<Self> {
         let cameras = source.cameras().to_vec();
         if cameras.len() != processor.cameras().len() {
-            return Err(Error::InvalidConfig(format!(
-                "pipeline: the source has {} cameras, the processor {}",
+            return Err(Error::invalid(
+                "pipeline",
+                "the source's cameras",
+                format!("the processor's {}", processor.cameras().len()),
                 cameras.len(),
-                processor.cameras().len()
-            )));
+            ));
         }
         let names = cameras.iter().map(|c| c.name.clone()).collect();
         let shared = Arc::new(Shared {
@@ -201,7 +202,7 @@ impl Pipeline {
                 .spawn(move || capture_loop(source, &shared, &captured, &capture_rx, lockstep))
                 .map_err(|e| Error::ThreadStart {
                     thread: "capture",
-                    reason: e.to_string(),
+                    source: e,
                 })?
         };
         let processing = {
@@ -227,7 +228,7 @@ impl Pipeline {
                 })
                 .map_err(|e| Error::ThreadStart {
                     thread: "processing",
-                    reason: e.to_string(),
+                    source: e,
                 })?
         };
         Ok(Self {

@@ -51,6 +51,10 @@ use crate::panorama::{
 use crate::source::FrameSet;
 use crate::surround::{Mosaic, SurroundView};
 
+mod worker;
+
+use worker::{Done, Job, Worker};
+
 /// The corner detector of a live panorama's matching (see
 /// [`crate::panorama::Detector`]), shared with its worker thread. The app
 /// hands in OpenCV's Harris corners.
@@ -137,6 +141,14 @@ impl View {
         }
     }
 
+    /// The surround view, if this is it, taken out of the view.
+    pub fn into_surround(self) -> Option<SurroundView> {
+        match self {
+            Self::Surround(v) => Some(*v),
+            Self::Panorama(_) => None,
+        }
+    }
+
     /// The live panorama, if this is it.
     pub fn panorama(&self) -> Option<&LivePanorama> {
         match self {
@@ -214,175 +226,6 @@ impl PanoramaReport {
     pub fn pair(&self, i: usize, j: usize) -> Option<&PairMatchReport> {
         self.pairs.iter().find(|p| (p.i, p.j) == (i, j))
     }
-}
-
-enum Job {
-    Match {
-        generation: u64,
-        panorama: Arc<Panorama>,
-        set: FrameSet,
-        options: MatchOptions,
-    },
-    Refine {
-        generation: u64,
-        rig: Arc<Rig>,
-        set: FrameSet,
-        options: RoundsOptions,
-    },
-}
-
-enum Done {
-    Matched {
-        generation: u64,
-        trigger: u64,
-        /// Per camera, the exposure its frame was taken with.
-        taken: Vec<f64>,
-        matches: Vec<PairMatches>,
-        ms: f64,
-    },
-    Refined {
-        generation: u64,
-        /// Per pair: cameras, and the median error before and after.
-        errors: Vec<(usize, usize, Option<f64>, Option<f64>)>,
-        rig: Rig,
-        panorama: Box<Panorama>,
-        ms: f64,
-    },
-    Failed {
-        what: &'static str,
-        error: String,
-    },
-}
-
-/// The worker thread of a live panorama.
-///
-/// Dropping it closes its queue: the thread ends after the job it is on,
-/// without anyone waiting for it (a rebuild takes up to a second, and the
-/// processing thread drops the view when the operator switches views).
-struct Worker {
-    jobs: Sender<Job>,
-    done: Receiver<Done>,
-}
-
-impl std::fmt::Debug for Worker {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("Worker").finish_non_exhaustive()
-    }
-}
-
-impl Worker {
-    fn start(
-        spec: crate::panorama::CylinderSpec,
-        options: PanoramaOptions,
-        detector: SharedDetector,
-    ) -> Result<Self> {
-        let (jobs, rx) = mpsc::channel::<Job>();
-        let (tx, done) = mpsc::channel();
-        std::thread::Builder::new()
-            .name("rigview-panorama".into())
-            .spawn(move || {
-                lower_priority();
-                for job in rx {
-                    if tx.send(work(job, &spec, &options, &*detector)).is_err() {
-                        break;
-                    }
-                }
-            })
-            .map_err(|e| Error::InvalidConfig(format!("cannot start the panorama worker: {e}")))?;
-        Ok(Self { jobs, done })
-    }
-
-    fn send(&self, job: Job) -> bool {
-        self.jobs.send(job).is_ok()
-    }
-}
-
-/// The niceness the worker runs at: matching and rebuilding the panorama
-/// (which spreads over every core) give way to the per-set path.
-const WORKER_NICE: i32 = 10;
-
-/// Lowers the calling thread's scheduling priority by [`WORKER_NICE`]
-/// (threads it starts inherit it); where that is not possible it runs at
-/// the process's priority.
-fn lower_priority() {
-    #[cfg(target_os = "linux")]
-    {
-        // SAFETY: setpriority only reads its integer arguments; on Linux,
-        // PRIO_PROCESS with `who` 0 applies to the calling thread alone.
-        #[allow(unsafe_code)]
-        let current = unsafe { libc::getpriority(libc::PRIO_PROCESS, 0) };
-        #[allow(unsafe_code)]
-        let _ = unsafe { libc::setpriority(libc::PRIO_PROCESS, 0, current + WORKER_NICE) };
-    }
-}
-
-fn work(
-    job: Job,
-    spec: &crate::panorama::CylinderSpec,
-    options: &PanoramaOptions,
-    detector: &Detector<'_>,
-) -> Done {
-    match job {
-        Job::Match {
-            generation,
-            panorama,
-            set,
-            options: match_options,
-        } => {
-            let t = Instant::now();
-            let frames = views(&set);
-            let taken = set
-                .frames
-                .iter()
-                .flatten()
-                .map(|f| f.meta.taken.exposure())
-                .collect();
-            match frames.and_then(|f| panorama.match_pairs(&f, detector, &match_options)) {
-                Ok((matches, _)) => Done::Matched {
-                    generation,
-                    trigger: set.trigger,
-                    taken,
-                    matches,
-                    ms: t.elapsed().as_secs_f64() * 1e3,
-                },
-                Err(e) => Done::Failed {
-                    what: "matching",
-                    error: e.to_string(),
-                },
-            }
-        }
-        Job::Refine {
-            generation,
-            rig,
-            set,
-            options: rounds,
-        } => {
-            let t = Instant::now();
-            let refined = views(&set)
-                .and_then(|frames| {
-                    refine_in_rounds(&rig, spec, options, &frames, detector, &rounds)
-                })
-                .and_then(|r| Ok((Panorama::build(&r.rig, spec, options)?, r)));
-            match refined {
-                Ok((panorama, r)) => Done::Refined {
-                    generation,
-                    errors: r.errors,
-                    rig: r.rig,
-                    panorama: Box::new(panorama),
-                    ms: t.elapsed().as_secs_f64() * 1e3,
-                },
-                Err(e) => Done::Failed {
-                    what: "refinement",
-                    error: e.to_string(),
-                },
-            }
-        }
-    }
-}
-
-/// The views of a set's frames, in rig order.
-fn views(set: &FrameSet) -> Result<Vec<FrameView<'_>>> {
-    set.frames.iter().flatten().map(|f| f.view()).collect()
 }
 
 /// The latest matches and what they give each set: per pair, its latest
@@ -791,71 +634,4 @@ fn pair_reports(
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn pair(i: usize, j: usize, patches: usize) -> PairMatches {
-        let patch = PatchPair {
-            mean_i: 0.2,
-            saturated_i: 0.0,
-            mean_j: 0.4,
-            saturated_j: 0.0,
-        };
-        PairMatches {
-            i,
-            j,
-            corners: (40, 40),
-            matches: Vec::new(),
-            inliers: patches,
-            rotation: None,
-            error_before_px: None,
-            error_after_px: None,
-            patches: vec![patch; patches],
-            problem: (patches < 6).then(|| "fewer than the 6 needed".to_string()),
-        }
-    }
-
-    #[test]
-    fn a_pairs_ratio_is_held_through_matchings_without_it_until_it_ages_out() {
-        let mut held = Held::default();
-        held.take(vec![pair(0, 1, 8), pair(1, 2, 3)], &[1.0, 2.0, 4.0], 10);
-        let at = |held: &Held, now: u64| -> Vec<(usize, usize, u64)> {
-            held.current(now, 100)
-                .map(|h| (h.pair.i, h.pair.j, h.at))
-                .collect()
-        };
-        // The pair with too few inliers gives nothing to hold.
-        assert_eq!(at(&held, 10), vec![(0, 1, 10)]);
-        assert_eq!(held.pairs[0].taken, (1.0, 2.0));
-        // A later matching without patches for 0–1 keeps the one held; one
-        // with them replaces it.
-        held.take(vec![pair(0, 1, 2), pair(1, 2, 7)], &[1.0, 2.0, 4.0], 50);
-        assert_eq!(at(&held, 50), vec![(0, 1, 10), (1, 2, 50)]);
-        assert_eq!(at(&held, 110), vec![(0, 1, 10), (1, 2, 50)]);
-        assert_eq!(at(&held, 111), vec![(1, 2, 50)]);
-        held.take(vec![pair(0, 1, 9)], &[3.0, 5.0, 4.0], 120);
-        assert_eq!(at(&held, 151), vec![(0, 1, 120)]);
-        assert_eq!(held.pairs[0].taken, (3.0, 5.0));
-    }
-
-    #[test]
-    fn held_patches_follow_the_exposures_and_saturate() {
-        let p = PatchPair {
-            mean_i: 0.2,
-            saturated_i: 0.0,
-            mean_j: 0.4,
-            saturated_j: 0.0,
-        };
-        let q = rescaled(&p, 2.0, 0.5);
-        assert!((q.mean_i - 0.4).abs() < 1e-6 && (q.mean_j - 0.2).abs() < 1e-6);
-        assert!(q.saturated_i.abs() < 1e-6 && q.saturated_j.abs() < 1e-6);
-        let q = rescaled(&p, 1.0, 3.0);
-        assert!((q.saturated_j - 1.0).abs() < 1e-6);
-        assert!(q.mean_j <= 1.0);
-        let sat = PatchPair {
-            saturated_i: 0.5,
-            ..p
-        };
-        assert!((rescaled(&sat, 0.5, 1.0).saturated_i - 0.5).abs() < 1e-6);
-    }
-}
+mod tests;

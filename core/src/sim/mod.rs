@@ -37,6 +37,7 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
+pub mod actuation;
 pub mod camera_ae;
 pub mod config;
 pub mod render;
@@ -48,6 +49,7 @@ pub mod source;
 mod texture;
 pub mod truth;
 
+pub use actuation::Actuation;
 pub use camera_ae::CameraAeParams;
 pub use config::{RigChoice, SimConfig, PRESETS};
 pub use render::{FillRequest, SimRender};

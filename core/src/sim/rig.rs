@@ -44,8 +44,14 @@ pub fn reference_rig() -> Result<Rig> {
     ];
     let mut cameras = Vec::with_capacity(cams.len());
     for (name, ypr, t) in cams {
-        let pose = Pose::from_ypr_deg(ypr, Vector3::from(t))
-            .map_err(|e| Error::InvalidConfig(format!("reference rig, camera {name}: {e}")))?;
+        let pose = Pose::from_ypr_deg(ypr, Vector3::from(t)).map_err(|e| {
+            Error::invalid(
+                format!("reference rig, camera {name}"),
+                e.field,
+                e.expected,
+                e.found,
+            )
+        })?;
         cameras.push(Camera {
             name: name.into(),
             device: None,
@@ -58,7 +64,7 @@ pub fn reference_rig() -> Result<Rig> {
         cameras,
         vec![(0, 1), (0, 3), (1, 2), (2, 3)],
     )
-    .map_err(|e| Error::InvalidConfig(format!("reference rig: {e}")))
+    .map_err(|e| Error::invalid("reference rig", e.field, e.expected, e.found))
 }
 
 /// Intrinsics for the same lens on an image `scale` times as large (pixel

@@ -19,6 +19,7 @@
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+use super::actuation::Actuation;
 use super::camera_ae::CameraAeParams;
 use super::render::{FillRequest, SimRender};
 use crate::exposure::{ExposureSetting, Meter, MeteringConfig};
@@ -67,9 +68,8 @@ impl Default for SimRigOptions {
 pub struct SimRig {
     render: Arc<SimRender>,
     options: SimRigOptions,
-    latency: u64,
     settings: Vec<ExposureSetting>,
-    queued: Vec<(u64, ExposureCommand)>,
+    actuation: Actuation,
     trigger: u64,
     started: Option<Instant>,
     rate: RateMeter,
@@ -103,8 +103,7 @@ impl SimRig {
             health: vec![StreamHealth::default(); n],
             render,
             options,
-            latency: u64::from(latency),
-            queued: Vec::new(),
+            actuation: Actuation::new(u64::from(latency)),
             trigger: 0,
             started: None,
             rate: RateMeter::default(),
@@ -127,7 +126,7 @@ impl SimRig {
     pub fn force_all(&mut self, setting: ExposureSetting) {
         self.settings.fill(setting);
         self.ae_setting.fill(setting);
-        self.queued.clear();
+        self.actuation.clear();
     }
 
     /// Whether the cameras' own auto-exposure runs.
@@ -146,10 +145,8 @@ impl SimRig {
                 .next(mean, frame.meta.taken, self.ae_setting[i], &range)
         {
             self.ae_setting[i] = setting;
-            self.queued.push((
-                self.trigger + 1 + self.latency,
-                ExposureCommand { camera: i, setting },
-            ));
+            self.actuation
+                .send(self.trigger + 1, ExposureCommand { camera: i, setting });
         }
         Ok(())
     }
@@ -161,17 +158,13 @@ impl SimRig {
 
     /// The actuation latency, frames.
     pub fn latency(&self) -> u64 {
-        self.latency
+        self.actuation.latency()
     }
 
     /// Renders the set of the current trigger.
     fn produce(&mut self) -> Result<FrameSet, SourceError> {
         let n = self.trigger;
-        let (due, later): (Vec<_>, Vec<_>) = self.queued.drain(..).partition(|(at, _)| *at <= n);
-        self.queued = later;
-        for (_, c) in due {
-            self.settings[c.camera] = c.setting;
-        }
+        self.actuation.apply_due(n, &mut self.settings);
         let mut frames = Vec::with_capacity(self.settings.len());
         for (i, setting) in self.settings.iter().enumerate() {
             let info = &self.render.cameras()[i];
@@ -257,13 +250,13 @@ impl FrameSource for SimRig {
                     .clamp(r.shutter_min_us, r.shutter_max_us),
                 gain_db: c.setting.gain_db.clamp(r.gain_min_db, r.gain_max_db),
             };
-            self.queued.push((
-                self.trigger + self.latency,
+            self.actuation.send(
+                self.trigger,
                 ExposureCommand {
                     camera: c.camera,
                     setting,
                 },
-            ));
+            );
         }
         Ok(())
     }
@@ -285,12 +278,7 @@ impl FrameSource for SimRig {
             // The AE starts from where each camera will be once rigview's
             // commands in flight have shown.
             for (i, s) in self.settings.iter().enumerate() {
-                self.ae_setting[i] = self
-                    .queued
-                    .iter()
-                    .rev()
-                    .find(|(_, c)| c.camera == i)
-                    .map_or(*s, |(_, c)| c.setting);
+                self.ae_setting[i] = self.actuation.pending(i).unwrap_or(*s);
             }
         }
         self.camera_auto = on;

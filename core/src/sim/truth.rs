@@ -120,10 +120,15 @@ pub fn sweep(
     mask: Option<&RoiMask>,
 ) -> Result<Sweep> {
     if !(options.lo > 0.0 && options.hi > options.lo && options.steps >= 2) {
-        return Err(Error::InvalidConfig(format!(
-            "sweep from {} to {} in {} steps: expected 0 < lo < hi and at least 2 steps",
-            options.lo, options.hi, options.steps
-        )));
+        return Err(Error::invalid(
+            "sweep",
+            "range and steps",
+            "0 < lo < hi and at least 2 steps",
+            format_args!(
+                "from {} to {} in {} steps",
+                options.lo, options.hi, options.steps
+            ),
+        ));
     }
     let meter = Meter::new(options.metering)?;
     let mut est = Estimator::new(EstimatorConfig {
@@ -209,10 +214,15 @@ pub fn fixed_points(
     search: &FixedPointSearch,
 ) -> Result<Vec<FixedPoint>> {
     if !(search.lo > 0.0 && search.hi > search.lo && search.step_ev > 0.0) {
-        return Err(Error::InvalidConfig(format!(
-            "fixed-point search from {} to {} in steps of {} EV: expected 0 < lo < hi and a positive step",
-            search.lo, search.hi, search.step_ev
-        )));
+        return Err(Error::invalid(
+            "fixed-point search",
+            "range and step",
+            "0 < lo < hi and a positive step",
+            format_args!(
+                "from {} to {} in steps of {} EV",
+                search.lo, search.hi, search.step_ev
+            ),
+        ));
     }
     let meter = Meter::new(search.metering)?;
     let mut est = Estimator::new(search.estimator.clone())?;
@@ -368,8 +378,11 @@ pub fn dynamic_range(render: &SimRender, t: f64) -> Result<DynamicRange> {
         all.extend(render.irradiance(c, t)?.into_iter().filter(|&v| v > 0.0));
     }
     if all.is_empty() {
-        return Err(Error::InvalidConfig(
-            "dynamic range: no camera sees anything lit".into(),
+        return Err(Error::invalid(
+            "dynamic range",
+            "lit pixels",
+            "a camera that sees something lit",
+            "none",
         ));
     }
     let n = all.len();

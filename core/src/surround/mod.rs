@@ -140,16 +140,24 @@ impl CanvasSpec {
             }
         }
         if self.x_max_m <= self.x_min_m || self.y_max_m <= self.y_min_m {
-            return Err(Error::InvalidConfig(format!(
-                "canvas: the ground extent x ∈ [{}, {}], y ∈ [{}, {}] m is empty: expected min < max",
-                self.x_min_m, self.x_max_m, self.y_min_m, self.y_max_m
-            )));
+            return Err(Error::invalid(
+                "canvas",
+                "ground extent",
+                "min < max",
+                format_args!(
+                    "x ∈ [{}, {}], y ∈ [{}, {}] m",
+                    self.x_min_m, self.x_max_m, self.y_min_m, self.y_max_m
+                ),
+            ));
         }
         let [vx0, vx1, vy0, vy1] = self.vehicle_m;
         if vx1 < vx0 || vy1 < vy0 {
-            return Err(Error::InvalidConfig(format!(
-                "canvas.vehicle_m = [{vx0}, {vx1}, {vy0}, {vy1}]: expected [x_min, x_max, y_min, y_max] with min ≤ max"
-            )));
+            return Err(Error::invalid(
+                "canvas",
+                "vehicle_m",
+                "[x_min, x_max, y_min, y_max] with min ≤ max",
+                format_args!("[{vx0}, {vx1}, {vy0}, {vy1}]"),
+            ));
         }
         let (w, h) = self.size_f64();
         if self.px_per_m <= 0.0 || w < 1.0 || h < 1.0 || w > MAX_CANVAS_SIDE || h > MAX_CANVAS_SIDE
@@ -400,10 +408,15 @@ impl SurroundView {
                 }
             },
             |k| {
-                Error::InvalidConfig(format!(
-                    "surround view: camera `{}` sees none of the canvas (x ∈ [{}, {}], y ∈ [{}, {}] m beyond the vehicle's {:?} side): expected a pose looking at the ground",
-                    cameras.sources[k].0, spec.x_min_m, spec.x_max_m, spec.y_min_m, spec.y_max_m, sides[k]
-                ))
+                Error::invalid(
+                    "surround view",
+                    format!("camera `{}`'s view of the canvas", cameras.sources[k].0),
+                    "a pose looking at the ground",
+                    format_args!(
+                        "none of x ∈ [{}, {}], y ∈ [{}, {}] m beyond the vehicle's {:?} side",
+                        spec.x_min_m, spec.x_max_m, spec.y_min_m, spec.y_max_m, sides[k]
+                    ),
+                )
             },
         )?;
         let masks =
@@ -497,7 +510,7 @@ pub(crate) mod tests {
                     vehicle_m: [2.0, -2.0, -1.0, 1.0],
                     ..ok.clone()
                 },
-                "canvas.vehicle_m",
+                "canvas: vehicle_m",
             ),
         ];
         for (spec, field) in cases {

@@ -153,11 +153,13 @@ impl Mosaic {
                                 u8::from(!(covered(i) && count[i] == 1)) * 255
                             }));
                         }
-                        let distance = distance_to_zero(&exclusive, rw, rh).map_err(|e| {
-                            Error::InvalidConfig(format!(
-                                "{what}: camera {k}: distance transform: {e}"
-                            ))
-                        })?;
+                        let distance =
+                            distance_to_zero(&exclusive, rw, rh).map_err(|e| Error::Camera {
+                                view: what,
+                                camera: k,
+                                name: cameras[k].0.clone(),
+                                source: Box::new(e),
+                            })?;
                         Ok(Some(Region { roi, distance }))
                     })
                 })
@@ -343,12 +345,12 @@ impl Mosaic {
     /// an error names the camera.
     pub fn check_frames(&self, frames: &[FrameView<'_>]) -> Result<()> {
         if frames.len() != self.layers.len() {
-            return Err(Error::InvalidConfig(format!(
-                "{}: {} frames for a rig of {} cameras",
+            return Err(Error::invalid(
                 self.what,
+                "frames",
+                format!("one for each of {} cameras", self.layers.len()),
                 frames.len(),
-                self.layers.len()
-            )));
+            ));
         }
         self.layers
             .iter()
@@ -360,9 +362,14 @@ impl Mosaic {
     }
 
     /// `cause`, about camera `k`, as an error that names the camera.
-    pub(crate) fn camera_error(&self, k: usize, cause: impl std::fmt::Display) -> Error {
+    pub(crate) fn camera_error(&self, k: usize, cause: Error) -> Error {
         let name = self.layers.get(k).map_or("?", |l| l.name.as_str());
-        Error::InvalidConfig(format!("{}: camera {k} (\"{name}\"): {cause}", self.what))
+        Error::Camera {
+            view: self.what,
+            camera: k,
+            name: name.into(),
+            source: Box::new(cause),
+        }
     }
 
     /// What the view is called in errors.
@@ -534,28 +541,35 @@ pub(crate) struct VehicleCameras {
 /// `what` (the view).
 pub(crate) fn vehicle_cameras(rig: &Rig, what: &str) -> Result<VehicleCameras> {
     if rig.frame != Frame::Vehicle {
-        return Err(Error::InvalidConfig(format!(
-            "{what}: the rig's poses are not in the vehicle frame (x forward, y left, z up, ground z = 0); a camera-frame rig (e.g. a Kalibr camchain) needs its ground pose first (`rigview calib ground`)",
-        )));
+        return Err(Error::invalid(
+            what,
+            "the rig's frame",
+            "poses in the vehicle frame (x forward, y left, z up, ground z = 0); a camera-frame rig (e.g. a Kalibr camchain) needs its ground pose first (`rigview calib ground`)",
+            "poses relative to a camera",
+        ));
     }
     let mut sources = Vec::with_capacity(rig.cameras.len());
     let mut projectors = Vec::with_capacity(rig.cameras.len());
     for cam in &rig.cameras {
         let Some(projector) = cam.projector() else {
-            return Err(Error::InvalidConfig(format!(
-                "{what}: camera `{}` has no pose: expected every camera's pose in the vehicle frame",
-                cam.name
-            )));
+            return Err(Error::invalid(
+                what,
+                format!("camera `{}`'s pose", cam.name),
+                "every camera's pose in the vehicle frame",
+                "none",
+            ));
         };
         let (iw, ih) = (
             cam.intrinsics.width as usize,
             cam.intrinsics.height as usize,
         );
         if iw < 2 || ih < 2 || iw.checked_mul(ih).is_none_or(|p| p > u32::MAX as usize) {
-            return Err(Error::InvalidConfig(format!(
-                "{what}: camera `{}` has {iw}×{ih} images: expected at least 2×2 and at most 2³² pixels",
-                cam.name
-            )));
+            return Err(Error::invalid(
+                what,
+                format!("camera `{}`'s image size", cam.name),
+                "at least 2×2 and at most 2³² pixels",
+                format_args!("{iw}×{ih}"),
+            ));
         }
         sources.push((cam.name.clone(), (iw, ih)));
         projectors.push(projector);

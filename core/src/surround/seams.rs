@@ -183,12 +183,16 @@ impl SeamBands {
         samples: usize,
     ) -> Result<Vec<Vec<f64>>> {
         if frames.len() != self.cameras || gains.is_some_and(|g| g.len() != self.cameras) {
-            return Err(Error::InvalidConfig(format!(
-                "seam steps: {} frames and {} gains for a view of {} cameras",
-                frames.len(),
-                gains.map_or(self.cameras, <[f32]>::len),
-                self.cameras
-            )));
+            return Err(Error::invalid(
+                "seam steps",
+                "frames and gains",
+                format!("one each for {} cameras", self.cameras),
+                format_args!(
+                    "{} frames and {} gains",
+                    frames.len(),
+                    gains.map_or(self.cameras, <[f32]>::len)
+                ),
+            ));
         }
         let gain = |k: usize| gains.map_or(1.0, |g| g[k]);
         let shown = |k: usize, p: u32| -> Option<f32> {

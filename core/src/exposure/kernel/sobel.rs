@@ -157,8 +157,8 @@ pub(crate) fn information(
 /// on a cache line, so that the γ passes' whole-vector loads of a row whose
 /// width is a multiple of 16 never straddle two lines (a `Vec` of this size
 /// may start anywhere on a 16-byte boundary, depending on what the
-/// allocator did before: the γ estimate took 213 µs or 239 µs from run to
-/// run).
+/// allocator did before, which made the γ estimate's time vary from run to
+/// run: `BENCHMARKS.md`, Exposure estimator, Results).
 pub(crate) fn log2_map(isa: Isa, luma: &[f32], floor: f32, out: &mut Aligned<f32>) {
     out.reset(luma.len(), 0.0);
     let floor = floor.clamp(-126.0, 0.0);

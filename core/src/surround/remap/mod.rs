@@ -58,11 +58,10 @@
 //! a pixel's demosaic (an integer), a channel is `(Σ w·S + 2¹³) >> 14`:
 //! nothing is rounded before the end, so a mosaic composes to the
 //! bilinear remap of its bilinear demosaic within the same bound as RGB
-//! (0.75 for two cameras; 0.54 measured on random mosaics), and within one
-//! level of demosaicing the whole frame with OpenCV and composing the RGB
-//! frame, which rounds each demosaiced value first (mean difference 0.14
-//! on the real rig's frames, 0.09 on the simulated rig's:
-//! `tests/tests/surround_bayer.rs`).
+//! (0.75 for two cameras), and within one level of demosaicing the whole
+//! frame with OpenCV and composing the RGB frame, which rounds each
+//! demosaiced value first (`tests/tests/surround_bayer.rs`). The measured
+//! differences are in `BENCHMARKS.md`, Surround view composition.
 //!
 //! The tap reads the 4×4 neighbourhood `n[r][c]` from (x0 − 1, y0 − 1).
 //! So that one formula serves the four orders and the four places of a
@@ -81,8 +80,7 @@
 //! Where the neighbourhood leaves the image the mosaic is reflected
 //! without repeating its edge (…, 1, 0, 1, …), which keeps every pixel's
 //! colour. OpenCV copies the image's outermost ring from the next
-//! instead, so the two differ there (up to 20 levels on the real frames);
-//! the tests compare the rest.
+//! instead, so the two differ there; the tests compare the rest.
 //!
 //! The plan keeps a site table, one byte a tap (built when a mosaic is
 //! first composed): the parities of x0 and y0 and whether the

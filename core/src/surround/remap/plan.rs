@@ -404,11 +404,12 @@ impl Plan {
             });
         }
         if images.len() != self.sources.len() {
-            return Err(Error::InvalidConfig(format!(
-                "surround view: {} images for a plan of {} cameras",
+            return Err(Error::invalid(
+                "surround view",
+                "images",
+                format!("one for each of {} cameras", self.sources.len()),
                 images.len(),
-                self.sources.len()
-            )));
+            ));
         }
         for (img, &(w, h)) in images.iter().zip(&self.sources) {
             if (img.width, img.height) != (w, h)
@@ -423,18 +424,22 @@ impl Plan {
                 });
             }
             if img.cfa.is_some() && ch != 3 {
-                return Err(Error::InvalidConfig(
-                    "surround view: a Bayer mosaic composes into an RGB canvas (3 channels)".into(),
+                return Err(Error::invalid(
+                    "surround view",
+                    "canvas channels for a Bayer mosaic",
+                    "3 (an RGB canvas)",
+                    ch,
                 ));
             }
         }
         if let Some(g) = gains {
             if g.len() != self.sources.len() {
-                return Err(Error::InvalidConfig(format!(
-                    "surround view: {} gains for a plan of {} cameras",
+                return Err(Error::invalid(
+                    "surround view",
+                    "gains",
+                    format!("one for each of {} cameras", self.sources.len()),
                     g.len(),
-                    self.sources.len()
-                )));
+                ));
             }
             if let Some(&bad) = g.iter().find(|&&g| !(MIN_GAIN..=MAX_GAIN).contains(&g)) {
                 return Err(Error::InvalidParameter {

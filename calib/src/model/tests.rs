@@ -1,0 +1,225 @@
+use super::*;
+
+fn fisheye() -> Intrinsics {
+    Intrinsics {
+        width: 960,
+        height: 640,
+        fx: 302.45,
+        fy: 320.75,
+        cx: 496.6,
+        cy: 331.2,
+        distortion: Distortion::Fisheye([-0.0437, 0.0217, -0.0264, 0.0084]),
+    }
+}
+
+#[test]
+fn fisheye_round_trip_beyond_ninety_degrees() {
+    let cam = fisheye();
+    let t_max = cam.max_incidence();
+    assert!(t_max > 95f64.to_radians(), "θmax = {}", t_max.to_degrees());
+    for i in 0..200 {
+        let theta = t_max * 0.999 * f64::from(i) / 199.0;
+        let phi = f64::from(i) * 0.7;
+        let ray = Vector3::new(
+            theta.sin() * phi.cos(),
+            theta.sin() * phi.sin(),
+            theta.cos(),
+        );
+        let px = cam.project(&(ray * 3.0)).unwrap();
+        let back = cam.unproject(&px).unwrap();
+        assert!((back.into_inner() - ray).norm() < 1e-12, "θ = {theta}");
+    }
+}
+
+#[test]
+fn radtan_folds_are_invalid() {
+    // k1 < 0 folds at r² = −1/(3 k1).
+    let k = [-0.3, 0.0, 0.0, 0.0, 0.0];
+    let r2 = pinhole_r2_max(&[-0.3, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]);
+    assert!((r2 - 1.0 / 0.9).abs() < 1e-9, "{r2}");
+    let cam = Intrinsics {
+        width: 640,
+        height: 480,
+        fx: 500.0,
+        fy: 500.0,
+        cx: 320.0,
+        cy: 240.0,
+        distortion: Distortion::RadTan(k),
+    };
+    assert!(cam.project(&Vector3::new(2.0, 0.0, 1.0)).is_none());
+    assert!(cam.project(&Vector3::new(0.5, 0.0, -1.0)).is_none());
+    assert!(cam.project(&Vector3::new(0.5, 0.2, 1.0)).is_some());
+}
+
+fn rational(k: [f64; 8]) -> Intrinsics {
+    Intrinsics {
+        width: 1280,
+        height: 720,
+        fx: 610.2,
+        fy: 609.8,
+        cx: 638.4,
+        cy: 366.9,
+        distortion: Distortion::Rational(k),
+    }
+}
+
+/// As a depth camera's colour stream calibrates: numerator and
+/// denominator nearly cancel.
+const DEPTH_CAMERA: [f64; 8] = [0.52, -2.6, 6.2e-4, -2.1e-4, 1.5, 0.4, -2.45, 1.42];
+
+#[test]
+fn rational_round_trip_across_the_image() {
+    let cam = rational(DEPTH_CAMERA);
+    let mut worst = 0.0_f64;
+    for j in 0..=36 {
+        for i in 0..=64 {
+            let px = Point2::new(f64::from(i) / 64.0 * 1279.0, f64::from(j) / 36.0 * 719.0);
+            let ray = cam.unproject(&px).unwrap();
+            let back = cam.project(&(ray.into_inner() * 2.5)).unwrap();
+            worst = worst.max((back - px).norm());
+        }
+    }
+    assert!(worst < 1e-9, "round trip off by {worst} px");
+}
+
+#[test]
+fn rational_validity_ends_at_a_fold_or_a_pole() {
+    // A denominator 1 − r² has its pole at r² = 1, and the numerator
+    // 1 + r² keeps r·n/d increasing up to it.
+    let pole = rational([1.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0]);
+    let r2 = pinhole_r2_max(&[1.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0]);
+    assert!((r2 - 1.0).abs() < 1e-9, "{r2}");
+    assert!(pole.project(&Vector3::new(0.999, 0.0, 1.0)).is_some());
+    assert!(pole.project(&Vector3::new(1.001, 0.0, 1.0)).is_none());
+    // Numerator 1, denominator 1 + r²: r/(1 + r²) peaks at r = 1.
+    let fold = rational([0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0]);
+    assert!((fold.max_incidence() - std::f64::consts::FRAC_PI_4).abs() < 1e-9);
+    let edge = fold.project(&Vector3::new(0.999_999, 0.0, 1.0)).unwrap();
+    assert!(fold.unproject(&Point2::new(edge.x + 1.0, edge.y)).is_none());
+    let inside = fold.unproject(&Point2::new(edge.x - 1.0, edge.y)).unwrap();
+    assert!(inside.x / inside.z < 1.0);
+    // Tangential terms fold the image where they outgrow the radial
+    // part: with p1 = 0.1 alone, y ↦ y + 0.3 y² along x = 0 turns back
+    // at y = −1/0.6.
+    let tangential = [0.0, 0.0, 0.1, 0.0, 0.0, 0.0, 0.0, 0.0];
+    let r2 = pinhole_r2_max(&tangential);
+    assert!((r2 - 1.0 / 0.36).abs() < 1e-9, "{r2}");
+    let cam = rational(tangential);
+    assert!(cam.project(&Vector3::new(0.0, -1.66, 1.0)).is_some());
+    assert!(cam.project(&Vector3::new(0.0, -1.67, 1.0)).is_none());
+    // The depth camera is valid beyond its image corners.
+    let cam = rational(DEPTH_CAMERA);
+    let fov = cam.field_of_view();
+    assert!(fov.diagonal_deg.is_some(), "{fov:?}");
+    assert!(fov.model_limit_deg > 0.5 * fov.diagonal_deg.unwrap_or(180.0));
+}
+
+/// The inversion of the fisheye polynomial agrees with a bisection to
+/// the last bit within 1e-12 rad wherever the polynomial is not flat
+/// (dθd/dθ ≥ 0.05; the real surround-nz lens, θmax about 101°).
+#[test]
+fn fisheye_inversion_agrees_with_a_bisection() {
+    let Distortion::Fisheye(k) = fisheye().distortion else {
+        unreachable!()
+    };
+    let t_max = fisheye_theta_max(&k);
+    for i in 1..20_000 {
+        let td = fisheye_theta_d(&k, t_max) * f64::from(i) / 20_000.0;
+        let t = fisheye_theta_from_theta_d(&k, t_max, td).unwrap();
+        if fisheye_dtheta_d(&k, t) < 0.05 {
+            continue;
+        }
+        let (mut lo, mut hi) = (0.0, t_max);
+        while hi - lo > 0.0 {
+            let mid = 0.5 * (lo + hi);
+            if mid <= lo || mid >= hi {
+                break;
+            }
+            if fisheye_theta_d(&k, mid) < td {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        assert!((t - lo).abs() < 1e-12, "θd = {td}: {t} against {lo}");
+    }
+}
+
+/// A projector gives the same bits as the intrinsics it was built from,
+/// inside and outside the valid region, for every model.
+#[test]
+fn projector_gives_the_same_bits() {
+    let models = [
+        fisheye(),
+        // Folds at θ = 1.29 rad.
+        Intrinsics {
+            distortion: Distortion::Fisheye([-0.2, 0.0, 0.0, 0.0]),
+            ..fisheye()
+        },
+        rational(DEPTH_CAMERA),
+        rational([0.0, 0.0, 0.1, 0.0, 0.0, 0.0, 0.0, 0.0]),
+        Intrinsics {
+            distortion: Distortion::RadTan([-0.3, 0.08, 1e-3, -2e-3, 0.0]),
+            ..rational(DEPTH_CAMERA)
+        },
+    ];
+    let bits = |p: Option<Point2<f64>>| p.map(|p| (p.x.to_bits(), p.y.to_bits()));
+    let ray_bits =
+        |r: Option<Unit<Vector3<f64>>>| r.map(|r| (r.x.to_bits(), r.y.to_bits(), r.z.to_bits()));
+    let mut outside = 0;
+    for cam in models {
+        let proj = cam.projector();
+        assert_eq!(proj.intrinsics(), &cam);
+        let mut inside = 0;
+        for i in 0..60 {
+            for j in 0..40 {
+                // Directions all round the sphere, and pixels beyond
+                // the image.
+                let theta = std::f64::consts::PI * f64::from(i) / 59.0;
+                let phi = 0.37 + std::f64::consts::TAU * f64::from(j) / 40.0;
+                let p = Vector3::new(
+                    theta.sin() * phi.cos(),
+                    theta.sin() * phi.sin(),
+                    theta.cos(),
+                ) * 2.5;
+                let a = cam.project(&p);
+                assert_eq!(bits(a), bits(proj.project(&p)), "{p:?}");
+                if a.is_some() {
+                    inside += 1;
+                } else {
+                    outside += 1;
+                }
+                let px = Point2::new(f64::from(i) * 40.0 - 400.0, f64::from(j) * 30.0 - 200.0);
+                assert_eq!(ray_bits(cam.unproject(&px)), ray_bits(proj.unproject(&px)));
+            }
+        }
+        assert!(inside > 0, "{cam:?}");
+    }
+    // Every model but the first fisheye's leaves directions outside.
+    assert!(outside > 4 * 600, "{outside} outside");
+}
+
+#[test]
+fn rig_file_model_names() {
+    let d = Distortion::from_name("pinhole-rational", &DEPTH_CAMERA).unwrap();
+    assert_eq!(d, Distortion::Rational(DEPTH_CAMERA));
+    assert_eq!(d.model_name(), "pinhole-rational");
+    assert_eq!(d.coefficient_names().len(), d.coefficients().len());
+    let e = Distortion::from_name("pinhole-rational", &[0.0; 5]).unwrap_err();
+    assert_eq!((e.field.as_str(), e.found.as_str()), ("distortion", "5"));
+    assert!(e.expected.contains("8 rational"), "{e}");
+    let e = Distortion::from_name("omni", &[0.0; 5]).unwrap_err();
+    assert_eq!(e.field, "model");
+    assert!(e.expected.contains("pinhole-rational"), "{e}");
+}
+
+#[test]
+fn validate_names_the_field() {
+    let mut cam = fisheye();
+    cam.fy = -3.0;
+    let e = cam.validate().unwrap_err();
+    assert_eq!(e.field, "fy");
+    cam.fy = 300.0;
+    cam.distortion = Distortion::Fisheye([0.0, f64::NAN, 0.0, 0.0]);
+    assert_eq!(cam.validate().unwrap_err().field, "distortion[1]");
+}

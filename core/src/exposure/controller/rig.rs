@@ -1,0 +1,360 @@
+//! The rig's controller: one [`CameraController`] per camera, the
+//! balancing of neighbours (Eq. 5/6) and the split into shutter and gain.
+
+use super::*;
+
+/// One camera's input to a rig step.
+#[derive(Clone, Copy, Debug)]
+pub struct CameraInput<'a> {
+    /// What the frame was taken with.
+    pub info: FrameInfo,
+    /// The metered frame.
+    pub metered: &'a Metered,
+}
+
+/// The overlap patches of one neighbour pair, as seen in this frame set.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PairObservation {
+    /// Camera `i`.
+    pub i: usize,
+    /// Camera `j`.
+    pub j: usize,
+    /// The patch means in both cameras.
+    pub patches: Vec<PatchPair>,
+}
+
+/// The measured brightness ratios of one pair.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PairRatio {
+    /// Camera `i`.
+    pub i: usize,
+    /// Camera `j`.
+    pub j: usize,
+    /// `r_ij`: how much brighter `j` sees the overlap than `i`.
+    pub r_ij: Option<f64>,
+}
+
+/// One camera's outcome of a rig step (also its telemetry).
+#[derive(Clone, Debug, PartialEq)]
+pub struct CameraStep {
+    /// The camera's index.
+    pub camera: usize,
+    /// The frame's id.
+    pub frame_id: u64,
+    /// What the frame was taken with.
+    pub taken: ExposureSetting,
+    /// The estimate, when the mode uses one.
+    pub estimate: Option<Estimate>,
+    /// Mean intensity of the metered pixels.
+    pub mean: f32,
+    /// The camera's own desired exposure.
+    pub unary: f64,
+    /// α of Eq. 6, when balancing applied.
+    pub alpha: Option<f64>,
+    /// The fraction `κ` of the balanced step taken, when balancing applied
+    /// (1 unless the camera has been circling: [`balance::Damping`]).
+    pub damping: Option<f64>,
+    /// The exposure after balancing.
+    pub target: f64,
+    /// The setting sent, if any.
+    pub command: Option<ExposureSetting>,
+    /// Why no command was sent.
+    pub hold: Option<Hold>,
+    /// Where the target was outside the camera's ranges.
+    pub clamped: Option<Clamped>,
+    /// Whether the mean-intensity fallback replaced an empty metric.
+    pub fallback: bool,
+    /// What a darker probe did on this frame ([`super::probe`]).
+    pub probe: Option<ProbeEvent>,
+    /// Whether the frame was taken at a probe's darker exposure.
+    pub probe_frame: bool,
+}
+
+/// The outcome of one rig step.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RigStep {
+    /// Per camera.
+    pub cameras: Vec<CameraStep>,
+    /// Per neighbour pair, both directions.
+    pub ratios: Vec<PairRatio>,
+}
+
+/// The controllers of a whole rig.
+#[derive(Clone, Debug)]
+pub struct RigController {
+    config: ControllerConfig,
+    cameras: Vec<CameraController>,
+    graph: NeighbourGraph,
+    held: balance::HeldRatios,
+}
+
+impl RigController {
+    /// A controller for cameras with `ranges` and overlaps `graph`.
+    pub fn new(
+        config: ControllerConfig,
+        ranges: &[ExposureRange],
+        graph: NeighbourGraph,
+    ) -> Result<Self> {
+        config.validate()?;
+        if graph.cameras() != ranges.len() {
+            return Err(Error::invalid(
+                "rig controller",
+                "exposure ranges",
+                format!(
+                    "one for each of the neighbour graph's {} cameras",
+                    graph.cameras()
+                ),
+                ranges.len(),
+            ));
+        }
+        let cameras = ranges
+            .iter()
+            .map(|r| CameraController::new(&config, *r))
+            .collect::<Result<_>>()?;
+        Ok(Self {
+            config,
+            cameras,
+            graph,
+            held: balance::HeldRatios::default(),
+        })
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &ControllerConfig {
+        &self.config
+    }
+
+    /// Replaces the configuration live; each camera keeps its state, and its
+    /// estimator is rebuilt if the estimator settings changed.
+    pub fn set_config(&mut self, config: ControllerConfig) -> Result<()> {
+        config.validate()?;
+        if config.estimator != self.config.estimator || config.split != self.config.split {
+            for cam in &mut self.cameras {
+                let mut fresh = CameraController::new(&config, *cam.splitter.range())?;
+                fresh.manual = cam.manual;
+                fresh.last_frame = cam.last_frame;
+                fresh.in_flight = cam.in_flight.clone();
+                fresh.frames = cam.frames;
+                *cam = fresh;
+            }
+        }
+        if config.pid != self.config.pid || config.mode != self.config.mode {
+            for cam in &mut self.cameras {
+                cam.pid.reset();
+            }
+        }
+        self.config = config;
+        Ok(())
+    }
+
+    /// The neighbour graph.
+    pub fn graph(&self) -> &NeighbourGraph {
+        &self.graph
+    }
+
+    /// Camera `i`'s controller.
+    pub fn camera_mut(&mut self, i: usize) -> Result<&mut CameraController> {
+        let count = self.cameras.len();
+        self.cameras
+            .get_mut(i)
+            .ok_or(Error::CameraIndex { index: i, count })
+    }
+
+    /// Number of cameras.
+    pub fn len(&self) -> usize {
+        self.cameras.len()
+    }
+
+    /// Whether the rig has no cameras.
+    pub fn is_empty(&self) -> bool {
+        self.cameras.is_empty()
+    }
+
+    /// One step on a complete frame set: `inputs[i]` is camera `i`'s frame,
+    /// `pairs` the overlap patches of neighbour pairs (their ratios are
+    /// reported in every mode and acted on when balancing is on).
+    pub fn step(
+        &mut self,
+        inputs: &[CameraInput<'_>],
+        pairs: &[PairObservation],
+    ) -> Result<RigStep> {
+        if inputs.len() != self.cameras.len() {
+            return Err(Error::invalid(
+                "rig step",
+                "frames",
+                format!(
+                    "a complete set, one for each of {} cameras",
+                    self.cameras.len()
+                ),
+                inputs.len(),
+            ));
+        }
+        let config = &self.config;
+        let unary = self
+            .cameras
+            .iter_mut()
+            .zip(inputs)
+            .map(|(c, input)| c.unary(config, &input.info, input.metered))
+            .collect::<Result<Vec<_>>>()?;
+        // The ratios are measured in every mode (telemetry); only balancing
+        // acts on them.
+        let mut ratios = Vec::with_capacity(pairs.len() * 2);
+        // Per ratio, whether its patches are clipped.
+        let mut clipped = Vec::with_capacity(pairs.len() * 2);
+        let measure = config.balancing.unwrap_or_default();
+        {
+            let params = &measure;
+            for p in pairs {
+                for k in [p.i, p.j] {
+                    if k >= self.cameras.len() {
+                        return Err(Error::CameraIndex {
+                            index: k,
+                            count: self.cameras.len(),
+                        });
+                    }
+                }
+                let swapped: Vec<PatchPair> = p
+                    .patches
+                    .iter()
+                    .map(|q| PatchPair {
+                        mean_i: q.mean_j,
+                        saturated_i: q.saturated_j,
+                        mean_j: q.mean_i,
+                        saturated_j: q.saturated_i,
+                    })
+                    .collect();
+                ratios.push(PairRatio {
+                    i: p.i,
+                    j: p.j,
+                    r_ij: balance::pair_ratio(&p.patches, params),
+                });
+                ratios.push(PairRatio {
+                    i: p.j,
+                    j: p.i,
+                    r_ij: balance::pair_ratio(&swapped, params),
+                });
+                let clips = balance::clipped(&p.patches, params);
+                clipped.extend([clips, clips]);
+            }
+        }
+        // Where each camera will be once its commands in flight show: the
+        // balancing works there, so that a frame taken before the last
+        // command showed does not ask for the same step again.
+        let bases: Vec<f64> = self
+            .cameras
+            .iter()
+            .zip(inputs)
+            .map(|(c, input)| c.base(input.info.taken).exposure())
+            .collect();
+        // What balancing acts on: the measured ratios, or a pair's held
+        // scene ratio while its patches are unusable.
+        let acted: Vec<PairRatio> = ratios
+            .iter()
+            .zip(&clipped)
+            .map(|(r, &clipped)| PairRatio {
+                r_ij: self.held.update(
+                    (r.i, r.j),
+                    r.r_ij,
+                    inputs[r.i].info.taken.exposure(),
+                    inputs[r.j].info.taken.exposure(),
+                    measure.hold_sets,
+                    clipped,
+                ),
+                ..*r
+            })
+            .collect();
+        let mut steps = Vec::with_capacity(inputs.len());
+        for (i, (u, input)) in unary.into_iter().zip(inputs).enumerate() {
+            let cam = &mut self.cameras[i];
+            let balancing = config
+                .balancing
+                .filter(|_| cam.manual.is_none() && config.mode != ControlMode::Fixed);
+            let neighbour: Vec<f64> = match balancing {
+                Some(_) => self
+                    .graph
+                    .neighbours(i)
+                    .filter_map(|j| {
+                        // r_ij as the two cameras will see the overlap at
+                        // their bases (a linear sensor's brightness follows
+                        // its exposure).
+                        let moved =
+                            (bases[j] / inputs[j].info.taken.exposure()) / (bases[i] / u.taken);
+                        acted
+                            .iter()
+                            .find(|r| r.i == i && r.j == j)
+                            .and_then(|r| r.r_ij)
+                            .map(|r| r * moved)
+                    })
+                    .collect(),
+                None => Vec::new(),
+            };
+            // A camera following a change of light goes where its
+            // balanced command would have gone in the reference's light.
+            let (target, alpha, damping) =
+                match balancing.filter(|_| !neighbour.is_empty() && u.light.is_none()) {
+                    Some(params) => {
+                        // Under the fast law a change of light is measured
+                        // (the camera follows it, and the damping starts
+                        // again); the frames' means guess at it otherwise,
+                        // and frames that commands in flight leave at
+                        // several exposures would read as changes.
+                        if config.law.kind != LawKind::Fast {
+                            cam.damping.observe(
+                                input.info.taken.exposure().log2(),
+                                f64::from(input.metered.stats().mean),
+                                config.bracket.light_tolerance,
+                            );
+                        }
+                        let b = balance::balance(u.desired, bases[i], &neighbour);
+                        // On fixed levels the walker keeps a camera from
+                        // circling, and a damped step would only add up
+                        // more slowly.
+                        let (e, kappa) = if cam.has_levels() {
+                            (b.exposure, 1.0)
+                        } else if u.hold.is_some() {
+                            (b.exposure, cam.damping.kappa())
+                        } else {
+                            cam.damping.apply(bases[i], b.exposure, &params.damping)
+                        };
+                        (e, Some(b.alpha), Some(kappa))
+                    }
+                    None => {
+                        cam.damping.reset();
+                        (u.desired, None, None)
+                    }
+                };
+            let (command, clamped, hold) = if u.hold.is_some() {
+                (None, None, u.hold)
+            } else {
+                let (cmd, clamped) = cam.command(target, input.info.taken);
+                let hold = if cmd.is_none() {
+                    Some(Hold::Settled)
+                } else {
+                    None
+                };
+                (cmd, clamped, hold)
+            };
+            steps.push(CameraStep {
+                camera: i,
+                frame_id: input.info.frame_id,
+                taken: input.info.taken,
+                estimate: u.estimate,
+                mean: input.metered.stats().mean,
+                unary: u.desired,
+                alpha,
+                damping,
+                target,
+                command,
+                hold,
+                clamped,
+                fallback: u.fallback,
+                probe: u.probe,
+                probe_frame: u.probe_frame,
+            });
+        }
+        Ok(RigStep {
+            cameras: steps,
+            ratios,
+        })
+    }
+}

@@ -1,0 +1,209 @@
+use super::*;
+
+/// A meter to `side×side` metered pixels.
+fn square_meter(side: usize) -> Meter {
+    Meter::new(MeteringConfig {
+        target_width: side,
+        target_height: side,
+    })
+    .unwrap()
+}
+
+/// A 12×12 frame of `format` (Bayer: 24×24 sensor pixels, 12×12 quads)
+/// at grey level `base` with each sample of `hot` at its own level.
+fn frame_with(format: PixelFormat, base: u8, hot: &[((usize, usize), u8)]) -> Vec<u8> {
+    let side = if format.is_bayer() { 24 } else { 12 };
+    let bpp = format.bytes_per_pixel();
+    let mut data = vec![0u8; side * side * bpp];
+    let put = |data: &mut [u8], x: usize, y: usize, v: u8| {
+        let i = (y * side + x) * bpp;
+        match format {
+            PixelFormat::Mono12 => {
+                let w = u16::from(v) * 16 + u16::from(v) / 16;
+                data[i..i + 2].copy_from_slice(&w.to_le_bytes());
+            }
+            PixelFormat::Mono16 => {
+                data[i..i + 2].copy_from_slice(&(u16::from(v) * 257).to_le_bytes());
+            }
+            _ => data[i..i + bpp].fill(v),
+        }
+    };
+    for y in 0..side {
+        for x in 0..side {
+            put(&mut data, x, y, base);
+        }
+    }
+    for &((x, y), value) in hot {
+        if format.is_bayer() {
+            // The whole quad.
+            for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+                put(&mut data, 2 * x + dx, 2 * y + dy, value);
+            }
+        } else {
+            put(&mut data, x, y, value);
+        }
+    }
+    data
+}
+
+#[test]
+fn metered_blocks_carry_the_fraction_of_their_saturated_samples() {
+    let meter = square_meter(3);
+    for format in [
+        PixelFormat::Mono8,
+        PixelFormat::Mono12,
+        PixelFormat::Mono16,
+        PixelFormat::Rgb8,
+        PixelFormat::BayerRg8,
+    ] {
+        let side = if format.is_bayer() { 24 } else { 12 };
+        // Block (0, 0) gets three saturated samples, block (2, 1) one
+        // just below the level (249/255 < 0.98) and one at it (250).
+        let hot = [
+            ((0, 0), 255),
+            ((3, 1), 255),
+            ((2, 3), 255),
+            ((9, 5), 249),
+            ((10, 6), 250),
+        ];
+        let data = frame_with(format, 100, &hot);
+        let frame = FrameView::new(format, side, side, &data).unwrap();
+        let m = meter.meter(&frame, None).unwrap();
+        assert_eq!((m.width(), m.height()), (3, 3), "{format:?}");
+        let plane = m.saturated_samples().unwrap();
+        let want = [3.0 / 16.0, 0.0, 0.0, 0.0, 0.0, 1.0 / 16.0, 0.0, 0.0, 0.0];
+        assert_eq!(plane, want, "{format:?}");
+        // Nothing saturated: no plane; one sample per metered pixel: no
+        // plane (the pixel itself says it).
+        let plain = frame_with(format, 100, &[]);
+        let frame = FrameView::new(format, side, side, &plain).unwrap();
+        assert!(meter
+            .meter(&frame, None)
+            .unwrap()
+            .saturated_samples()
+            .is_none());
+        let one = square_meter(12);
+        let frame = FrameView::new(format, side, side, &data).unwrap();
+        assert!(one
+            .meter(&frame, None)
+            .unwrap()
+            .saturated_samples()
+            .is_none());
+    }
+}
+
+fn frame_and_mask(format: PixelFormat) -> (Vec<u8>, RoiMask, usize, usize) {
+    let (w, h) = (644, 482);
+    let bpp = format.bytes_per_pixel();
+    let data: Vec<u8> = (0..w * h * bpp).map(|i| ((i * 7919) % 251) as u8).collect();
+    // A disc of ground, as a fisheye's ground mask looks.
+    let mask: Vec<u8> = (0..w * h)
+        .map(|i| {
+            let (x, y) = ((i % w) as f64 - 300.0, (i / w) as f64 - 300.0);
+            u8::from(x * x + y * y < 200.0 * 200.0)
+        })
+        .collect();
+    (data, RoiMask::new(w, h, mask).unwrap(), w, h)
+}
+
+#[test]
+fn a_prepared_mask_meters_exactly_as_the_mask_itself() {
+    let meter = Meter::new(MeteringConfig::default()).unwrap();
+    for format in [PixelFormat::Mono8, PixelFormat::Rgb8, PixelFormat::BayerRg8] {
+        let (data, mask, w, h) = frame_and_mask(format);
+        let frame = FrameView::new(format, w, h, &data).unwrap();
+        let direct = meter.meter(&frame, Some(&mask)).unwrap();
+        let prepared = meter.prepare(&mask, format).unwrap();
+        let via = meter.meter_prepared(&frame, &prepared).unwrap();
+        assert_eq!(direct.luma(), via.luma(), "{format:?}");
+        assert_eq!(direct.weight(), via.weight(), "{format:?}");
+        assert_eq!(direct.stats(), via.stats(), "{format:?}");
+        let covered = via.weight().unwrap().iter().filter(|&&v| v > 0.0).count();
+        assert!(
+            covered > 100 && covered < via.width() * via.height() / 2,
+            "{covered}"
+        );
+    }
+}
+
+#[test]
+fn a_prepared_mask_refuses_another_frame_size() {
+    let meter = Meter::new(MeteringConfig::default()).unwrap();
+    let (data, mask, w, h) = frame_and_mask(PixelFormat::Mono8);
+    let prepared = meter.prepare(&mask, PixelFormat::Mono8).unwrap();
+    let smaller = FrameView::new(PixelFormat::Mono8, w - 4, h, &data[..(w - 4) * h]).unwrap();
+    assert!(matches!(
+        meter.meter_prepared(&smaller, &prepared),
+        Err(Error::SizeMismatch { .. })
+    ));
+    // A Bayer frame of the same size meters on quads: refused too.
+    let (bayer, _, _, _) = frame_and_mask(PixelFormat::BayerRg8);
+    let frame = FrameView::new(PixelFormat::BayerRg8, w, h, &bayer).unwrap();
+    assert!(meter.meter_prepared(&frame, &prepared).is_err());
+}
+
+#[test]
+fn a_16_bit_mosaic_meters_as_the_8_bit_one_of_the_same_light() {
+    // Samples v·257 in 16 bits are v/255 of full scale, as v in 8 bits:
+    // the same luminance and the same saturation, block by block.
+    let meter = square_meter(6);
+    let side = 24;
+    let narrow: Vec<u8> = (0..side * side)
+        .map(|i| ((i * 7919 + 13) % 256) as u8)
+        .collect();
+    let wide: Vec<u8> = narrow
+        .iter()
+        .flat_map(|&v| (u16::from(v) * 257).to_le_bytes())
+        .collect();
+    for (w8, w16) in [
+        (PixelFormat::BayerRg8, PixelFormat::BayerRg16),
+        (PixelFormat::BayerGb8, PixelFormat::BayerGb16),
+    ] {
+        let a = meter
+            .meter(&FrameView::new(w8, side, side, &narrow).unwrap(), None)
+            .unwrap();
+        let b = meter
+            .meter(&FrameView::new(w16, side, side, &wide).unwrap(), None)
+            .unwrap();
+        for (x, y) in a.luma().iter().zip(b.luma()) {
+            assert!((x - y).abs() < 1e-6, "{w16:?}: {x} {y}");
+        }
+        let (sa, sb) = (
+            a.saturated_samples().unwrap(),
+            b.saturated_samples().unwrap(),
+        );
+        assert!(sa.iter().any(|&v| v > 0.0));
+        for (x, y) in sa.iter().zip(sb) {
+            assert!((x - y).abs() < 1e-6, "{w16:?}: saturated {x} {y}");
+        }
+    }
+}
+
+#[test]
+fn metering_one_sample_per_pixel_gives_the_luminance_of_luma_at() {
+    // One metered pixel per pixel (or Bayer quad): the metering's
+    // luminance and the frame's own agree exactly, in every format.
+    let meter = square_meter(12);
+    for format in PixelFormat::ALL {
+        let side = if format.is_bayer() { 24 } else { 12 };
+        let data: Vec<u8> = (0..side * side * format.bytes_per_pixel())
+            .map(|i| ((i * 7919 + 13) % 256) as u8)
+            .collect();
+        let frame = FrameView::new(format, side, side, &data).unwrap();
+        let m = meter.meter(&frame, None).unwrap();
+        assert_eq!((m.width(), m.height()), (12, 12), "{format:?}");
+        let step = if format.is_bayer() { 2 } else { 1 };
+        for y in 0..12 {
+            for x in 0..12 {
+                let want = m.luma()[y * 12 + x];
+                // Every pixel of a quad reads the quad.
+                for (dx, dy) in [(0, 0), (step - 1, 0), (0, step - 1), (step - 1, step - 1)] {
+                    let got = frame.luma_at(step * x + dx, step * y + dy);
+                    assert_eq!(got.to_bits(), want.to_bits(), "{format:?} ({x}, {y})");
+                }
+            }
+        }
+        // Not all alike: the test reads different values.
+        assert!(m.stats().histogram.iter().filter(|&&c| c > 0).count() > 20);
+    }
+}
