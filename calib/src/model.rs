@@ -30,6 +30,8 @@ use nalgebra::{Point2, Unit, Vector3};
 
 use crate::error::FieldError;
 
+mod sphere;
+
 /// A camera model without its coefficients.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
@@ -41,6 +43,12 @@ pub enum ModelKind {
     /// Pinhole with OpenCV's rational distortion (k1, k2, p1, p2, k3, k4,
     /// k5, k6; ROS's rational_polynomial).
     Rational,
+    /// Double sphere (ξ, α).
+    DoubleSphere,
+    /// Extended unified (α, β).
+    Eucm,
+    /// Unified / Mei with radial-tangential distortion (ξ, k1, k2, p1, p2).
+    Omni,
 }
 
 /// The lens model and its distortion coefficients.
@@ -56,10 +64,18 @@ pub enum Distortion {
     /// `rational_polynomial`). The radial factor is
     /// (1 + k1 r² + k2 r⁴ + k3 r⁶) / (1 + k4 r² + k5 r⁴ + k6 r⁶).
     Rational([f64; 8]),
+    /// Double sphere (Usenko et al. 2018): `[ξ, α]`.
+    DoubleSphere([f64; 2]),
+    /// Extended unified (Khomutenko et al. 2016): `[α, β]`.
+    Eucm([f64; 2]),
+    /// Unified / Mei (OpenCV's omnidir, Kalibr's omni-radtan): `[ξ, k1, k2,
+    /// p1, p2]`, the radial-tangential distortion on the unit sphere's
+    /// projection plane.
+    Omni([f64; 5]),
 }
 
 /// The model names of rig files, for error messages.
-const MODEL_NAMES: &str = "\"fisheye\", \"pinhole-radtan\" or \"pinhole-rational\"";
+const MODEL_NAMES: &str = "\"fisheye\", \"pinhole-radtan\", \"pinhole-rational\", \"double-sphere\", \"eucm\" or \"omni-radtan\"";
 
 impl Distortion {
     /// The model's name in rig files: `fisheye`, `pinhole-radtan` or
@@ -69,6 +85,9 @@ impl Distortion {
             Distortion::Fisheye(_) => "fisheye",
             Distortion::RadTan(_) => "pinhole-radtan",
             Distortion::Rational(_) => "pinhole-rational",
+            Distortion::DoubleSphere(_) => "double-sphere",
+            Distortion::Eucm(_) => "eucm",
+            Distortion::Omni(_) => "omni-radtan",
         }
     }
 
@@ -78,6 +97,9 @@ impl Distortion {
             Distortion::Fisheye(_) => ModelKind::Fisheye,
             Distortion::RadTan(_) => ModelKind::Pinhole,
             Distortion::Rational(_) => ModelKind::Rational,
+            Distortion::DoubleSphere(_) => ModelKind::DoubleSphere,
+            Distortion::Eucm(_) => ModelKind::Eucm,
+            Distortion::Omni(_) => ModelKind::Omni,
         }
     }
 
@@ -87,6 +109,8 @@ impl Distortion {
             Distortion::Fisheye(k) => k,
             Distortion::RadTan(k) => k,
             Distortion::Rational(k) => k,
+            Distortion::DoubleSphere(k) | Distortion::Eucm(k) => k,
+            Distortion::Omni(k) => k,
         }
     }
 
@@ -97,6 +121,9 @@ impl Distortion {
             Distortion::Fisheye(_) => &["k1", "k2", "k3", "k4"],
             Distortion::RadTan(_) => &["k1", "k2", "p1", "p2", "k3"],
             Distortion::Rational(_) => &["k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6"],
+            Distortion::DoubleSphere(_) => &["xi", "alpha"],
+            Distortion::Eucm(_) => &["alpha", "beta"],
+            Distortion::Omni(_) => &["xi", "k1", "k2", "p1", "p2"],
         }
     }
 
@@ -116,6 +143,24 @@ impl Distortion {
                 k.copy_from_slice(c);
                 Ok(Distortion::Rational(k))
             }
+            ("double-sphere", 2) => Ok(Distortion::DoubleSphere([c[0], c[1]])),
+            ("eucm", 2) => Ok(Distortion::Eucm([c[0], c[1]])),
+            ("omni-radtan", 5) => Ok(Distortion::Omni([c[0], c[1], c[2], c[3], c[4]])),
+            ("double-sphere", n) => Err(FieldError::new(
+                "distortion",
+                "2 double-sphere parameters xi, alpha",
+                format!("{n}"),
+            )),
+            ("eucm", n) => Err(FieldError::new(
+                "distortion",
+                "2 extended-unified parameters alpha, beta",
+                format!("{n}"),
+            )),
+            ("omni-radtan", n) => Err(FieldError::new(
+                "distortion",
+                "5 unified-model parameters xi, k1, k2, p1, p2",
+                format!("{n}"),
+            )),
             ("fisheye", n) => Err(FieldError::new(
                 "distortion",
                 "4 fisheye coefficients k1..k4",
@@ -140,11 +185,13 @@ impl Distortion {
     }
 
     /// The eight coefficients of OpenCV's pinhole distortion
-    /// (radial-tangential: k4 = k5 = k6 = 0); `None` for the fisheye model.
+    /// (radial-tangential: k4 = k5 = k6 = 0), and the unified model's on
+    /// its projection plane; `None` for the other models.
     fn pinhole(&self) -> Option<[f64; 8]> {
         match *self {
-            Distortion::Fisheye(_) => None,
+            Distortion::Fisheye(_) | Distortion::DoubleSphere(_) | Distortion::Eucm(_) => None,
             Distortion::RadTan([k1, k2, p1, p2, k3]) => Some([k1, k2, p1, p2, k3, 0.0, 0.0, 0.0]),
+            Distortion::Omni([_, k1, k2, p1, p2]) => Some([k1, k2, p1, p2, 0.0, 0.0, 0.0, 0.0]),
             Distortion::Rational(k) => Some(k),
         }
     }
@@ -218,8 +265,34 @@ impl Intrinsics {
         }
         check_finite("cx", self.cx)?;
         check_finite("cy", self.cy)?;
-        for (i, &k) in self.distortion.coefficients().iter().enumerate() {
+        // The sphere models' own parameters are checked by name below; the
+        // rest is the distortion list as files write it.
+        let own = match self.distortion {
+            Distortion::DoubleSphere(_) | Distortion::Eucm(_) => 2,
+            Distortion::Omni(_) => 1,
+            _ => 0,
+        };
+        for (i, &k) in self.distortion.coefficients()[own..].iter().enumerate() {
             check_finite(&format!("distortion[{i}]"), k)?;
+        }
+        let range = |name: &str, v: f64, ok: bool, expected: &str| {
+            if ok {
+                Ok(())
+            } else {
+                Err(FieldError::new(name, expected, format!("{v}")))
+            }
+        };
+        match self.distortion {
+            Distortion::DoubleSphere([xi, alpha]) => {
+                range("xi", xi, (-1.0..=1.0).contains(&xi), "ξ in [−1, 1]")?;
+                range("alpha", alpha, (0.0..1.0).contains(&alpha), "α in [0, 1)")?;
+            }
+            Distortion::Eucm([alpha, beta]) => {
+                range("alpha", alpha, (0.0..1.0).contains(&alpha), "α in [0, 1)")?;
+                range("beta", beta, beta > 0.0, "β > 0")?;
+            }
+            Distortion::Omni([xi, ..]) => range("xi", xi, xi >= 0.0, "ξ ≥ 0")?,
+            _ => {}
         }
         Ok(())
     }
@@ -249,15 +322,18 @@ impl Intrinsics {
         }
     }
 
-    /// The fisheye model's largest θ, or the pinhole models' largest r²
-    /// (0 if a pinhole model has no coefficients, which cannot happen).
+    /// The fisheye model's largest θ, or the largest r² of the pinhole
+    /// models and of the unified model's distortion (0 if a pinhole model
+    /// has no coefficients, which cannot happen); the double-sphere and
+    /// extended unified models' limits are closed forms (0).
     fn validity_limit(&self) -> f64 {
         match self.distortion {
             Distortion::Fisheye(k) => fisheye_theta_max(&k),
-            Distortion::RadTan(_) | Distortion::Rational(_) => self
+            Distortion::RadTan(_) | Distortion::Rational(_) | Distortion::Omni(_) => self
                 .distortion
                 .pinhole()
                 .map_or(0.0, |k| pinhole_r2_max(&k)),
+            Distortion::DoubleSphere(_) | Distortion::Eucm(_) => 0.0,
         }
     }
 
@@ -270,6 +346,11 @@ impl Intrinsics {
                 .distortion
                 .pinhole()
                 .map_or(0.0, |k| pinhole_r2_max(&k).sqrt().atan()),
+            Distortion::DoubleSphere([xi, alpha]) => sphere::double_sphere_cos_max(xi, alpha)
+                .clamp(-1.0, 1.0)
+                .acos(),
+            Distortion::Eucm([alpha, beta]) => sphere::eucm_theta_max(alpha, beta),
+            Distortion::Omni([xi, ..]) => sphere::unified_theta_max(xi, self.validity_limit()),
         }
     }
 
@@ -376,6 +457,15 @@ fn project_within(m: &Intrinsics, limit: f64, p: &Vector3<f64>) -> Option<Point2
             }
             pinhole_distort(&k, a, b)
         }
+        Distortion::DoubleSphere([xi, alpha]) => sphere::double_sphere_project(xi, alpha, p)?,
+        Distortion::Eucm([alpha, beta]) => sphere::eucm_project(alpha, beta, p)?,
+        Distortion::Omni([xi, ..]) => {
+            let (a, b) = sphere::unified_project(xi, p)?;
+            if a * a + b * b > limit {
+                return None;
+            }
+            pinhole_distort(&m.distortion.pinhole()?, a, b)
+        }
     };
     let u = m.fx * xd + m.cx;
     let v = m.fy * yd + m.cy;
@@ -406,6 +496,16 @@ fn unproject_within(m: &Intrinsics, limit: f64, px: &Point2<f64>) -> Option<Unit
         Distortion::RadTan(_) | Distortion::Rational(_) => {
             let (a, b) = pinhole_undistort(&m.distortion.pinhole()?, limit, xd, yd)?;
             Some(Unit::new_normalize(Vector3::new(a, b, 1.0)))
+        }
+        Distortion::DoubleSphere([xi, alpha]) => {
+            sphere::double_sphere_unproject(xi, alpha, xd, yd).map(Unit::new_normalize)
+        }
+        Distortion::Eucm([alpha, beta]) => {
+            sphere::eucm_unproject(alpha, beta, xd, yd).map(Unit::new_normalize)
+        }
+        Distortion::Omni([xi, ..]) => {
+            let (a, b) = pinhole_undistort(&m.distortion.pinhole()?, limit, xd, yd)?;
+            sphere::unified_unproject(xi, a, b).map(Unit::new_normalize)
         }
     }
 }

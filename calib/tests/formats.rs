@@ -439,8 +439,18 @@ fn bad_kalibr_and_ros_files_get_errors_that_name_file_and_field() {
     let good = kalibr::write(&r).unwrap();
     let cases: Vec<(String, Vec<&str>)> = vec![
         (
+            good.replacen("camera_model: pinhole", "camera_model: scaramuzza", 1),
+            vec!["chain.yaml", "cam0.camera_model", "scaramuzza-equidistant"],
+        ),
+        (
+            // The unified model has no equidistant distortion, and its
+            // intrinsics start with ξ.
             good.replacen("camera_model: pinhole", "camera_model: omni", 1),
-            vec!["chain.yaml", "cam0.camera_model", "omni-equidistant"],
+            vec![
+                "chain.yaml",
+                "cam0.intrinsics",
+                "5 numbers [xi, fu, fv, pu, pv]",
+            ],
         ),
         (
             good.replacen("distortion_model: equidistant", "distortion_model: fov", 1),
@@ -888,4 +898,61 @@ fn ros2_camera_info_message_as_echoed() {
     let f = d.join("cam.yaml");
     std::fs::write(&f, format!("{}{}", &text[..k_start], &text[k_end..])).unwrap();
     assert_mentions(&err(formats::load(&f, None, None)), &["cam.yaml", "\"k\""]);
+}
+
+#[test]
+fn kalibr_sphere_models_are_read_as_kalibr_writes_them_and_written_back() {
+    // As Kalibr's camchain writer lays them out: the projection's own
+    // parameters first in `intrinsics` ([xi, fu, fv, pu, pv] for omni,
+    // [xi, alpha, fu, fv, pu, pv] for ds, [alpha, beta, fu, fv, pu, pv]
+    // for eucm), distortion none or radtan.
+    let text = "cam0:\n  camera_model: omni\n  intrinsics: [0.9, 300.0, 310.0, 640.0, 480.0]\n  distortion_model: radtan\n  distortion_coeffs: [-0.1, 0.02, 0.001, -0.002]\n  resolution: [1280, 960]\n  cam_overlaps: [1]\n  rostopic: /cam0/image_raw\ncam1:\n  T_cn_cnm1:\n  - [1.0, 0.0, 0.0, -0.11]\n  - [0.0, 1.0, 0.0, 0.0]\n  - [0.0, 0.0, 1.0, 0.0]\n  - [0.0, 0.0, 0.0, 1.0]\n  camera_model: ds\n  intrinsics: [-0.2, 0.6, 350.0, 351.0, 512.0, 511.0]\n  distortion_model: none\n  distortion_coeffs: []\n  resolution: [1024, 1024]\n  cam_overlaps: [0, 2]\ncam2:\n  T_cn_cnm1:\n  - [1.0, 0.0, 0.0, -0.11]\n  - [0.0, 1.0, 0.0, 0.0]\n  - [0.0, 0.0, 1.0, 0.0]\n  - [0.0, 0.0, 0.0, 1.0]\n  camera_model: eucm\n  intrinsics: [0.6, 1.1, 350.0, 351.0, 512.0, 511.0]\n  distortion_model: none\n  distortion_coeffs: []\n  resolution: [1024, 1024]\n  cam_overlaps: [1]\n";
+    let rig = kalibr::parse(text, "camchain.yaml").unwrap();
+    let k: Vec<_> = rig.cameras.iter().map(|c| c.intrinsics).collect();
+    assert_eq!(
+        k[0].distortion,
+        Distortion::Omni([0.9, -0.1, 0.02, 0.001, -0.002])
+    );
+    assert_eq!(
+        (k[0].fx, k[0].fy, k[0].cx, k[0].cy),
+        (300.0, 310.0, 640.0, 480.0)
+    );
+    assert_eq!(k[1].distortion, Distortion::DoubleSphere([-0.2, 0.6]));
+    assert_eq!((k[1].fx, k[1].cy), (350.0, 511.0));
+    assert_eq!(k[2].distortion, Distortion::Eucm([0.6, 1.1]));
+    let back = kalibr::parse(&kalibr::write(&rig).unwrap(), "k.yaml").unwrap();
+    for (a, b) in rig.cameras.iter().zip(&back.cameras) {
+        assert_eq!(a.intrinsics, b.intrinsics, "{}", a.name);
+    }
+    // The rig file names the sphere models' parameters and reads them back.
+    let yaml = rig_yaml::to_string(&rig).unwrap();
+    assert!(yaml.contains("model: double-sphere"), "{yaml}");
+    assert!(
+        yaml.contains("xi: -0.2") && yaml.contains("beta: 1.1"),
+        "{yaml}"
+    );
+    let again = rig_yaml::parse(&yaml, "rig.yaml").unwrap();
+    for (a, b) in rig.cameras.iter().zip(&again.cameras) {
+        assert_eq!(a.intrinsics, b.intrinsics, "{}", a.name);
+    }
+    // A model's parameter left out, or one it does not have, is an error
+    // naming the file and the field.
+    let missing = yaml.replacen("  beta: 1.1\n", "", 1);
+    assert_mentions(
+        &err(rig_yaml::parse(&missing, "rig.yaml")),
+        &["rig.yaml", "beta"],
+    );
+    let extra = yaml.replacen("  beta: 1.1\n", "  beta: 1.1\n  xi: 0.5\n", 1);
+    assert_mentions(
+        &err(rig_yaml::parse(&extra, "rig.yaml")),
+        &["rig.yaml", "xi"],
+    );
+    // ROS camera_info and OpenCV's files cannot hold these models: a clear
+    // error, not a file that means something else.
+    let e = ros::write(&rig.cameras[1]).unwrap_err().to_string();
+    assert!(e.contains("double-sphere") && e.contains("kalibr"), "{e}");
+    let e = opencv::write(&rig.cameras[2], false)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("eucm"), "{e}");
 }

@@ -182,10 +182,13 @@ pub fn decode_image(buf: &[u8]) -> Result<ImageMsg<'_>, CdrError> {
 /// `sensor_msgs/msg/CameraInfo` of a calibrated camera.
 pub fn encode_camera_info(stamp_ns: u64, frame_id: &str, camera: &Camera) -> Vec<u8> {
     let k = &camera.intrinsics;
+    // ROS names no other model; the others carry rigview's model name and
+    // its parameters in its order, which tools that do not know it ignore.
     let model = match k.distortion {
         Distortion::Fisheye(_) => "equidistant",
         Distortion::RadTan(_) => "plumb_bob",
         Distortion::Rational(_) => "rational_polynomial",
+        other => other.model_name(),
     };
     let km = [k.fx, 0.0, k.cx, 0.0, k.fy, k.cy, 0.0, 0.0, 1.0];
     let r = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0];

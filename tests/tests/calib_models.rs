@@ -63,6 +63,7 @@ fn opencv_project(k: &Intrinsics, pts: &[Vector3<f64>]) -> Vec<[f64; 2]> {
             0.0,
         )
         .unwrap(),
+        other => panic!("OpenCV has no {} model", other.model_name()),
     }
     out.iter().map(|p| [p.x, p.y]).collect()
 }
@@ -99,6 +100,7 @@ fn opencv_unproject(k: &Intrinsics, px: &[[f64; 2]]) -> Vec<[f64; 2]> {
             )
             .unwrap();
         }
+        other => panic!("OpenCV has no {} model", other.model_name()),
     }
     out.iter().map(|p| [p.x, p.y]).collect()
 }

@@ -55,22 +55,47 @@ pub fn parse(text: &str, file: &str) -> Result<Rig> {
         let cam = root.map(&key, "a camera")?;
         let model = cam.string("camera_model", "pinhole")?;
         let dmodel = cam.string("distortion_model", "equidistant or radtan")?;
-        if model != "pinhole" {
-            return Err(CalibError::UnknownModel {
-                file: file.into(),
-                field: cam.field_name("camera_model"),
-                model: format!("{model}-{dmodel}"),
-                supported: "pinhole-equi (distortion_model equidistant), pinhole-radtan".into(),
-            });
-        }
-        let intr = cam.numbers("intrinsics", Some(4), "4 numbers [fu, fv, pu, pv]")?;
+        const SUPPORTED: &str = "pinhole-equi (distortion_model equidistant), pinhole-radtan, \
+             pinhole-none, omni-radtan, omni-none, ds-none, eucm-none";
+        // The projection's own parameters come before [fu, fv, pu, pv].
+        let (own, own_names) = match model {
+            "pinhole" => (0, ""),
+            "omni" => (1, "xi, "),
+            "ds" => (2, "xi, alpha, "),
+            "eucm" => (2, "alpha, beta, "),
+            _ => {
+                return Err(CalibError::UnknownModel {
+                    file: file.into(),
+                    field: cam.field_name("camera_model"),
+                    model: format!("{model}-{dmodel}"),
+                    supported: SUPPORTED.into(),
+                })
+            }
+        };
+        let all = cam.numbers(
+            "intrinsics",
+            Some(own + 4),
+            &format!("{} numbers [{own_names}fu, fv, pu, pv]", own + 4),
+        )?;
+        let (params, intr) = all.split_at(own);
         let res = cam.numbers("resolution", Some(2), "2 numbers [width, height]")?;
         let (width, height) = (
             pixels(&cam, "resolution", res[0])?,
             pixels(&cam, "resolution", res[1])?,
         );
-        let distortion = match dmodel {
-            "equidistant" => {
+        let distortion = match (model, dmodel) {
+            ("ds", "none") => Distortion::DoubleSphere([params[0], params[1]]),
+            ("eucm", "none") => Distortion::Eucm([params[0], params[1]]),
+            ("omni", "none") => Distortion::Omni([params[0], 0.0, 0.0, 0.0, 0.0]),
+            ("omni", "radtan") => {
+                let k = cam.numbers(
+                    "distortion_coeffs",
+                    Some(4),
+                    "4 radtan coefficients [k1, k2, r1, r2]",
+                )?;
+                Distortion::Omni([params[0], k[0], k[1], k[2], k[3]])
+            }
+            ("pinhole", "equidistant") => {
                 let k = cam.numbers(
                     "distortion_coeffs",
                     Some(4),
@@ -78,7 +103,7 @@ pub fn parse(text: &str, file: &str) -> Result<Rig> {
                 )?;
                 Distortion::Fisheye([k[0], k[1], k[2], k[3]])
             }
-            "radtan" => {
+            ("pinhole", "radtan") => {
                 let k = cam.numbers(
                     "distortion_coeffs",
                     Some(4),
@@ -86,13 +111,13 @@ pub fn parse(text: &str, file: &str) -> Result<Rig> {
                 )?;
                 Distortion::RadTan([k[0], k[1], k[2], k[3], 0.0])
             }
-            "none" => Distortion::RadTan([0.0; 5]),
-            other => {
+            ("pinhole", "none") => Distortion::RadTan([0.0; 5]),
+            (_, other) => {
                 return Err(CalibError::UnknownModel {
                     file: file.into(),
                     field: cam.field_name("distortion_model"),
-                    model: format!("pinhole-{other}"),
-                    supported: "pinhole-equi (distortion_model equidistant), pinhole-radtan".into(),
+                    model: format!("{model}-{other}"),
+                    supported: SUPPORTED.into(),
                 })
             }
         };
@@ -199,10 +224,21 @@ pub fn write(rig: &Rig) -> Result<String> {
     for (i, c) in rig.cameras.iter().enumerate() {
         let k = &c.intrinsics;
         let mut m = Mapping::new();
-        m.insert("camera_model".into(), "pinhole".into());
-        m.insert("intrinsics".into(), seq([k.fx, k.fy, k.cx, k.cy]));
+        let (cm, own): (&str, Vec<f64>) = match k.distortion {
+            Distortion::DoubleSphere(d) => ("ds", d.to_vec()),
+            Distortion::Eucm(d) => ("eucm", d.to_vec()),
+            Distortion::Omni(d) => ("omni", vec![d[0]]),
+            _ => ("pinhole", Vec::new()),
+        };
+        m.insert("camera_model".into(), cm.into());
+        m.insert(
+            "intrinsics".into(),
+            seq(own.into_iter().chain([k.fx, k.fy, k.cx, k.cy])),
+        );
         let (dm, coeffs) = match k.distortion {
             Distortion::Fisheye(d) => ("equidistant", d.to_vec()),
+            Distortion::DoubleSphere(_) | Distortion::Eucm(_) => ("none", Vec::new()),
+            Distortion::Omni(d) => ("radtan", d[1..].to_vec()),
             Distortion::RadTan(d) if d[4] == 0.0 => ("radtan", d[..4].to_vec()),
             Distortion::RadTan(d) => {
                 return Err(CalibError::Argument(format!(

@@ -484,6 +484,13 @@ impl Reader<'_> {
                     format!("{n}"),
                 ))
             }
+            Some(other @ (ModelKind::DoubleSphere | ModelKind::Eucm | ModelKind::Omni)) => {
+                return Err(self.field(
+                    "camera_model",
+                    "\"fisheye\", \"pinhole\" or \"rational\" (OpenCV's files hold no other model)",
+                    format!("{other:?} asked for"),
+                ))
+            }
             None => {
                 return Err(self.field(
                     "camera_model",
@@ -578,6 +585,14 @@ pub fn write(camera: &Camera, xml: bool) -> Result<String> {
         Distortion::Fisheye(_) => "fisheye",
         Distortion::RadTan(_) => "pinhole",
         Distortion::Rational(_) => "rational",
+        Distortion::DoubleSphere(_) | Distortion::Eucm(_) | Distortion::Omni(_) => {
+            return Err(CalibError::Argument(format!(
+                "camera \"{}\": OpenCV's calibration files hold the fisheye, pinhole and \
+                 rational models, not {}; write it as rig or kalibr",
+                camera.name,
+                k.distortion.model_name()
+            )))
+        }
     };
     cv(ctx, fs.write_str("camera_model", model))?;
     if let Some(p) = &camera.pose {

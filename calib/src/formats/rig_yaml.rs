@@ -9,12 +9,16 @@
 //!   device:                 # optional; exactly one of the two
 //!     genicam: Basler-21234567
 //!     # ip: 192.168.10.11
-//!   model: fisheye          # or pinhole-radtan, pinhole-rational
+//!   model: fisheye          # or pinhole-radtan, pinhole-rational, double-sphere, eucm, omni-radtan
 //!   resolution_px: [960, 640]
 //!   focal_px: [302.45, 320.75]
 //!   principal_point_px: [496.64, 331.20]
 //!   distortion: [-0.0437, 0.0217, -0.0264, 0.0084]   # fisheye: k1..k4; pinhole-radtan: k1, k2, p1, p2, k3;
-//!                                                    # pinhole-rational: k1, k2, p1, p2, k3, k4, k5, k6
+//!                                                    # pinhole-rational: k1, k2, p1, p2, k3, k4, k5, k6;
+//!                                                    # omni-radtan: k1, k2, p1, p2; none for the others
+//!   # xi: -0.2               # double-sphere and omni-radtan: ξ (unitless)
+//!   # alpha: 0.6             # double-sphere and eucm: α (unitless)
+//!   # beta: 1.1              # eucm: β (unitless)
 //!   pose:                   # optional; camera (OpenCV axes) to rig frame
 //!     translation_m: [1.9, 0.0, 0.9]                 # camera centre, metres
 //!     rotation_matrix: [[...], [...], [...]]         # row-major, p_rig = R·p_cam + t
@@ -70,6 +74,16 @@ struct CameraDoc {
     resolution_px: [u32; 2],
     focal_px: [f64; 2],
     principal_point_px: [f64; 2],
+    /// The sphere models' own parameters (unitless): the double sphere's
+    /// and the unified model's ξ, the double sphere's and the extended
+    /// unified model's α, the extended unified model's β.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    xi: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    alpha: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    beta: Option<f64>,
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     distortion: Vec<f64>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pose: Option<PoseDoc>,
@@ -184,8 +198,43 @@ fn from_doc(doc: RigDoc) -> Result<Rig, FieldError> {
     Rig::new(rig.frame, rig.cameras, rig.neighbours)
 }
 
+/// The parameters the model `c.model` names as fields (`xi`, `alpha`,
+/// `beta`), in [`Distortion::coefficients`]' order, before `distortion`'s.
+fn named_parameters(c: &CameraDoc) -> Result<Vec<f64>, FieldError> {
+    let names: &[&str] = match c.model.as_str() {
+        "double-sphere" => &["xi", "alpha"],
+        "eucm" => &["alpha", "beta"],
+        "omni-radtan" => &["xi"],
+        _ => &[],
+    };
+    for (name, value) in [("xi", c.xi), ("alpha", c.alpha), ("beta", c.beta)] {
+        if value.is_some() && !names.contains(&name) {
+            return Err(FieldError::new(
+                name,
+                format!("no `{name}` for the {} model", c.model),
+                "a value",
+            ));
+        }
+    }
+    names
+        .iter()
+        .map(|&name| {
+            let value = match name {
+                "xi" => c.xi,
+                "alpha" => c.alpha,
+                _ => c.beta,
+            };
+            value.ok_or_else(|| {
+                FieldError::new(name, format!("the {} model's {name}", c.model), "nothing")
+            })
+        })
+        .collect()
+}
+
 fn camera_from_doc(c: CameraDoc) -> Result<Camera, FieldError> {
-    let distortion = Distortion::from_name(&c.model, &c.distortion)?;
+    let mut coefficients = named_parameters(&c)?;
+    coefficients.extend_from_slice(&c.distortion);
+    let distortion = Distortion::from_name(&c.model, &coefficients)?;
     let intrinsics = Intrinsics {
         width: c.resolution_px[0],
         height: c.resolution_px[1],
@@ -283,7 +332,23 @@ pub fn to_string(rig: &Rig) -> Result<String> {
                     resolution_px: [k.width, k.height],
                     focal_px: [k.fx, k.fy],
                     principal_point_px: [k.cx, k.cy],
-                    distortion: k.distortion.coefficients().to_vec(),
+                    xi: match k.distortion {
+                        Distortion::DoubleSphere([xi, _]) | Distortion::Omni([xi, ..]) => Some(xi),
+                        _ => None,
+                    },
+                    alpha: match k.distortion {
+                        Distortion::DoubleSphere([_, a]) | Distortion::Eucm([a, _]) => Some(a),
+                        _ => None,
+                    },
+                    beta: match k.distortion {
+                        Distortion::Eucm([_, b]) => Some(b),
+                        _ => None,
+                    },
+                    distortion: match k.distortion {
+                        Distortion::DoubleSphere(_) | Distortion::Eucm(_) => Vec::new(),
+                        Distortion::Omni([_, rest @ ..]) => rest.to_vec(),
+                        d => d.coefficients().to_vec(),
+                    },
                     pose: c.pose.as_ref().map(|p| {
                         let m = p.rotation_matrix();
                         PoseDoc {

@@ -223,3 +223,133 @@ fn validate_names_the_field() {
     cam.distortion = Distortion::Fisheye([0.0, f64::NAN, 0.0, 0.0]);
     assert_eq!(cam.validate().unwrap_err().field, "distortion[1]");
 }
+
+fn sphere_camera(distortion: Distortion) -> Intrinsics {
+    Intrinsics {
+        width: 1280,
+        height: 960,
+        fx: 300.0,
+        fy: 310.0,
+        cx: 640.0,
+        cy: 480.0,
+        distortion,
+    }
+}
+
+/// The sphere models' cameras of the tests: a double sphere, an extended
+/// unified and a unified (Mei) camera with distortion, each over 180°.
+fn sphere_cameras() -> [Intrinsics; 5] {
+    [
+        sphere_camera(Distortion::DoubleSphere([-0.2, 0.6])),
+        sphere_camera(Distortion::DoubleSphere([0.3, 0.45])),
+        sphere_camera(Distortion::Eucm([0.6, 1.1])),
+        sphere_camera(Distortion::Eucm([0.4, 0.9])),
+        sphere_camera(Distortion::Omni([0.9, -0.1, 0.02, 0.001, -0.002])),
+    ]
+}
+
+#[test]
+fn sphere_models_project_as_their_papers_formulas_worked_by_hand() {
+    // x = (0.5, −0.3, 0.8), worked from each model's published formula.
+    let p = Vector3::new(0.5, -0.3, 0.8);
+    for (k, want) in [
+        (
+            sphere_camera(Distortion::DoubleSphere([-0.2, 0.6])),
+            [841.7035424228345, 354.9438036978426],
+        ),
+        (
+            sphere_camera(Distortion::Eucm([0.6, 1.1])),
+            [802.3050955728509, 379.3708407448325],
+        ),
+        (
+            sphere_camera(Distortion::Omni([0.9, -0.1, 0.02, 0.001, -0.002])),
+            [727.4698266746568, 425.761335098215],
+        ),
+    ] {
+        let q = k.project(&p).unwrap();
+        let name = k.distortion.model_name();
+        assert!((q.x - want[0]).abs() < 1e-9, "{name}: {q}");
+        assert!((q.y - want[1]).abs() < 1e-9, "{name}: {q}");
+    }
+}
+
+#[test]
+fn sphere_models_round_trip_over_their_field_of_view() {
+    for k in sphere_cameras() {
+        let name = k.distortion.model_name();
+        let limit = k.max_incidence();
+        assert!(limit > 90f64.to_radians(), "{name}: θmax {limit}");
+        let mut worst: f64 = 0.0;
+        let mut seen = 0;
+        for i in 0..=60 {
+            let theta = limit * (1.0 - 1e-3) * f64::from(i) / 60.0;
+            for j in 0..24 {
+                let phi = std::f64::consts::TAU * f64::from(j) / 24.0;
+                let (s, c) = theta.sin_cos();
+                let p = Vector3::new(s * phi.cos(), s * phi.sin(), c);
+                let q = k
+                    .project(&p)
+                    .unwrap_or_else(|| panic!("{name}: θ {theta} does not project"));
+                // The field of view is the image's: far outside it (the
+                // unified model's plane reaches 10⁵ px before its
+                // distortion folds) only the relative error is small.
+                if !k.contains(&q) {
+                    continue;
+                }
+                seen += 1;
+                let r = k
+                    .unproject(&q)
+                    .unwrap_or_else(|| panic!("{name}: {q} does not unproject"));
+                let back = k.project(&r).unwrap();
+                worst = worst.max((back - q).norm());
+                assert!(
+                    (r.into_inner() - p).norm() < 1e-8,
+                    "{name}: θ {theta} φ {phi}"
+                );
+            }
+        }
+        assert!(seen > 500, "{name}: {seen} samples on the image");
+        assert!(worst < 1e-6, "{name}: {worst} px");
+    }
+}
+
+#[test]
+fn sphere_models_refuse_what_lies_beyond_their_valid_cone() {
+    for k in sphere_cameras() {
+        let name = k.distortion.model_name();
+        let limit = k.max_incidence();
+        if limit >= std::f64::consts::PI {
+            continue;
+        }
+        let theta = limit + 1e-3;
+        let p = Vector3::new(theta.sin(), 0.0, theta.cos());
+        assert!(k.project(&p).is_none(), "{name}: θ {theta} projects");
+    }
+    // The double sphere with α > ½ unprojects nothing beyond
+    // r² = 1/(2α − 1) on its plane.
+    let k = sphere_camera(Distortion::DoubleSphere([-0.2, 0.6]));
+    let r = (1.0 / (2.0 * 0.6 - 1.0_f64)).sqrt() * 1.01;
+    assert!(k.unproject(&Point2::new(k.cx + k.fx * r, k.cy)).is_none());
+    // Bad parameters are refused naming the field.
+    for (d, field) in [
+        (Distortion::DoubleSphere([0.1, 1.0]), "alpha"),
+        (Distortion::DoubleSphere([1.5, 0.5]), "xi"),
+        (Distortion::Eucm([0.5, 0.0]), "beta"),
+        (Distortion::Omni([-0.1, 0.0, 0.0, 0.0, 0.0]), "xi"),
+    ] {
+        let e = sphere_camera(d).validate().unwrap_err();
+        assert_eq!(e.field, field, "{e}");
+    }
+}
+
+#[test]
+fn sphere_models_are_named_in_rig_files_and_read_back() {
+    for k in sphere_cameras() {
+        let d = k.distortion;
+        let back = Distortion::from_name(d.model_name(), d.coefficients()).unwrap();
+        assert_eq!(back, d);
+        assert_eq!(d.coefficients().len(), d.coefficient_names().len());
+    }
+    let e = Distortion::from_name("eucm", &[0.5]).unwrap_err();
+    assert!(e.expected.contains("alpha, beta"), "{e}");
+}

@@ -195,6 +195,28 @@ fn orderings(c: u32, r: u32) -> Vec<Ordering> {
 
 /// Undistorts pixels to normalised image coordinates with OpenCV.
 fn undistort(k: &Intrinsics, corners: &[[f64; 2]]) -> Result<Vec<[f64; 2]>> {
+    if matches!(
+        k.distortion,
+        Distortion::DoubleSphere(_) | Distortion::Eucm(_) | Distortion::Omni(_)
+    ) {
+        // Models OpenCV does not know: the model's own unprojection, onto
+        // the plane z = 1 (a corner the mats give lies in front).
+        return corners
+            .iter()
+            .map(|c| {
+                k.unproject(&nalgebra::Point2::new(c[0], c[1]))
+                    .filter(|r| r.z > 1e-9)
+                    .map(|r| [r.x / r.z, r.y / r.z])
+                    .ok_or_else(|| {
+                        CalibError::Calibration(format!(
+                            "corner ({:.1}, {:.1}) lies outside the camera model's field of view \
+                             or behind the camera",
+                            c[0], c[1]
+                        ))
+                    })
+            })
+            .collect();
+    }
     let src: Vector<Point2d> = corners.iter().map(|c| Point2d::new(c[0], c[1])).collect();
     let km = mat_f64(3, 3, &k.camera_matrix().concat())?;
     let d = k.distortion.coefficients();
@@ -214,7 +236,7 @@ fn undistort(k: &Intrinsics, corners: &[[f64; 2]]) -> Result<Vec<[f64; 2]>> {
                 ),
             )?;
         }
-        Distortion::RadTan(_) | Distortion::Rational(_) => {
+        _ => {
             let criteria = cv(
                 "undistortion criteria",
                 TermCriteria::new(TermCriteria_COUNT + TermCriteria_EPS, 200, 1e-12),

@@ -104,6 +104,15 @@ struct View {
 
 /// Calibrates one camera from chessboard images.
 pub fn calibrate(files: &[PathBuf], board: Board, model: ModelKind) -> Result<IntrinsicsResult> {
+    if !matches!(
+        model,
+        ModelKind::Fisheye | ModelKind::Pinhole | ModelKind::Rational
+    ) {
+        return Err(CalibError::Argument(format!(
+            "--model {model:?}: OpenCV calibrates the fisheye, pinhole and rational models; \
+             calibrate a {model:?} camera with Kalibr or Basalt and load its file"
+        )));
+    }
     if board.cols < 2 || board.rows < 2 || !(board.square_m > 0.0 && board.square_m.is_finite()) {
         return Err(CalibError::Argument(format!(
             "a board needs at least 2×2 inner corners and a positive square size; got {}×{} of {} m",
@@ -229,6 +238,11 @@ fn run(views: &[View], board: Board, model: ModelKind, w: u32, h: u32) -> Result
                 &obj, &img, size, &mut k, &mut d, &mut rvecs, &mut tvecs, flags, criteria,
             ),
         )?,
+        ModelKind::DoubleSphere | ModelKind::Eucm | ModelKind::Omni => {
+            return Err(CalibError::Argument(format!(
+                "OpenCV cannot calibrate the {model:?} model"
+            )))
+        }
         ModelKind::Fisheye => cv(
             "fisheye::calibrate",
             opencv::calib3d::calibrate(
