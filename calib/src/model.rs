@@ -49,6 +49,8 @@ pub enum ModelKind {
     Eucm,
     /// Unified / Mei with radial-tangential distortion (ξ, k1, k2, p1, p2).
     Omni,
+    /// WoodScape's radial polynomial ρ(θ) = k1 θ + k2 θ² + k3 θ³ + k4 θ⁴.
+    RadialPoly,
 }
 
 /// The lens model and its distortion coefficients.
@@ -72,10 +74,15 @@ pub enum Distortion {
     /// p1, p2]`, the radial-tangential distortion on the unit sphere's
     /// projection plane.
     Omni([f64; 5]),
+    /// WoodScape's radial polynomial: `[k1, k2, k3, k4]`, the distance from
+    /// the principal point ρ(θ) = k1 θ + k2 θ² + k3 θ³ + k4 θ⁴ in units of
+    /// the focal length (WoodScape's files give ρ in pixels: focal length
+    /// 1, and `fy` the aspect ratio).
+    RadialPoly([f64; 4]),
 }
 
 /// The model names of rig files, for error messages.
-const MODEL_NAMES: &str = "\"fisheye\", \"pinhole-radtan\", \"pinhole-rational\", \"double-sphere\", \"eucm\" or \"omni-radtan\"";
+const MODEL_NAMES: &str = "\"fisheye\", \"pinhole-radtan\", \"pinhole-rational\", \"double-sphere\", \"eucm\", \"omni-radtan\" or \"radial-poly\"";
 
 impl Distortion {
     /// The model's name in rig files: `fisheye`, `pinhole-radtan` or
@@ -88,6 +95,7 @@ impl Distortion {
             Distortion::DoubleSphere(_) => "double-sphere",
             Distortion::Eucm(_) => "eucm",
             Distortion::Omni(_) => "omni-radtan",
+            Distortion::RadialPoly(_) => "radial-poly",
         }
     }
 
@@ -100,13 +108,14 @@ impl Distortion {
             Distortion::DoubleSphere(_) => ModelKind::DoubleSphere,
             Distortion::Eucm(_) => ModelKind::Eucm,
             Distortion::Omni(_) => ModelKind::Omni,
+            Distortion::RadialPoly(_) => ModelKind::RadialPoly,
         }
     }
 
     /// The coefficients in OpenCV's order.
     pub fn coefficients(&self) -> &[f64] {
         match self {
-            Distortion::Fisheye(k) => k,
+            Distortion::Fisheye(k) | Distortion::RadialPoly(k) => k,
             Distortion::RadTan(k) => k,
             Distortion::Rational(k) => k,
             Distortion::DoubleSphere(k) | Distortion::Eucm(k) => k,
@@ -118,7 +127,7 @@ impl Distortion {
     /// [`coefficients`](Self::coefficients).
     pub fn coefficient_names(&self) -> &'static [&'static str] {
         match self {
-            Distortion::Fisheye(_) => &["k1", "k2", "k3", "k4"],
+            Distortion::Fisheye(_) | Distortion::RadialPoly(_) => &["k1", "k2", "k3", "k4"],
             Distortion::RadTan(_) => &["k1", "k2", "p1", "p2", "k3"],
             Distortion::Rational(_) => &["k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6"],
             Distortion::DoubleSphere(_) => &["xi", "alpha"],
@@ -143,6 +152,12 @@ impl Distortion {
                 k.copy_from_slice(c);
                 Ok(Distortion::Rational(k))
             }
+            ("radial-poly", 4) => Ok(Distortion::RadialPoly([c[0], c[1], c[2], c[3]])),
+            ("radial-poly", n) => Err(FieldError::new(
+                "distortion",
+                "4 radial-polynomial coefficients k1..k4",
+                format!("{n}"),
+            )),
             ("double-sphere", 2) => Ok(Distortion::DoubleSphere([c[0], c[1]])),
             ("eucm", 2) => Ok(Distortion::Eucm([c[0], c[1]])),
             ("omni-radtan", 5) => Ok(Distortion::Omni([c[0], c[1], c[2], c[3], c[4]])),
@@ -189,7 +204,10 @@ impl Distortion {
     /// its projection plane; `None` for the other models.
     fn pinhole(&self) -> Option<[f64; 8]> {
         match *self {
-            Distortion::Fisheye(_) | Distortion::DoubleSphere(_) | Distortion::Eucm(_) => None,
+            Distortion::Fisheye(_)
+            | Distortion::RadialPoly(_)
+            | Distortion::DoubleSphere(_)
+            | Distortion::Eucm(_) => None,
             Distortion::RadTan([k1, k2, p1, p2, k3]) => Some([k1, k2, p1, p2, k3, 0.0, 0.0, 0.0]),
             Distortion::Omni([_, k1, k2, p1, p2]) => Some([k1, k2, p1, p2, 0.0, 0.0, 0.0, 0.0]),
             Distortion::Rational(k) => Some(k),
@@ -292,6 +310,12 @@ impl Intrinsics {
                 range("beta", beta, beta > 0.0, "β > 0")?;
             }
             Distortion::Omni([xi, ..]) => range("xi", xi, xi >= 0.0, "ξ ≥ 0")?,
+            Distortion::RadialPoly([k1, ..]) => range(
+                "distortion[0]",
+                k1,
+                k1 > 0.0,
+                "k1 > 0 (ρ increasing from the principal point)",
+            )?,
             _ => {}
         }
         Ok(())
@@ -329,6 +353,7 @@ impl Intrinsics {
     fn validity_limit(&self) -> f64 {
         match self.distortion {
             Distortion::Fisheye(k) => fisheye_theta_max(&k),
+            Distortion::RadialPoly(k) => poly_theta_max(&k),
             Distortion::RadTan(_) | Distortion::Rational(_) | Distortion::Omni(_) => self
                 .distortion
                 .pinhole()
@@ -342,6 +367,7 @@ impl Intrinsics {
     pub fn max_incidence(&self) -> f64 {
         match self.distortion {
             Distortion::Fisheye(k) => fisheye_theta_max(&k),
+            Distortion::RadialPoly(k) => poly_theta_max(&k),
             Distortion::RadTan(_) | Distortion::Rational(_) => self
                 .distortion
                 .pinhole()
@@ -430,22 +456,7 @@ impl Projector {
 /// [`Intrinsics::project`] with the model's validity limit given.
 fn project_within(m: &Intrinsics, limit: f64, p: &Vector3<f64>) -> Option<Point2<f64>> {
     let (xd, yd) = match m.distortion {
-        Distortion::Fisheye(k) => {
-            let r = p.x.hypot(p.y);
-            if r == 0.0 && p.z <= 0.0 {
-                return None;
-            }
-            let theta = r.atan2(p.z);
-            if theta > limit {
-                return None;
-            }
-            let td = fisheye_theta_d(&k, theta);
-            if r > 0.0 {
-                (td * p.x / r, td * p.y / r)
-            } else {
-                (0.0, 0.0)
-            }
-        }
+        Distortion::Fisheye(k) => radial_project(p, limit, |t| fisheye_theta_d(&k, t))?,
         Distortion::RadTan(_) | Distortion::Rational(_) => {
             let k = m.distortion.pinhole()?;
             if p.z <= 0.0 || !p.z.is_finite() {
@@ -457,6 +468,7 @@ fn project_within(m: &Intrinsics, limit: f64, p: &Vector3<f64>) -> Option<Point2
             }
             pinhole_distort(&k, a, b)
         }
+        Distortion::RadialPoly(k) => radial_project(p, limit, |t| poly_rho(&k, t))?,
         Distortion::DoubleSphere([xi, alpha]) => sphere::double_sphere_project(xi, alpha, p)?,
         Distortion::Eucm([alpha, beta]) => sphere::eucm_project(alpha, beta, p)?,
         Distortion::Omni([xi, ..]) => {
@@ -472,6 +484,47 @@ fn project_within(m: &Intrinsics, limit: f64, p: &Vector3<f64>) -> Option<Point2
     (u.is_finite() && v.is_finite()).then(|| Point2::new(u, v))
 }
 
+/// The models that map the angle θ from the optical axis to a distance
+/// from the principal point (`radius`, increasing up to `limit`):
+/// normalised coordinates along the point's azimuth. θ = atan2(r, z), so
+/// a point slightly behind the camera plane projects too.
+fn radial_project(p: &Vector3<f64>, limit: f64, radius: impl Fn(f64) -> f64) -> Option<(f64, f64)> {
+    let r = p.x.hypot(p.y);
+    if r == 0.0 && p.z <= 0.0 {
+        return None;
+    }
+    let theta = r.atan2(p.z);
+    if theta > limit {
+        return None;
+    }
+    let rho = radius(theta);
+    Some(if r > 0.0 {
+        (rho * p.x / r, rho * p.y / r)
+    } else {
+        (0.0, 0.0)
+    })
+}
+
+/// The unit ray of normalised coordinates `(xd, yd)` at the angle
+/// `theta(ρ)` from the optical axis (`None`: beyond the model).
+fn radial_unproject(
+    xd: f64,
+    yd: f64,
+    theta: impl Fn(f64) -> Option<f64>,
+) -> Option<Unit<Vector3<f64>>> {
+    let rho = xd.hypot(yd);
+    if rho == 0.0 {
+        return Some(Vector3::z_axis());
+    }
+    let theta = theta(rho)?;
+    let s = theta.sin() / rho;
+    Some(Unit::new_normalize(Vector3::new(
+        s * xd,
+        s * yd,
+        theta.cos(),
+    )))
+}
+
 /// [`Intrinsics::unproject`] with the model's validity limit given.
 fn unproject_within(m: &Intrinsics, limit: f64, px: &Point2<f64>) -> Option<Unit<Vector3<f64>>> {
     let xd = (px.x - m.cx) / m.fx;
@@ -481,22 +534,16 @@ fn unproject_within(m: &Intrinsics, limit: f64, px: &Point2<f64>) -> Option<Unit
     }
     match m.distortion {
         Distortion::Fisheye(k) => {
-            let td = xd.hypot(yd);
-            if td == 0.0 {
-                return Some(Vector3::z_axis());
-            }
-            let theta = fisheye_theta_from_theta_d(&k, limit, td)?;
-            let s = theta.sin() / td;
-            Some(Unit::new_normalize(Vector3::new(
-                s * xd,
-                s * yd,
-                theta.cos(),
-            )))
+            radial_unproject(xd, yd, |td| fisheye_theta_from_theta_d(&k, limit, td))
         }
         Distortion::RadTan(_) | Distortion::Rational(_) => {
             let (a, b) = pinhole_undistort(&m.distortion.pinhole()?, limit, xd, yd)?;
             Some(Unit::new_normalize(Vector3::new(a, b, 1.0)))
         }
+        Distortion::RadialPoly(k) => radial_unproject(xd, yd, |rho| {
+            (rho <= poly_rho(&k, limit))
+                .then(|| invert_increasing(|t| (poly_rho(&k, t), poly_drho(&k, t)), rho, limit))
+        }),
         Distortion::DoubleSphere([xi, alpha]) => {
             sphere::double_sphere_unproject(xi, alpha, xd, yd).map(Unit::new_normalize)
         }
@@ -568,6 +615,7 @@ thread_local! {
 enum Family {
     Fisheye,
     Pinhole,
+    Poly,
 }
 
 fn cached(family: Family, k: &[f64], compute: impl FnOnce() -> f64) -> f64 {
@@ -596,6 +644,23 @@ fn cached(family: Family, k: &[f64], compute: impl FnOnce() -> f64) -> f64 {
 pub(crate) fn fisheye_theta_max(k: &[f64; 4]) -> f64 {
     cached(Family::Fisheye, k, || {
         first_stationary(|t| fisheye_dtheta_d(k, t), std::f64::consts::PI, 4096)
+    })
+}
+
+/// ρ(θ) of the radial polynomial.
+fn poly_rho(k: &[f64; 4], theta: f64) -> f64 {
+    theta * (k[0] + theta * (k[1] + theta * (k[2] + theta * k[3])))
+}
+
+/// dρ/dθ of the radial polynomial.
+fn poly_drho(k: &[f64; 4], theta: f64) -> f64 {
+    k[0] + theta * (2.0 * k[1] + theta * (3.0 * k[2] + theta * 4.0 * k[3]))
+}
+
+/// The largest θ where the radial polynomial still increases (≤ π).
+fn poly_theta_max(k: &[f64; 4]) -> f64 {
+    cached(Family::Poly, k, || {
+        first_stationary(|t| poly_drho(k, t), std::f64::consts::PI, 4096)
     })
 }
 

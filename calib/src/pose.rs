@@ -98,9 +98,14 @@ impl Pose {
         &self.rotation
     }
 
-    /// The rotation, re-orthonormalised.
+    /// The rotation, re-orthonormalised: through its unit quaternion
+    /// (Shepperd's closed form, exact for every orientation; nalgebra's
+    /// `Rotation3::from_matrix` iterates from the identity and can end at
+    /// another rotation near a half turn from it).
     pub fn rotation(&self) -> Rotation3<f64> {
-        Rotation3::from_matrix(&self.rotation)
+        let q =
+            UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(self.rotation));
+        UnitQuaternion::new_normalize(q.into_inner()).to_rotation_matrix()
     }
 
     /// The camera centre in the rig frame, metres.
@@ -227,5 +232,26 @@ mod tests {
             .unwrap_err()
             .expected
             .contains("determinant"));
+    }
+}
+
+#[cfg(test)]
+mod rotation_tests {
+    use super::*;
+
+    #[test]
+    fn the_reorthonormalised_rotation_is_the_stored_one_for_every_orientation() {
+        let mut worst: f64 = 0.0;
+        for yaw in (-180..180).step_by(15) {
+            for pitch in (-90..=90).step_by(15) {
+                for roll in (-180..180).step_by(30) {
+                    let ypr = [f64::from(yaw), f64::from(pitch), f64::from(roll)];
+                    let p = Pose::from_ypr_deg(ypr, Vector3::zeros()).unwrap();
+                    let d = (p.rotation().matrix() - p.rotation_matrix()).abs().max();
+                    worst = worst.max(d);
+                }
+            }
+        }
+        assert!(worst < 1e-12, "{worst}");
     }
 }

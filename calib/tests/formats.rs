@@ -11,7 +11,7 @@ use common::fixture;
 
 use nalgebra::Vector3;
 use proptest::prelude::*;
-use rigview_calib::formats::{self, kalibr, opencv, rig_yaml, ros, Format};
+use rigview_calib::formats::{self, kalibr, opencv, rig_yaml, ros, woodscape, Format};
 use rigview_calib::report;
 use rigview_calib::{
     CalibError, Camera, DeviceId, Distortion, Frame, Intrinsics, ModelKind, Pose, Rig,
@@ -955,4 +955,107 @@ fn kalibr_sphere_models_are_read_as_kalibr_writes_them_and_written_back() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("eucm"), "{e}");
+}
+
+/// A WoodScape calibration as the dataset ships it (its front camera's
+/// layout; 2-space indentation and the keys in WoodScape's order).
+const WOODSCAPE_FV: &str = r#"{
+    "extrinsic": {
+        "quaternion": [
+            0.5946970238045494,
+            -0.5837953694518585,
+            0.39063952590941925,
+            -0.39234550555338396
+        ],
+        "translation": [
+            3.7484,
+            0.0,
+            0.6577
+        ]
+    },
+    "intrinsic": {
+        "aspect_ratio": 1.02,
+        "cx_offset": 3.942,
+        "cy_offset": -3.093,
+        "height": 966.0,
+        "k1": 339.749,
+        "k2": -31.988,
+        "k3": 48.275,
+        "k4": -7.201,
+        "model": "radial_poly",
+        "poly_order": 4,
+        "width": 1280.0
+    },
+    "name": "FV"
+}
+"#;
+
+#[test]
+fn woodscape_json_means_what_woodscapes_projection_means() {
+    let path = tmp("woodscape").join("00000_FV.json");
+    std::fs::write(&path, WOODSCAPE_FV).unwrap();
+    let loaded = formats::load(&path, None, None).unwrap();
+    assert_eq!(loaded.format, Format::WoodScape);
+    let cam = &loaded.rig.cameras[0];
+    assert_eq!(cam.name, "FV");
+    let k = cam.intrinsics;
+    // The principal point: the image centre plus the offsets, less half a
+    // pixel (WoodScape's pixel centres are rigview's).
+    assert_eq!((k.cx, k.cy), (643.442, 479.407));
+    assert_eq!(
+        k.distortion,
+        Distortion::RadialPoly([339.749, -31.988, 48.275, -7.201])
+    );
+    // WoodScape's own formula, worked by hand: θ = π/2 − atan2(z, χ),
+    // ρ = Σ kᵢ θⁱ, u = ρ·x/χ + cx, v = ρ·y/χ·aspect + cy.
+    let q = k.project(&Vector3::new(0.5, -0.3, 0.8)).unwrap();
+    assert!((q.x - 825.4246053073341).abs() < 1e-9, "{q}");
+    assert!((q.y - 368.03364555191155).abs() < 1e-9, "{q}");
+    // The pose: camera to vehicle, the quaternion (x, y, z, w). The front
+    // camera looks forward and down: its optical axis has x > 0, z < 0.
+    let pose = cam.pose.unwrap();
+    let axis = pose.rotation_matrix() * Vector3::z();
+    assert!(axis.x > 0.5 && axis.z < 0.0, "{axis}");
+    assert_eq!(pose.translation().z.to_bits(), 0.6577f64.to_bits());
+    // Written back and read again: the same bits.
+    let text = formats::to_text(&loaded.rig, Format::WoodScape, 0).unwrap();
+    let back = woodscape::parse(&text, "back.json", "x").unwrap();
+    assert_eq!(back.intrinsics, k);
+    assert_eq!(back.name, "FV");
+    let (p, b) = (pose, back.pose.unwrap());
+    assert!((p.rotation_matrix() - b.rotation_matrix()).abs().max() < 1e-15);
+    assert_eq!(p.translation(), b.translation());
+}
+
+#[test]
+fn bad_woodscape_files_get_errors_that_name_file_and_field() {
+    let cases: Vec<(String, Vec<&str>)> = vec![
+        (
+            WOODSCAPE_FV.replacen("        \"k3\": 48.275,\n", "", 1),
+            vec!["fv.json", "intrinsic.k3"],
+        ),
+        (
+            WOODSCAPE_FV.replacen("-0.39234550555338396", "-0.49234550555338396", 1),
+            vec!["fv.json", "extrinsic.quaternion", "unit"],
+        ),
+        (
+            WOODSCAPE_FV.replacen("\"cx_offset\": 3.942", "\"cx_offset\": 700.0", 1),
+            vec!["fv.json", "intrinsic.cx_offset", "principal point"],
+        ),
+        (
+            WOODSCAPE_FV.replacen("\"radial_poly\"", "\"fov\"", 1),
+            vec!["fv.json", "intrinsic.model", "radial_poly"],
+        ),
+        (
+            WOODSCAPE_FV.replacen("\"k1\": 339.749", "\"k1\": -339.749", 1),
+            vec!["fv.json", "intrinsic.k1"],
+        ),
+        (
+            WOODSCAPE_FV.replacen("\"translation\": [", "\"translation\": [[", 1),
+            vec!["fv.json", "line"],
+        ),
+    ];
+    for (text, parts) in cases {
+        assert_mentions(&err(woodscape::parse(&text, "fv.json", "fv")), &parts);
+    }
 }

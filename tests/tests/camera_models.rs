@@ -6,8 +6,9 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
+use rigview_calib::formats::{self, Format};
 use rigview_calib::{Distortion, Rig};
-use rigview_core::image::FrameView;
+use rigview_core::image::{FrameView, PixelFormat};
 use rigview_core::sim::{reference_rig, SimConfig, SimRender};
 use rigview_core::source::Frame;
 use rigview_core::surround::{CanvasSpec, Composer, SurroundOptions, SurroundView};
@@ -84,6 +85,13 @@ fn every_sphere_model_renders_and_its_surround_view_lines_neighbours_up() {
             0,
             0.1,
         ),
+        // WoodScape's polynomial (in units of the focal length here).
+        (
+            Distortion::RadialPoly([1.0, -0.05, 0.06, -0.015]),
+            300.0,
+            1,
+            0.05,
+        ),
     ];
     let config = SimConfig {
         scale: 0.25,
@@ -117,4 +125,64 @@ fn every_sphere_model_renders_and_its_surround_view_lines_neighbours_up() {
             "{name}: {same} against {off} with a wrong lens"
         );
     }
+}
+
+/// A rig of four WoodScape files (one JSON a camera, ρ in pixels) gives the
+/// surround view that the same rig gives from rigview's rig file, pixel for
+/// pixel.
+#[test]
+fn a_rig_of_woodscape_files_gives_the_surround_view_of_the_same_rig_file() {
+    let mut rig = reference_rig().unwrap();
+    for c in &mut rig.cameras {
+        c.intrinsics.fx = 1.0;
+        c.intrinsics.fy = 1.0;
+        c.intrinsics.distortion = Distortion::RadialPoly([330.0, -20.0, 30.0, -6.0]);
+    }
+    let dir = std::env::temp_dir().join(format!("rigview-woodscape-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let json = dir.join("json/");
+    let written = formats::save(&rig, &json, Some(Format::WoodScape)).unwrap();
+    assert_eq!(written.len(), 4);
+    let yaml = dir.join("rig.yaml");
+    formats::save(&rig, &yaml, Some(Format::Rig)).unwrap();
+    let from_yaml = formats::load(&yaml, None, None).unwrap().rig;
+    let loaded = formats::load(&json, None, None).unwrap();
+    assert_eq!(loaded.format, Format::WoodScape);
+    // A folder names no neighbours: the rig's, and its order.
+    let cameras = rig
+        .cameras
+        .iter()
+        .map(|c| loaded.rig.camera(&c.name).unwrap().clone())
+        .collect();
+    let from_json = Rig::new(rig.frame.clone(), cameras, rig.neighbours.clone()).unwrap();
+    let spec = CanvasSpec {
+        px_per_m: 25.0,
+        ..CanvasSpec::default()
+    };
+    let a = SurroundView::build(&from_json, &spec, &SurroundOptions::default()).unwrap();
+    let b = SurroundView::build(&from_yaml, &spec, &SurroundOptions::default()).unwrap();
+    let mut composer = Composer::new();
+    for (k, c) in rig.cameras.iter().enumerate() {
+        let (w, h) = (c.intrinsics.width as usize, c.intrinsics.height as usize);
+        // A frame whose every pixel differs from its neighbours.
+        let data: Vec<u8> = (0..w * h).map(|i| (i * 7919 % 251) as u8).collect();
+        let frame = FrameView::new(PixelFormat::Mono8, w, h, &data).unwrap();
+        let wa = composer.warp_camera(a.mosaic(), k, &frame).unwrap();
+        let wb = composer.warp_camera(b.mosaic(), k, &frame).unwrap();
+        assert!(
+            wa.data.iter().filter(|&&v| v > 0).count() > 10_000,
+            "{}",
+            c.name
+        );
+        let differ = wa.data.iter().zip(&wb.data).filter(|(x, y)| x != y).count();
+        let most = wa
+            .data
+            .iter()
+            .zip(&wb.data)
+            .map(|(x, y)| x.abs_diff(*y))
+            .max();
+        println!("{}: {differ} pixels differ, by at most {most:?}", c.name);
+        assert!(wa.data == wb.data, "camera {}: the views differ", c.name);
+    }
+    let _ = std::fs::remove_dir_all(&dir);
 }

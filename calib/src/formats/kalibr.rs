@@ -246,6 +246,13 @@ pub fn write(rig: &Rig) -> Result<String> {
                     c.name, d[4]
                 )))
             }
+            Distortion::RadialPoly(_) => {
+                return Err(CalibError::Argument(format!(
+                    "camera \"{}\": Kalibr has no radial polynomial (WoodScape's) model; write \
+                     it as rig or woodscape",
+                    c.name
+                )))
+            }
             Distortion::Rational(_) => {
                 return Err(CalibError::Argument(format!(
                     "camera \"{}\": Kalibr has no rational distortion model (its pinhole \

@@ -26,6 +26,7 @@ pub mod rig_yaml;
 pub mod ros;
 #[cfg(feature = "opencv")]
 pub mod surround;
+pub mod woodscape;
 pub(crate) mod yaml;
 
 use std::fmt;
@@ -53,16 +54,20 @@ pub enum Format {
     /// ROS camera_info (one file a camera): ROS 1's YAML, or a ROS 2
     /// CameraInfo message as `ros2 topic echo` prints it (read only).
     Ros,
+    /// WoodScape's calibration JSON (one file a camera, with its pose).
+    #[cfg_attr(feature = "clap", value(name = "woodscape"))]
+    WoodScape,
 }
 
 impl Format {
     /// Every format.
-    pub const ALL: [Format; 5] = [
+    pub const ALL: [Format; 6] = [
         Format::Rig,
         Format::OpenCvYaml,
         Format::OpenCvXml,
         Format::Kalibr,
         Format::Ros,
+        Format::WoodScape,
     ];
 
     /// Its name on the command line.
@@ -73,17 +78,22 @@ impl Format {
             Format::OpenCvXml => "opencv-xml",
             Format::Kalibr => "kalibr",
             Format::Ros => "ros",
+            Format::WoodScape => "woodscape",
         }
     }
 
     /// Whether one file holds one camera (else a whole rig).
     pub fn per_camera(self) -> bool {
-        matches!(self, Format::OpenCvYaml | Format::OpenCvXml | Format::Ros)
+        matches!(
+            self,
+            Format::OpenCvYaml | Format::OpenCvXml | Format::Ros | Format::WoodScape
+        )
     }
 
     fn extension(self) -> &'static str {
         match self {
             Format::OpenCvXml => "xml",
+            Format::WoodScape => "json",
             _ => "yaml",
         }
     }
@@ -189,7 +199,9 @@ pub fn detect(path: &Path, text: &str) -> Result<Format> {
         None | Some(serde_norway::Value::Mapping(_))
     );
     let ros_message = doc.as_mapping().is_some_and(ros::is_message);
-    if key("format") {
+    if woodscape::is_woodscape(&doc) {
+        Ok(Format::WoodScape)
+    } else if key("format") {
         Ok(Format::Rig)
     } else if key("cam0") {
         Ok(Format::Kalibr)
@@ -202,8 +214,9 @@ pub fn detect(path: &Path, text: &str) -> Result<Format> {
             file,
             detail: "cannot tell the calibration format: expected a rigview rig \
                      (format: rigview-rig), a Kalibr camchain (cam0: …), a ROS camera_info \
-                     (image_width: … or a ROS 2 message with width, k, d) or an OpenCV \
-                     FileStorage file (camera_matrix, %YAML:1.0 or <?xml)"
+                     (image_width: … or a ROS 2 message with width, k, d), a WoodScape \
+                     calibration (intrinsic, extrinsic) or an OpenCV FileStorage file \
+                     (camera_matrix, %YAML:1.0 or <?xml)"
                 .into(),
         })
     }
@@ -243,6 +256,7 @@ fn load_camera(
             Err(needs_opencv(file, format))
         }
         Format::Ros => Ok((ros::parse(text, &file, &stem(path))?, None)),
+        Format::WoodScape => Ok((woodscape::parse(text, &file, &stem(path))?, None)),
         Format::Rig | Format::Kalibr => Err(CalibError::Format {
             file,
             detail: format!("a {format} file holds a rig, not one camera of a folder"),
@@ -266,7 +280,7 @@ pub fn load(path: &Path, format: Option<Format>, model: Option<ModelKind>) -> Re
     let rig = match format {
         Format::Rig => rig_yaml::parse(&text, &file)?,
         Format::Kalibr => kalibr::parse(&text, &file)?,
-        Format::OpenCvYaml | Format::OpenCvXml | Format::Ros => {
+        Format::OpenCvYaml | Format::OpenCvXml | Format::Ros | Format::WoodScape => {
             let (cam, _) = load_camera(path, &text, format, model)?;
             Rig::new(Frame::Vehicle, vec![cam], vec![]).map_err(|e| e.in_file(&file))?
         }
@@ -287,13 +301,13 @@ fn load_dir(dir: &Path, format: Option<Format>, model: Option<ModelKind>) -> Res
     })?;
     let mut paths: Vec<PathBuf> = entries
         .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| p.is_file() && has_extension(p, &["yaml", "yml", "xml"]))
+        .filter(|p| p.is_file() && has_extension(p, &["yaml", "yml", "xml", "json"]))
         .collect();
     paths.sort();
     if paths.is_empty() {
         return Err(CalibError::Format {
             file: name,
-            detail: "the folder holds no .yaml, .yml or .xml calibration files".into(),
+            detail: "the folder holds no .yaml, .yml, .xml or .json calibration files".into(),
         });
     }
     let mut cameras = Vec::new();
@@ -377,6 +391,7 @@ pub fn to_text(rig: &Rig, format: Format, camera: usize) -> Result<String> {
             Err(needs_opencv(format!("camera \"{}\"", cam.name), format))
         }
         Format::Ros => ros::write(cam),
+        Format::WoodScape => woodscape::write(cam),
     }
 }
 

@@ -484,7 +484,12 @@ impl Reader<'_> {
                     format!("{n}"),
                 ))
             }
-            Some(other @ (ModelKind::DoubleSphere | ModelKind::Eucm | ModelKind::Omni)) => {
+            Some(
+                other @ (ModelKind::DoubleSphere
+                | ModelKind::Eucm
+                | ModelKind::Omni
+                | ModelKind::RadialPoly),
+            ) => {
                 return Err(self.field(
                     "camera_model",
                     "\"fisheye\", \"pinhole\" or \"rational\" (OpenCV's files hold no other model)",
@@ -585,7 +590,10 @@ pub fn write(camera: &Camera, xml: bool) -> Result<String> {
         Distortion::Fisheye(_) => "fisheye",
         Distortion::RadTan(_) => "pinhole",
         Distortion::Rational(_) => "rational",
-        Distortion::DoubleSphere(_) | Distortion::Eucm(_) | Distortion::Omni(_) => {
+        Distortion::DoubleSphere(_)
+        | Distortion::Eucm(_)
+        | Distortion::Omni(_)
+        | Distortion::RadialPoly(_) => {
             return Err(CalibError::Argument(format!(
                 "camera \"{}\": OpenCV's calibration files hold the fisheye, pinhole and \
                  rational models, not {}; write it as rig or kalibr",

@@ -325,7 +325,10 @@ pub fn write(camera: &Camera) -> Result<String> {
         Distortion::Fisheye(_) => "equidistant",
         Distortion::RadTan(_) => "plumb_bob",
         Distortion::Rational(_) => "rational_polynomial",
-        Distortion::DoubleSphere(_) | Distortion::Eucm(_) | Distortion::Omni(_) => {
+        Distortion::DoubleSphere(_)
+        | Distortion::Eucm(_)
+        | Distortion::Omni(_)
+        | Distortion::RadialPoly(_) => {
             return Err(CalibError::Argument(format!(
                 "camera \"{}\": camera_info has no {} model (its models are plumb_bob, \
                  rational_polynomial and equidistant); write it as rig or kalibr",

@@ -353,3 +353,63 @@ fn sphere_models_are_named_in_rig_files_and_read_back() {
     let e = Distortion::from_name("eucm", &[0.5]).unwrap_err();
     assert!(e.expected.contains("alpha, beta"), "{e}");
 }
+
+#[test]
+fn the_radial_polynomial_round_trips_and_stops_where_it_folds() {
+    // WoodScape's front camera (ρ in pixels: focal length 1).
+    let k = Intrinsics {
+        width: 1280,
+        height: 966,
+        fx: 1.0,
+        fy: 1.02,
+        cx: 643.442,
+        cy: 479.407,
+        distortion: Distortion::RadialPoly([339.749, -31.988, 48.275, -7.201]),
+    };
+    k.validate().unwrap();
+    // dρ/dθ = k1 + 2k2 θ + 3k3 θ² + 4k4 θ³ stays positive up to π.
+    let limit = k.max_incidence();
+    assert_eq!(limit.to_bits(), std::f64::consts::PI.to_bits());
+    let mut worst: f64 = 0.0;
+    for i in 0..=50 {
+        let theta = limit * 0.999 * f64::from(i) / 50.0;
+        for j in 0..16 {
+            let phi = std::f64::consts::TAU * f64::from(j) / 16.0;
+            let p = Vector3::new(
+                theta.sin() * phi.cos(),
+                theta.sin() * phi.sin(),
+                theta.cos(),
+            );
+            let q = k.project(&p).unwrap();
+            let r = k.unproject(&q).unwrap();
+            assert!((r.into_inner() - p).norm() < 1e-9, "θ {theta}");
+            worst = worst.max((k.project(&r).unwrap() - q).norm());
+        }
+    }
+    assert!(worst < 1e-6, "{worst} px");
+    // ρ = 300 θ − 20 θ⁴ stops increasing at θ = ∛3.75 (89.0°): beyond,
+    // neither way has an answer.
+    let folding = Intrinsics {
+        distortion: Distortion::RadialPoly([300.0, 0.0, 0.0, -20.0]),
+        ..k
+    };
+    let limit = folding.max_incidence();
+    assert!((limit - 3.75f64.cbrt()).abs() < 1e-9, "{limit}");
+    let beyond = limit + 1e-3;
+    assert!(folding
+        .project(&Vector3::new(beyond.sin(), 0.0, beyond.cos()))
+        .is_none());
+    let edge = folding
+        .project(&Vector3::new(limit.sin(), 0.0, limit.cos()))
+        .unwrap();
+    assert!(folding
+        .unproject(&Point2::new(edge.x + 1.0, edge.y))
+        .is_none());
+    let e = Intrinsics {
+        distortion: Distortion::RadialPoly([-1.0, 0.0, 0.0, 0.0]),
+        ..k
+    }
+    .validate()
+    .unwrap_err();
+    assert_eq!(e.field, "distortion[0]", "{e}");
+}

@@ -197,7 +197,10 @@ fn orderings(c: u32, r: u32) -> Vec<Ordering> {
 fn undistort(k: &Intrinsics, corners: &[[f64; 2]]) -> Result<Vec<[f64; 2]>> {
     if matches!(
         k.distortion,
-        Distortion::DoubleSphere(_) | Distortion::Eucm(_) | Distortion::Omni(_)
+        Distortion::DoubleSphere(_)
+            | Distortion::Eucm(_)
+            | Distortion::Omni(_)
+            | Distortion::RadialPoly(_)
     ) {
         // Models OpenCV does not know: the model's own unprojection, onto
         // the plane z = 1 (a corner the mats give lies in front).
