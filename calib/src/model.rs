@@ -3,7 +3,9 @@
 //! distortion (k1, k2, p1, p2, k3, as `cv::projectPoints`) and the pinhole
 //! model with OpenCV's rational distortion (k1, k2, p1, p2, k3, k4, k5, k6:
 //! `cv::projectPoints` with 8 coefficients, `CALIB_RATIONAL_MODEL`, ROS's
-//! `rational_polynomial`).
+//! `rational_polynomial`); WoodScape's radial polynomial; and, in
+//! submodules, the models that project through a sphere (double sphere,
+//! extended unified, unified/Mei: `sphere.rs`) and Scaramuzza's ([`ocam`]).
 //!
 //! Camera frame: OpenCV's, x right, y down, z along the optical axis. Pixel
 //! coordinates: OpenCV's, the centre of the top-left pixel is (0, 0).
@@ -30,6 +32,10 @@ use nalgebra::{Point2, Unit, Vector3};
 
 use crate::error::FieldError;
 
+pub mod ocam;
+mod pinhole;
+
+use pinhole::{pinhole_distort, pinhole_r2_max, pinhole_undistort};
 mod sphere;
 
 /// A camera model without its coefficients.
@@ -51,9 +57,15 @@ pub enum ModelKind {
     Omni,
     /// WoodScape's radial polynomial ρ(θ) = k1 θ + k2 θ² + k3 θ³ + k4 θ⁴.
     RadialPoly,
+    /// Scaramuzza's omnidirectional model (OCamCalib: pol, invpol, c, d, e).
+    Scaramuzza,
 }
 
 /// The lens model and its distortion coefficients.
+// Scaramuzza's polynomials make its variant some 280 bytes, the others
+// 64 at most: a camera's intrinsics are copied per camera (a handful), not
+// per pixel, and staying `Copy` keeps every consumer simple.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Distortion {
     /// OpenCV fisheye (Kannala–Brandt): `[k1, k2, k3, k4]`.
@@ -79,10 +91,14 @@ pub enum Distortion {
     /// the focal length (WoodScape's files give ρ in pixels: focal length
     /// 1, and `fy` the aspect ratio).
     RadialPoly([f64; 4]),
+    /// Scaramuzza's omnidirectional model as OCamCalib calibrates it
+    /// ([`ocam`]); its focal length is 1 and its centre the principal
+    /// point.
+    Scaramuzza(ocam::Ocam),
 }
 
 /// The model names of rig files, for error messages.
-const MODEL_NAMES: &str = "\"fisheye\", \"pinhole-radtan\", \"pinhole-rational\", \"double-sphere\", \"eucm\", \"omni-radtan\" or \"radial-poly\"";
+const MODEL_NAMES: &str = "\"fisheye\", \"pinhole-radtan\", \"pinhole-rational\", \"double-sphere\", \"eucm\", \"omni-radtan\", \"radial-poly\" or \"scaramuzza\"";
 
 impl Distortion {
     /// The model's name in rig files: `fisheye`, `pinhole-radtan` or
@@ -96,6 +112,7 @@ impl Distortion {
             Distortion::Eucm(_) => "eucm",
             Distortion::Omni(_) => "omni-radtan",
             Distortion::RadialPoly(_) => "radial-poly",
+            Distortion::Scaramuzza(_) => "scaramuzza",
         }
     }
 
@@ -109,6 +126,7 @@ impl Distortion {
             Distortion::Eucm(_) => ModelKind::Eucm,
             Distortion::Omni(_) => ModelKind::Omni,
             Distortion::RadialPoly(_) => ModelKind::RadialPoly,
+            Distortion::Scaramuzza(_) => ModelKind::Scaramuzza,
         }
     }
 
@@ -120,20 +138,30 @@ impl Distortion {
             Distortion::Rational(k) => k,
             Distortion::DoubleSphere(k) | Distortion::Eucm(k) => k,
             Distortion::Omni(k) => k,
+            Distortion::Scaramuzza(o) => o.values(),
         }
     }
 
     /// The names of the coefficients, in the order of
     /// [`coefficients`](Self::coefficients).
-    pub fn coefficient_names(&self) -> &'static [&'static str] {
-        match self {
+    pub fn coefficient_names(&self) -> Vec<String> {
+        let names: &[&str] = match self {
             Distortion::Fisheye(_) | Distortion::RadialPoly(_) => &["k1", "k2", "k3", "k4"],
             Distortion::RadTan(_) => &["k1", "k2", "p1", "p2", "k3"],
             Distortion::Rational(_) => &["k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6"],
             Distortion::DoubleSphere(_) => &["xi", "alpha"],
             Distortion::Eucm(_) => &["alpha", "beta"],
             Distortion::Omni(_) => &["xi", "k1", "k2", "p1", "p2"],
-        }
+            Distortion::Scaramuzza(o) => {
+                return ["c", "d", "e"]
+                    .map(String::from)
+                    .into_iter()
+                    .chain((0..o.pol().len()).map(|i| format!("pol[{i}]")))
+                    .chain((0..o.invpol().len()).map(|i| format!("invpol[{i}]")))
+                    .collect();
+            }
+        };
+        names.iter().map(|n| (*n).to_owned()).collect()
     }
 
     /// Builds a model from its rig-file name and coefficients. For
@@ -206,6 +234,7 @@ impl Distortion {
         match *self {
             Distortion::Fisheye(_)
             | Distortion::RadialPoly(_)
+            | Distortion::Scaramuzza(_)
             | Distortion::DoubleSphere(_)
             | Distortion::Eucm(_) => None,
             Distortion::RadTan([k1, k2, p1, p2, k3]) => Some([k1, k2, p1, p2, k3, 0.0, 0.0, 0.0]),
@@ -288,8 +317,15 @@ impl Intrinsics {
         let own = match self.distortion {
             Distortion::DoubleSphere(_) | Distortion::Eucm(_) => 2,
             Distortion::Omni(_) => 1,
+            Distortion::Scaramuzza(o) => o.values().len(),
             _ => 0,
         };
+        if let Distortion::Scaramuzza(o) = self.distortion {
+            for (name, &v) in self.distortion.coefficient_names().iter().zip(o.values()) {
+                check_finite(name, v)?;
+            }
+            o.validate()?;
+        }
         for (i, &k) in self.distortion.coefficients()[own..].iter().enumerate() {
             check_finite(&format!("distortion[{i}]"), k)?;
         }
@@ -354,6 +390,9 @@ impl Intrinsics {
         match self.distortion {
             Distortion::Fisheye(k) => fisheye_theta_max(&k),
             Distortion::RadialPoly(k) => poly_theta_max(&k),
+            Distortion::Scaramuzza(o) => {
+                ocam::rho_max(&o, f64::from(self.width).hypot(f64::from(self.height)))
+            }
             Distortion::RadTan(_) | Distortion::Rational(_) | Distortion::Omni(_) => self
                 .distortion
                 .pinhole()
@@ -368,6 +407,7 @@ impl Intrinsics {
         match self.distortion {
             Distortion::Fisheye(k) => fisheye_theta_max(&k),
             Distortion::RadialPoly(k) => poly_theta_max(&k),
+            Distortion::Scaramuzza(o) => ocam::theta_max(&o, self.validity_limit()),
             Distortion::RadTan(_) | Distortion::Rational(_) => self
                 .distortion
                 .pinhole()
@@ -469,6 +509,7 @@ fn project_within(m: &Intrinsics, limit: f64, p: &Vector3<f64>) -> Option<Point2
             pinhole_distort(&k, a, b)
         }
         Distortion::RadialPoly(k) => radial_project(p, limit, |t| poly_rho(&k, t))?,
+        Distortion::Scaramuzza(o) => ocam::project(&o, limit, p)?,
         Distortion::DoubleSphere([xi, alpha]) => sphere::double_sphere_project(xi, alpha, p)?,
         Distortion::Eucm([alpha, beta]) => sphere::eucm_project(alpha, beta, p)?,
         Distortion::Omni([xi, ..]) => {
@@ -544,6 +585,7 @@ fn unproject_within(m: &Intrinsics, limit: f64, px: &Point2<f64>) -> Option<Unit
             (rho <= poly_rho(&k, limit))
                 .then(|| invert_increasing(|t| (poly_rho(&k, t), poly_drho(&k, t)), rho, limit))
         }),
+        Distortion::Scaramuzza(o) => ocam::unproject(&o, limit, xd, yd).map(Unit::new_normalize),
         Distortion::DoubleSphere([xi, alpha]) => {
             sphere::double_sphere_unproject(xi, alpha, xd, yd).map(Unit::new_normalize)
         }
@@ -612,13 +654,14 @@ thread_local! {
 
 /// Which validity limit a cache entry holds.
 #[derive(Clone, Copy, PartialEq, Eq)]
-enum Family {
+pub(super) enum Family {
     Fisheye,
     Pinhole,
     Poly,
+    Ocam,
 }
 
-fn cached(family: Family, k: &[f64], compute: impl FnOnce() -> f64) -> f64 {
+pub(super) fn cached(family: Family, k: &[f64], compute: impl FnOnce() -> f64) -> f64 {
     let mut key = [0; 8];
     for (b, v) in key.iter_mut().zip(k) {
         *b = v.to_bits();
@@ -709,156 +752,6 @@ fn fisheye_theta_from_theta_d(k: &[f64; 4], t_max: f64, td: f64) -> Option<f64> 
         td,
         t_max,
     ))
-}
-
-/// The radial factor of OpenCV's pinhole distortion at r² = `s`,
-/// (1 + k1 s + k2 s² + k3 s³) / (1 + k4 s + k5 s² + k6 s³), with its
-/// numerator, denominator and their derivatives in s.
-struct Radial {
-    n: f64,
-    d: f64,
-    dn: f64,
-    dd: f64,
-}
-
-impl Radial {
-    fn at(k: &[f64; 8], s: f64) -> Self {
-        let [k1, k2, _, _, k3, k4, k5, k6] = *k;
-        Self {
-            n: 1.0 + s * (k1 + s * (k2 + s * k3)),
-            d: 1.0 + s * (k4 + s * (k5 + s * k6)),
-            dn: k1 + s * (2.0 * k2 + s * 3.0 * k3),
-            dd: k4 + s * (2.0 * k5 + s * 3.0 * k6),
-        }
-    }
-
-    /// The factor.
-    fn value(&self) -> f64 {
-        self.n / self.d
-    }
-
-    /// Its derivative in s.
-    fn slope(&self) -> f64 {
-        (self.dn * self.d - self.n * self.dd) / (self.d * self.d)
-    }
-}
-
-/// OpenCV's pinhole distortion (k1, k2, p1, p2, k3, k4, k5, k6) of a
-/// normalised point.
-fn pinhole_distort(k: &[f64; 8], a: f64, b: f64) -> (f64, f64) {
-    let [_, _, p1, p2, ..] = *k;
-    let r2 = a * a + b * b;
-    let radial = Radial::at(k, r2).value();
-    (
-        a * radial + 2.0 * p1 * a * b + p2 * (r2 + 2.0 * a * a),
-        b * radial + p1 * (r2 + 2.0 * b * b) + 2.0 * p2 * a * b,
-    )
-}
-
-/// The largest r² = (x/z)² + (y/z)² up to which the model is one to one:
-/// the distorted radius r·factor(r²) still increases, the factor's
-/// denominator is positive, and the tangential terms do not fold the image
-/// (the Jacobian's determinant is positive at every angle). Capped at
-/// tan²(89.9°).
-fn pinhole_r2_max(k: &[f64; 8]) -> f64 {
-    cached(Family::Pinhole, k, || pinhole_r2_max_uncached(k))
-}
-
-/// Positive where the pinhole model is locally one to one at r² = `s` (the
-/// distorted radius increases and the Jacobian's determinant is positive
-/// at every angle; see [`pinhole_r2_max`]). With the radial factor R, A = d(r R)/dr and
-/// q = (p2, p1) at an angle φ from the point's direction, the Jacobian's
-/// determinant is (A + 6 r|q| cos φ)(R + 2 r|q| cos φ) − 4 r²|q|² sin² φ,
-/// a quadratic in cos φ whose least value over φ is taken here.
-fn pinhole_one_to_one(k: &[f64; 8], s: f64) -> f64 {
-    let q = Radial::at(k, s);
-    if q.d <= 0.0 {
-        // Past the denominator's pole.
-        return -1.0;
-    }
-    let b = q.value();
-    let a = b + 2.0 * s * q.slope();
-    let c = s.sqrt() * k[2].hypot(k[3]);
-    if c == 0.0 {
-        return a;
-    }
-    let t = (-(a + 3.0 * b) / (16.0 * c)).clamp(-1.0, 1.0);
-    let det = a * b - 4.0 * c * c + 2.0 * c * (a + 3.0 * b) * t + 16.0 * c * c * t * t;
-    a.min(det)
-}
-
-fn pinhole_r2_max_uncached(k: &[f64; 8]) -> f64 {
-    let cap = 89.9_f64.to_radians().tan().powi(2);
-    // Scanned on a geometric grid because the cap is large.
-    let d = |s: f64| pinhole_one_to_one(k, s);
-    let mut prev = 0.0;
-    let mut s = 1e-4;
-    while s < cap {
-        if d(s) <= 0.0 {
-            return first_stationary(|x| d(prev + x), s - prev, 64) + prev;
-        }
-        prev = s;
-        s *= 1.05;
-    }
-    if d(cap) <= 0.0 {
-        return first_stationary(|x| d(prev + x), cap - prev, 64) + prev;
-    }
-    cap
-}
-
-/// Inverts OpenCV's pinhole distortion: the radial part alone first (a
-/// bracketed Newton on the valid radii), then Newton's method on both
-/// coordinates with the tangential terms. `None` if that does not converge
-/// to the distorted point inside the valid region.
-fn pinhole_undistort(k: &[f64; 8], r2_max: f64, xd: f64, yd: f64) -> Option<(f64, f64)> {
-    let [_, _, p1, p2, ..] = *k;
-    let rd = xd.hypot(yd);
-    let (mut a, mut b) = if rd > 0.0 {
-        let r = invert_increasing(
-            |r| {
-                let q = Radial::at(k, r * r);
-                (r * q.value(), q.value() + 2.0 * r * r * q.slope())
-            },
-            rd,
-            r2_max.sqrt(),
-        );
-        (xd * r / rd, yd * r / rd)
-    } else {
-        (0.0, 0.0)
-    };
-    for _ in 0..100 {
-        let r2 = a * a + b * b;
-        if r2 > r2_max {
-            // Outside: pull back into the valid region.
-            let s = (r2_max / r2).sqrt() * (1.0 - 1e-9);
-            a *= s;
-            b *= s;
-            continue;
-        }
-        let q = Radial::at(k, r2);
-        let (radial, dradial) = (q.value(), q.slope());
-        let (fx, fy) = pinhole_distort(k, a, b);
-        let (ex, ey) = (fx - xd, fy - yd);
-        let j11 = radial + 2.0 * a * a * dradial + 2.0 * p1 * b + 6.0 * p2 * a;
-        let j12 = 2.0 * a * b * dradial + 2.0 * p1 * a + 2.0 * p2 * b;
-        let j21 = j12;
-        let j22 = radial + 2.0 * b * b * dradial + 6.0 * p1 * b + 2.0 * p2 * a;
-        let det = j11 * j22 - j12 * j21;
-        if det.abs() < 1e-300 || !det.is_finite() {
-            return None;
-        }
-        let da = (j22 * ex - j12 * ey) / det;
-        let db = (j11 * ey - j21 * ex) / det;
-        a -= da;
-        b -= db;
-        if da.abs().max(db.abs()) <= 1e-16 * (1.0 + a.abs().max(b.abs())) {
-            break;
-        }
-    }
-    let (fx, fy) = pinhole_distort(k, a, b);
-    let err = (fx - xd).hypot(fy - yd);
-    let ok = err <= 1e-12 * (1.0 + xd.hypot(yd)) && a * a + b * b <= r2_max;
-    ok.then_some((a, b))
 }
 
 #[cfg(test)]

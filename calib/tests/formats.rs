@@ -11,7 +11,7 @@ use common::fixture;
 
 use nalgebra::Vector3;
 use proptest::prelude::*;
-use rigview_calib::formats::{self, kalibr, opencv, rig_yaml, ros, woodscape, Format};
+use rigview_calib::formats::{self, kalibr, ocamcalib, opencv, rig_yaml, ros, woodscape, Format};
 use rigview_calib::report;
 use rigview_calib::{
     CalibError, Camera, DeviceId, Distortion, Frame, Intrinsics, ModelKind, Pose, Rig,
@@ -1057,5 +1057,97 @@ fn bad_woodscape_files_get_errors_that_name_file_and_field() {
     ];
     for (text, parts) in cases {
         assert_mentions(&err(woodscape::parse(&text, "fv.json", "fv")), &parts);
+    }
+}
+
+/// An OCamCalib result as its toolbox writes it: pol, invpol (fitted to
+/// pol), the centre (row, column), the affine parameters and the size
+/// (height, width).
+const OCAMCALIB: &str = "#polynomial coefficients for the DIRECT mapping function (ocam_model.ss in MATLAB). These are used by cam2world\n\n5 -1.800000e+02 0.000000e+00 2.300000e-03 -4.000000e-06 1.300000e-08 \n\n#polynomial coefficients for the inverse mapping function (ocam_model.invpol in MATLAB). These are used by world2cam\n\n13 285.007714 185.052865 4.161359 14.660081 18.490413 2.515648 -1.679842 5.210756 3.398764 -0.845990 -0.760291 0.068709 0.071227 \n\n#center: \"row\" and \"column\", starting from 0 (C convention)\n\n249.336977 360.589015\n\n#affine parameters \"c\", \"d\", \"e\"\n\n1.000012 0.000067 0.000154\n\n#image size: \"height\" and \"width\"\n\n480 720\n\n";
+
+#[test]
+fn ocamcalib_results_mean_what_ocamcalibs_functions_mean() {
+    let path = tmp("ocam").join("calib_results.txt");
+    std::fs::write(&path, OCAMCALIB).unwrap();
+    let loaded = formats::load(&path, None, None).unwrap();
+    assert_eq!(loaded.format, Format::OcamCalib);
+    let cam = &loaded.rig.cameras[0];
+    assert_eq!(cam.name, "calib_results");
+    assert!(cam.pose.is_none());
+    let k = cam.intrinsics;
+    // The centre is (row, column) and the size (height, width).
+    assert_eq!((k.width, k.height), (720, 480));
+    assert_eq!((k.cx, k.cy), (360.589015, 249.336977));
+    let Distortion::Scaramuzza(o) = k.distortion else {
+        panic!("{:?}", k.distortion)
+    };
+    assert_eq!(o.pol().len(), 5);
+    assert_eq!(o.invpol().len(), 13);
+    assert_eq!(
+        o.affine().map(f64::to_bits),
+        [1.000012f64, 0.000067, 0.000154].map(f64::to_bits)
+    );
+    // cam2world worked by hand for pixel (column 500, row 300), in
+    // rigview's axes (OCamCalib's (y, x, −z)).
+    let r = k.unproject(&nalgebra::Point2::new(500.0, 300.0)).unwrap();
+    let want = Vector3::new(0.692364868998783, 0.25157538462792833, 0.6762697050922863);
+    assert!((r.into_inner() - want).norm() < 1e-12, "{r:?}");
+    // Projection inverts pol exactly; OCamCalib's world2cam (invpol)
+    // agrees to its fit, and both directions round trip.
+    let (mut fit, mut trip): (f64, f64) = (0.0, 0.0);
+    for row in (0..480).step_by(20) {
+        for col in (0..720).step_by(20) {
+            let px = nalgebra::Point2::new(f64::from(col), f64::from(row));
+            let Some(ray) = k.unproject(&px) else {
+                continue;
+            };
+            let q = k.project(&ray).unwrap();
+            trip = trip.max((q - px).norm());
+            let (du, dv) = rigview_calib::model::ocam::world2cam(&o, &ray);
+            fit = fit.max((du + k.cx - q.x).hypot(dv + k.cy - q.y));
+        }
+    }
+    assert!(trip < 1e-6, "round trip {trip} px");
+    assert!(fit < 0.02, "invpol against pol: {fit} px");
+    // Written back: the same bits.
+    let text = formats::to_text(&loaded.rig, Format::OcamCalib, 0).unwrap();
+    let back = ocamcalib::parse(&text, "back.txt", "back").unwrap();
+    assert_eq!(back.intrinsics, k);
+    // And through the rig file, with the polynomials named.
+    let yaml = rig_yaml::to_string(&loaded.rig).unwrap();
+    assert!(
+        yaml.contains("model: scaramuzza") && yaml.contains("invpol:"),
+        "{yaml}"
+    );
+    let again = rig_yaml::parse(&yaml, "rig.yaml").unwrap();
+    assert_eq!(again.cameras[0].intrinsics, k);
+}
+
+#[test]
+fn bad_ocamcalib_files_get_errors_that_name_file_line_and_field() {
+    let cases: Vec<(String, Vec<&str>)> = vec![
+        (
+            OCAMCALIB.replacen("5 -1.8", "6 -1.8", 1),
+            vec!["cam.txt", "pol (line 3)", "count of 6"],
+        ),
+        (
+            OCAMCALIB.replacen("249.336977 360.589015", "249.336977 760.589015", 1),
+            vec!["cam.txt", "center (line 11)", "on the image"],
+        ),
+        (
+            OCAMCALIB.replacen("1.000012 0.000067", "1.000012 0.0000x67", 1),
+            vec!["cam.txt", "affine (line 15)"],
+        ),
+        (
+            OCAMCALIB.replacen("480 720", "", 1),
+            vec!["cam.txt", "image size"],
+        ),
+        (
+            OCAMCALIB.replacen("5 -1.800000e+02", "5 1.800000e+02", 1),
+            vec!["cam.txt", "pol", "negative"],
+        ),
+    ];
+    for (text, parts) in cases {
+        assert_mentions(&err(ocamcalib::parse(&text, "cam.txt", "cam")), &parts);
     }
 }

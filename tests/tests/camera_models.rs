@@ -7,6 +7,7 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use rigview_calib::formats::{self, Format};
+use rigview_calib::model::ocam::Ocam;
 use rigview_calib::{Distortion, Rig};
 use rigview_core::image::{FrameView, PixelFormat};
 use rigview_core::sim::{reference_rig, SimConfig, SimRender};
@@ -92,6 +93,16 @@ fn every_sphere_model_renders_and_its_surround_view_lines_neighbours_up() {
             1,
             0.05,
         ),
+        // Scaramuzza's (OCamCalib's pol in pixels: focal length 1), its
+        // pol[0] (the focal length, about) the parameter made wrong.
+        (
+            Distortion::Scaramuzza(
+                Ocam::new(&[-320.0, 0.0, 1.2e-3], &[], [1.0, 0.0, 0.0]).unwrap(),
+            ),
+            1.0,
+            3,
+            30.0,
+        ),
     ];
     let config = SimConfig {
         scale: 0.25,
@@ -112,7 +123,13 @@ fn every_sphere_model_renders_and_its_surround_view_lines_neighbours_up() {
         for c in &mut wrong.cameras {
             let mut k = c.intrinsics.distortion.coefficients().to_vec();
             k[wrong_at] += delta;
-            c.intrinsics.distortion = Distortion::from_name(name, &k).unwrap();
+            c.intrinsics.distortion = match c.intrinsics.distortion {
+                Distortion::Scaramuzza(o) => {
+                    let pol = &k[3..3 + o.pol().len()];
+                    Distortion::Scaramuzza(Ocam::new(pol, o.invpol(), [k[0], k[1], k[2]]).unwrap())
+                }
+                _ => Distortion::from_name(name, &k).unwrap(),
+            };
         }
         let off = overlap_difference(&render, &wrong);
         println!("{name}: overlap difference {same:.4} with the rig rendered, {off:.4} with a wrong lens");

@@ -246,11 +246,12 @@ pub fn write(rig: &Rig) -> Result<String> {
                     c.name, d[4]
                 )))
             }
-            Distortion::RadialPoly(_) => {
+            Distortion::RadialPoly(_) | Distortion::Scaramuzza(_) => {
                 return Err(CalibError::Argument(format!(
-                    "camera \"{}\": Kalibr has no radial polynomial (WoodScape's) model; write \
-                     it as rig or woodscape",
-                    c.name
+                    "camera \"{}\": Kalibr has no {} model; write it as rig, woodscape \
+                     (radial-poly) or ocamcalib (scaramuzza)",
+                    c.name,
+                    k.distortion.model_name()
                 )))
             }
             Distortion::Rational(_) => {

@@ -20,6 +20,7 @@
 //! [`CalibError::NeedsFeature`] that names the file.
 
 pub mod kalibr;
+pub mod ocamcalib;
 #[cfg(feature = "opencv")]
 pub mod opencv;
 pub mod rig_yaml;
@@ -57,17 +58,21 @@ pub enum Format {
     /// WoodScape's calibration JSON (one file a camera, with its pose).
     #[cfg_attr(feature = "clap", value(name = "woodscape"))]
     WoodScape,
+    /// OCamCalib's `calib_results.txt` (one file a camera, no pose).
+    #[cfg_attr(feature = "clap", value(name = "ocamcalib"))]
+    OcamCalib,
 }
 
 impl Format {
     /// Every format.
-    pub const ALL: [Format; 6] = [
+    pub const ALL: [Format; 7] = [
         Format::Rig,
         Format::OpenCvYaml,
         Format::OpenCvXml,
         Format::Kalibr,
         Format::Ros,
         Format::WoodScape,
+        Format::OcamCalib,
     ];
 
     /// Its name on the command line.
@@ -79,6 +84,7 @@ impl Format {
             Format::Kalibr => "kalibr",
             Format::Ros => "ros",
             Format::WoodScape => "woodscape",
+            Format::OcamCalib => "ocamcalib",
         }
     }
 
@@ -86,7 +92,11 @@ impl Format {
     pub fn per_camera(self) -> bool {
         matches!(
             self,
-            Format::OpenCvYaml | Format::OpenCvXml | Format::Ros | Format::WoodScape
+            Format::OpenCvYaml
+                | Format::OpenCvXml
+                | Format::Ros
+                | Format::WoodScape
+                | Format::OcamCalib
         )
     }
 
@@ -94,6 +104,7 @@ impl Format {
         match self {
             Format::OpenCvXml => "xml",
             Format::WoodScape => "json",
+            Format::OcamCalib => "txt",
             _ => "yaml",
         }
     }
@@ -177,6 +188,9 @@ pub fn detect(path: &Path, text: &str) -> Result<Format> {
     let file = path.display().to_string();
     let head = text.trim_start_matches('\u{feff}').trim_start();
     let directive = head.starts_with("%YAML");
+    if ocamcalib::looks_like(text) {
+        return Ok(Format::OcamCalib);
+    }
     if text.contains("!!opencv-matrix") {
         return Ok(Format::OpenCvYaml);
     }
@@ -257,6 +271,7 @@ fn load_camera(
         }
         Format::Ros => Ok((ros::parse(text, &file, &stem(path))?, None)),
         Format::WoodScape => Ok((woodscape::parse(text, &file, &stem(path))?, None)),
+        Format::OcamCalib => Ok((ocamcalib::parse(text, &file, &stem(path))?, None)),
         Format::Rig | Format::Kalibr => Err(CalibError::Format {
             file,
             detail: format!("a {format} file holds a rig, not one camera of a folder"),
@@ -280,7 +295,11 @@ pub fn load(path: &Path, format: Option<Format>, model: Option<ModelKind>) -> Re
     let rig = match format {
         Format::Rig => rig_yaml::parse(&text, &file)?,
         Format::Kalibr => kalibr::parse(&text, &file)?,
-        Format::OpenCvYaml | Format::OpenCvXml | Format::Ros | Format::WoodScape => {
+        Format::OpenCvYaml
+        | Format::OpenCvXml
+        | Format::Ros
+        | Format::WoodScape
+        | Format::OcamCalib => {
             let (cam, _) = load_camera(path, &text, format, model)?;
             Rig::new(Frame::Vehicle, vec![cam], vec![]).map_err(|e| e.in_file(&file))?
         }
@@ -301,13 +320,15 @@ fn load_dir(dir: &Path, format: Option<Format>, model: Option<ModelKind>) -> Res
     })?;
     let mut paths: Vec<PathBuf> = entries
         .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| p.is_file() && has_extension(p, &["yaml", "yml", "xml", "json"]))
+        .filter(|p| p.is_file() && has_extension(p, &["yaml", "yml", "xml", "json", "txt"]))
         .collect();
     paths.sort();
     if paths.is_empty() {
         return Err(CalibError::Format {
             file: name,
-            detail: "the folder holds no .yaml, .yml, .xml or .json calibration files".into(),
+            detail:
+                "the folder holds no .yaml, .yml, .xml, .json or OCamCalib .txt calibration files"
+                    .into(),
         });
     }
     let mut cameras = Vec::new();
@@ -315,6 +336,10 @@ fn load_dir(dir: &Path, format: Option<Format>, model: Option<ModelKind>) -> Res
     let mut seen = None;
     for p in &paths {
         let text = read_text(p)?;
+        // Text files beside the calibration (a README) are not cameras.
+        if has_extension(p, &["txt"]) && !ocamcalib::looks_like(&text) {
+            continue;
+        }
         let f = match format {
             Some(f) => f,
             None => detect(p, &text)?,
@@ -392,6 +417,7 @@ pub fn to_text(rig: &Rig, format: Format, camera: usize) -> Result<String> {
         }
         Format::Ros => ros::write(cam),
         Format::WoodScape => woodscape::write(cam),
+        Format::OcamCalib => ocamcalib::write(cam),
     }
 }
 

@@ -488,7 +488,8 @@ impl Reader<'_> {
                 other @ (ModelKind::DoubleSphere
                 | ModelKind::Eucm
                 | ModelKind::Omni
-                | ModelKind::RadialPoly),
+                | ModelKind::RadialPoly
+                | ModelKind::Scaramuzza),
             ) => {
                 return Err(self.field(
                     "camera_model",
@@ -593,7 +594,8 @@ pub fn write(camera: &Camera, xml: bool) -> Result<String> {
         Distortion::DoubleSphere(_)
         | Distortion::Eucm(_)
         | Distortion::Omni(_)
-        | Distortion::RadialPoly(_) => {
+        | Distortion::RadialPoly(_)
+        | Distortion::Scaramuzza(_) => {
             return Err(CalibError::Argument(format!(
                 "camera \"{}\": OpenCV's calibration files hold the fisheye, pinhole and \
                  rational models, not {}; write it as rig or kalibr",

@@ -9,7 +9,8 @@
 //!   device:                 # optional; exactly one of the two
 //!     genicam: Basler-21234567
 //!     # ip: 192.168.10.11
-//!   model: fisheye          # or pinhole-radtan, pinhole-rational, double-sphere, eucm, omni-radtan
+//!   model: fisheye          # or pinhole-radtan, pinhole-rational, double-sphere, eucm, omni-radtan,
+//!                           # radial-poly, scaramuzza
 //!   resolution_px: [960, 640]
 //!   focal_px: [302.45, 320.75]
 //!   principal_point_px: [496.64, 331.20]
@@ -19,6 +20,9 @@
 //!   # xi: -0.2               # double-sphere and omni-radtan: ξ (unitless)
 //!   # alpha: 0.6             # double-sphere and eucm: α (unitless)
 //!   # beta: 1.1              # eucm: β (unitless)
+//!   # pol: [...]             # scaramuzza: OCamCalib's pol, invpol and affine [c, d, e]
+//!   # invpol: [...]          #   (pixels: focal_px [1, 1])
+//!   # affine: [1, 0, 0]
 //!   pose:                   # optional; camera (OpenCV axes) to rig frame
 //!     translation_m: [1.9, 0.0, 0.9]                 # camera centre, metres
 //!     rotation_matrix: [[...], [...], [...]]         # row-major, p_rig = R·p_cam + t
@@ -38,6 +42,7 @@ use nalgebra::{Matrix3, Vector3};
 use serde::{Deserialize, Serialize};
 
 use crate::error::{CalibError, FieldError, Result};
+use crate::model::ocam::Ocam;
 use crate::model::{Distortion, Intrinsics};
 use crate::pose::Pose;
 use crate::rig::{Camera, DeviceId, Frame, Rig};
@@ -83,6 +88,14 @@ struct CameraDoc {
     alpha: Option<f64>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     beta: Option<f64>,
+    /// Scaramuzza's model (OCamCalib): `pol` (ρ to z, pixels, lowest order
+    /// first), `invpol` (angle to ρ) and the affine `[c, d, e]`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pol: Option<Vec<f64>>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    invpol: Option<Vec<f64>>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    affine: Option<[f64; 3]>,
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     distortion: Vec<f64>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -231,10 +244,56 @@ fn named_parameters(c: &CameraDoc) -> Result<Vec<f64>, FieldError> {
         .collect()
 }
 
+/// Scaramuzza's model from its named fields; `None` for another model
+/// (which must not have them).
+fn scaramuzza(c: &CameraDoc) -> Result<Option<Distortion>, FieldError> {
+    if c.model != "scaramuzza" {
+        for (name, given) in [
+            ("pol", c.pol.is_some()),
+            ("invpol", c.invpol.is_some()),
+            ("affine", c.affine.is_some()),
+        ] {
+            if given {
+                return Err(FieldError::new(
+                    name,
+                    format!("no `{name}` for the {} model", c.model),
+                    "a value",
+                ));
+            }
+        }
+        return Ok(None);
+    }
+    if !c.distortion.is_empty() {
+        return Err(FieldError::new(
+            "distortion",
+            "none for the scaramuzza model (its polynomials are pol and invpol)",
+            format!("{} coefficients", c.distortion.len()),
+        ));
+    }
+    let pol = c.pol.as_deref().ok_or_else(|| {
+        FieldError::new(
+            "pol",
+            "the scaramuzza model's pol, lowest order first",
+            "nothing",
+        )
+    })?;
+    let ocam = Ocam::new(
+        pol,
+        c.invpol.as_deref().unwrap_or(&[]),
+        c.affine.unwrap_or([1.0, 0.0, 0.0]),
+    )?;
+    Ok(Some(Distortion::Scaramuzza(ocam)))
+}
+
 fn camera_from_doc(c: CameraDoc) -> Result<Camera, FieldError> {
-    let mut coefficients = named_parameters(&c)?;
-    coefficients.extend_from_slice(&c.distortion);
-    let distortion = Distortion::from_name(&c.model, &coefficients)?;
+    let distortion = match scaramuzza(&c)? {
+        Some(d) => d,
+        None => {
+            let mut coefficients = named_parameters(&c)?;
+            coefficients.extend_from_slice(&c.distortion);
+            Distortion::from_name(&c.model, &coefficients)?
+        }
+    };
     let intrinsics = Intrinsics {
         width: c.resolution_px[0],
         height: c.resolution_px[1],
@@ -344,8 +403,22 @@ pub fn to_string(rig: &Rig) -> Result<String> {
                         Distortion::Eucm([_, b]) => Some(b),
                         _ => None,
                     },
+                    pol: match k.distortion {
+                        Distortion::Scaramuzza(o) => Some(o.pol().to_vec()),
+                        _ => None,
+                    },
+                    invpol: match k.distortion {
+                        Distortion::Scaramuzza(o) => Some(o.invpol().to_vec()),
+                        _ => None,
+                    },
+                    affine: match k.distortion {
+                        Distortion::Scaramuzza(o) => Some(o.affine()),
+                        _ => None,
+                    },
                     distortion: match k.distortion {
-                        Distortion::DoubleSphere(_) | Distortion::Eucm(_) => Vec::new(),
+                        Distortion::DoubleSphere(_)
+                        | Distortion::Eucm(_)
+                        | Distortion::Scaramuzza(_) => Vec::new(),
                         Distortion::Omni([_, rest @ ..]) => rest.to_vec(),
                         d => d.coefficients().to_vec(),
                     },

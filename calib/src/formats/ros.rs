@@ -328,7 +328,8 @@ pub fn write(camera: &Camera) -> Result<String> {
         Distortion::DoubleSphere(_)
         | Distortion::Eucm(_)
         | Distortion::Omni(_)
-        | Distortion::RadialPoly(_) => {
+        | Distortion::RadialPoly(_)
+        | Distortion::Scaramuzza(_) => {
             return Err(CalibError::Argument(format!(
                 "camera \"{}\": camera_info has no {} model (its models are plumb_bob, \
                  rational_polynomial and equidistant); write it as rig or kalibr",

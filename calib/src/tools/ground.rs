@@ -201,6 +201,7 @@ fn undistort(k: &Intrinsics, corners: &[[f64; 2]]) -> Result<Vec<[f64; 2]>> {
             | Distortion::Eucm(_)
             | Distortion::Omni(_)
             | Distortion::RadialPoly(_)
+            | Distortion::Scaramuzza(_)
     ) {
         // Models OpenCV does not know: the model's own unprojection, onto
         // the plane z = 1 (a corner the mats give lies in front).

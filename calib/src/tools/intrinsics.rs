@@ -238,7 +238,11 @@ fn run(views: &[View], board: Board, model: ModelKind, w: u32, h: u32) -> Result
                 &obj, &img, size, &mut k, &mut d, &mut rvecs, &mut tvecs, flags, criteria,
             ),
         )?,
-        ModelKind::DoubleSphere | ModelKind::Eucm | ModelKind::Omni | ModelKind::RadialPoly => {
+        ModelKind::DoubleSphere
+        | ModelKind::Eucm
+        | ModelKind::Omni
+        | ModelKind::RadialPoly
+        | ModelKind::Scaramuzza => {
             return Err(CalibError::Argument(format!(
                 "OpenCV cannot calibrate the {model:?} model"
             )))
