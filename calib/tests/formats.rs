@@ -11,7 +11,9 @@ use common::fixture;
 
 use nalgebra::Vector3;
 use proptest::prelude::*;
-use rigview_calib::formats::{self, kalibr, ocamcalib, opencv, rig_yaml, ros, woodscape, Format};
+use rigview_calib::formats::{
+    self, basalt, camodocal, kalibr, ocamcalib, opencv, rig_yaml, ros, woodscape, Format,
+};
 use rigview_calib::report;
 use rigview_calib::{
     CalibError, Camera, DeviceId, Distortion, Frame, Intrinsics, ModelKind, Pose, Rig,
@@ -1149,5 +1151,204 @@ fn bad_ocamcalib_files_get_errors_that_name_file_line_and_field() {
     ];
     for (text, parts) in cases {
         assert_mentions(&err(ocamcalib::parse(&text, "cam.txt", "cam")), &parts);
+    }
+}
+
+/// A camodocal MEI camera as its calibration tool writes it (through
+/// OpenCV's FileStorage).
+const CAMODOCAL_MEI: &str = "%YAML:1.0\n---\nmodel_type: MEI\ncamera_name: left\nimage_width: 1280\nimage_height: 960\nmirror_parameters:\n   xi: 1.5000000000000000e+00\ndistortion_parameters:\n   k1: -5.0000000000000003e-02\n   k2: 2.0000000000000000e-01\n   p1: 1.0000000000000000e-03\n   p2: -2.0000000000000000e-03\nprojection_parameters:\n   gamma1: 8.0000000000000000e+02\n   gamma2: 8.1000000000000000e+02\n   u0: 6.4000000000000000e+02\n   v0: 4.8000000000000000e+02\n";
+
+#[test]
+fn camodocal_cameras_mean_what_camodocal_means() {
+    let path = tmp("camodocal").join("left.yaml");
+    std::fs::write(&path, CAMODOCAL_MEI).unwrap();
+    let loaded = formats::load(&path, None, None).unwrap();
+    assert_eq!(loaded.format, Format::Camodocal);
+    let cam = &loaded.rig.cameras[0];
+    assert_eq!(cam.name, "left");
+    let k = cam.intrinsics;
+    assert_eq!(
+        k.distortion,
+        Distortion::Omni([1.5, -0.05, 0.2, 0.001, -0.002])
+    );
+    assert_eq!((k.fx, k.fy, k.cx, k.cy), (800.0, 810.0, 640.0, 480.0));
+    // Mei's projection worked by hand: the unit sphere, the plane at ξ,
+    // camodocal's distortion (OpenCV's), γ and (u0, v0).
+    let q = k.project(&Vector3::new(0.5, -0.3, 0.8)).unwrap();
+    assert!((q.x - 814.3355742094254).abs() < 1e-9, "{q}");
+    assert!((q.y - 374.08058871971537).abs() < 1e-9, "{q}");
+    // KANNALA_BRANDT's k2..k5 are OpenCV's fisheye k1..k4, mu and mv the
+    // focal lengths; PINHOLE is radial-tangential without k3.
+    let kb = CAMODOCAL_MEI
+        .replace("model_type: MEI", "model_type: KANNALA_BRANDT")
+        .replace(
+            "projection_parameters:\n",
+            "projection_parameters:\n   k2: 0.01\n   k3: -0.002\n   k4: 0.0003\n   k5: -0.00004\n   mu: 300.0\n   mv: 301.0\n",
+        );
+    let kb = camodocal::parse(&kb, "kb.yaml", "kb").unwrap();
+    assert_eq!(
+        kb.intrinsics.distortion,
+        Distortion::Fisheye([0.01, -0.002, 0.0003, -0.00004])
+    );
+    assert_eq!((kb.intrinsics.fx, kb.intrinsics.fy), (300.0, 301.0));
+    let pinhole = CAMODOCAL_MEI
+        .replace("model_type: MEI", "model_type: PINHOLE")
+        .replace("gamma1:", "fx:")
+        .replace("gamma2:", "fy:")
+        .replace("u0:", "cx:")
+        .replace("v0:", "cy:");
+    let pinhole = camodocal::parse(&pinhole, "p.yaml", "p").unwrap();
+    assert_eq!(
+        pinhole.intrinsics.distortion,
+        Distortion::RadTan([-0.05, 0.2, 0.001, -0.002, 0.0])
+    );
+    // Each written back: the same bits.
+    for c in [cam, &kb, &pinhole] {
+        let text = camodocal::write(c).unwrap();
+        let back = camodocal::parse(&text, "back.yaml", "x").unwrap();
+        assert_eq!(back.intrinsics, c.intrinsics, "{text}");
+        assert_eq!(back.name, c.name);
+    }
+    // Bad files: errors name the file and the field.
+    let cases: Vec<(String, Vec<&str>)> = vec![
+        (
+            CAMODOCAL_MEI.replace("   xi: 1.5000000000000000e+00\n", ""),
+            vec!["left.yaml", "mirror_parameters"],
+        ),
+        (
+            CAMODOCAL_MEI.replace("model_type: MEI", "model_type: SCARAMUZZA"),
+            vec!["left.yaml", "model_type", "SCARAMUZZA", "KANNALA_BRANDT"],
+        ),
+        (
+            CAMODOCAL_MEI.replace("gamma1: 8.0000000000000000e+02", "gamma1: wide"),
+            vec!["left.yaml", "projection_parameters.gamma1"],
+        ),
+    ];
+    for (text, parts) in cases {
+        assert_mentions(&err(camodocal::parse(&text, "left.yaml", "left")), &parts);
+    }
+}
+
+/// A Basalt calibration of two cameras as Basalt writes it (cereal's JSON).
+const BASALT: &str = r#"{
+    "value0": {
+        "T_imu_cam": [
+            {
+                "px": 0.04,
+                "py": -0.02,
+                "pz": -0.01,
+                "qx": 0.0,
+                "qy": 0.0,
+                "qz": 0.7071067811865476,
+                "qw": 0.7071067811865476
+            },
+            {
+                "px": -0.06,
+                "py": -0.02,
+                "pz": -0.01,
+                "qx": 0.0,
+                "qy": 0.0,
+                "qz": 0.7071067811865476,
+                "qw": 0.7071067811865476
+            }
+        ],
+        "intrinsics": [
+            {
+                "camera_type": "ds",
+                "intrinsics": {
+                    "fx": 349.7,
+                    "fy": 349.6,
+                    "cx": 254.9,
+                    "cy": 257.5,
+                    "xi": -0.23,
+                    "alpha": 0.56
+                }
+            },
+            {
+                "camera_type": "eucm",
+                "intrinsics": {
+                    "fx": 380.1,
+                    "fy": 380.2,
+                    "cx": 255.0,
+                    "cy": 256.0,
+                    "alpha": 0.61,
+                    "beta": 1.02
+                }
+            }
+        ],
+        "resolution": [
+            [
+                512,
+                512
+            ],
+            [
+                512,
+                512
+            ]
+        ],
+        "vignette": [],
+        "calib_accel_bias": [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+        "calib_gyro_bias": [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+        "imu_update_rate": 200.0
+    }
+}
+"#;
+
+#[test]
+fn basalt_calibrations_mean_what_basalt_means() {
+    let path = tmp("basalt").join("calibration.json");
+    std::fs::write(&path, BASALT).unwrap();
+    let loaded = formats::load(&path, None, None).unwrap();
+    assert_eq!(loaded.format, Format::Basalt);
+    let rig = loaded.rig;
+    assert_eq!(rig.frame, Frame::Camera("cam0".into()));
+    let k0 = rig.cameras[0].intrinsics;
+    assert_eq!(k0.distortion, Distortion::DoubleSphere([-0.23, 0.56]));
+    assert_eq!((k0.fx, k0.cy, k0.width), (349.7, 257.5, 512));
+    assert_eq!(
+        rig.cameras[1].intrinsics.distortion,
+        Distortion::Eucm([0.61, 1.02])
+    );
+    // Both cameras turned a quarter turn about the IMU's z: cam1 lies
+    // 0.1 m along the IMU's −x, which is cam0's +y.
+    let p1 = rig.cameras[1].pose.unwrap();
+    assert!(
+        (p1.translation() - Vector3::new(0.0, 0.1, 0.0)).norm() < 1e-12,
+        "{:?}",
+        p1.translation()
+    );
+    assert!(p1.rotation_angle_to(&rig.cameras[0].pose.unwrap()) < 1e-12);
+    // Written back and read again.
+    let back = basalt::parse(&basalt::write(&rig).unwrap(), "back.json").unwrap();
+    for (a, b) in rig.cameras.iter().zip(&back.cameras) {
+        assert_eq!(a.intrinsics, b.intrinsics);
+        let (pa, pb) = (a.pose.unwrap(), b.pose.unwrap());
+        assert!((pa.translation() - pb.translation()).norm() < 1e-12);
+        assert!(pa.rotation_angle_to(&pb) < 1e-12);
+    }
+    let cases: Vec<(String, Vec<&str>)> = vec![
+        (
+            BASALT.replacen("\"camera_type\": \"ds\"", "\"camera_type\": \"fov\"", 1),
+            vec![
+                "calibration.json",
+                "value0.intrinsics[0].camera_type",
+                "fov",
+            ],
+        ),
+        (
+            BASALT.replacen("\"qw\": 0.7071067811865476", "\"qw\": 0.9", 1),
+            vec!["calibration.json", "value0.T_imu_cam[0].qw", "unit"],
+        ),
+        (
+            BASALT.replacen("\"alpha\": 0.56", "\"alpha\": 1.56", 1),
+            vec!["calibration.json", "alpha"],
+        ),
+        (
+            BASALT.replacen("\"fy\": 349.6,\n", "", 1),
+            vec!["calibration.json", "value0.intrinsics[0].intrinsics.fy"],
+        ),
+    ];
+    for (text, parts) in cases {
+        assert_mentions(&err(basalt::parse(&text, "calibration.json")), &parts);
     }
 }

@@ -19,6 +19,8 @@
 //! ([`detect`]) but reading or writing one is a
 //! [`CalibError::NeedsFeature`] that names the file.
 
+pub mod basalt;
+pub mod camodocal;
 pub mod kalibr;
 pub mod ocamcalib;
 #[cfg(feature = "opencv")]
@@ -61,11 +63,16 @@ pub enum Format {
     /// OCamCalib's `calib_results.txt` (one file a camera, no pose).
     #[cfg_attr(feature = "clap", value(name = "ocamcalib"))]
     OcamCalib,
+    /// camodocal's camera YAML (MEI, KANNALA_BRANDT, PINHOLE; one file a
+    /// camera, no pose).
+    Camodocal,
+    /// Basalt's calibration JSON (a rig posed on an IMU).
+    Basalt,
 }
 
 impl Format {
     /// Every format.
-    pub const ALL: [Format; 7] = [
+    pub const ALL: [Format; 9] = [
         Format::Rig,
         Format::OpenCvYaml,
         Format::OpenCvXml,
@@ -73,6 +80,8 @@ impl Format {
         Format::Ros,
         Format::WoodScape,
         Format::OcamCalib,
+        Format::Camodocal,
+        Format::Basalt,
     ];
 
     /// Its name on the command line.
@@ -85,6 +94,8 @@ impl Format {
             Format::Ros => "ros",
             Format::WoodScape => "woodscape",
             Format::OcamCalib => "ocamcalib",
+            Format::Camodocal => "camodocal",
+            Format::Basalt => "basalt",
         }
     }
 
@@ -97,6 +108,7 @@ impl Format {
                 | Format::Ros
                 | Format::WoodScape
                 | Format::OcamCalib
+                | Format::Camodocal
         )
     }
 
@@ -105,6 +117,7 @@ impl Format {
             Format::OpenCvXml => "xml",
             Format::WoodScape => "json",
             Format::OcamCalib => "txt",
+            Format::Basalt => "json",
             _ => "yaml",
         }
     }
@@ -215,6 +228,10 @@ pub fn detect(path: &Path, text: &str) -> Result<Format> {
     let ros_message = doc.as_mapping().is_some_and(ros::is_message);
     if woodscape::is_woodscape(&doc) {
         Ok(Format::WoodScape)
+    } else if key("model_type") {
+        Ok(Format::Camodocal)
+    } else if key("value0") {
+        Ok(Format::Basalt)
     } else if key("format") {
         Ok(Format::Rig)
     } else if key("cam0") {
@@ -229,8 +246,9 @@ pub fn detect(path: &Path, text: &str) -> Result<Format> {
             detail: "cannot tell the calibration format: expected a rigview rig \
                      (format: rigview-rig), a Kalibr camchain (cam0: …), a ROS camera_info \
                      (image_width: … or a ROS 2 message with width, k, d), a WoodScape \
-                     calibration (intrinsic, extrinsic) or an OpenCV FileStorage file \
-                     (camera_matrix, %YAML:1.0 or <?xml)"
+                     calibration (intrinsic, extrinsic), a camodocal camera (model_type), a \
+                     Basalt calibration (value0), an OCamCalib calib_results.txt or an OpenCV \
+                     FileStorage file (camera_matrix, %YAML:1.0 or <?xml)"
                 .into(),
         })
     }
@@ -272,7 +290,8 @@ fn load_camera(
         Format::Ros => Ok((ros::parse(text, &file, &stem(path))?, None)),
         Format::WoodScape => Ok((woodscape::parse(text, &file, &stem(path))?, None)),
         Format::OcamCalib => Ok((ocamcalib::parse(text, &file, &stem(path))?, None)),
-        Format::Rig | Format::Kalibr => Err(CalibError::Format {
+        Format::Camodocal => Ok((camodocal::parse(text, &file, &stem(path))?, None)),
+        Format::Rig | Format::Kalibr | Format::Basalt => Err(CalibError::Format {
             file,
             detail: format!("a {format} file holds a rig, not one camera of a folder"),
         }),
@@ -295,11 +314,13 @@ pub fn load(path: &Path, format: Option<Format>, model: Option<ModelKind>) -> Re
     let rig = match format {
         Format::Rig => rig_yaml::parse(&text, &file)?,
         Format::Kalibr => kalibr::parse(&text, &file)?,
+        Format::Basalt => basalt::parse(&text, &file)?,
         Format::OpenCvYaml
         | Format::OpenCvXml
         | Format::Ros
         | Format::WoodScape
-        | Format::OcamCalib => {
+        | Format::OcamCalib
+        | Format::Camodocal => {
             let (cam, _) = load_camera(path, &text, format, model)?;
             Rig::new(Frame::Vehicle, vec![cam], vec![]).map_err(|e| e.in_file(&file))?
         }
@@ -418,6 +439,8 @@ pub fn to_text(rig: &Rig, format: Format, camera: usize) -> Result<String> {
         Format::Ros => ros::write(cam),
         Format::WoodScape => woodscape::write(cam),
         Format::OcamCalib => ocamcalib::write(cam),
+        Format::Camodocal => camodocal::write(cam),
+        Format::Basalt => basalt::write(rig),
     }
 }
 

@@ -211,7 +211,7 @@ pub fn write(camera: &Camera) -> Result<String> {
 
 /// A number as JSON writes it: the shortest text that reads back to the
 /// same bits, with a decimal point.
-fn json_number(x: f64) -> String {
+pub(crate) fn json_number(x: f64) -> String {
     let s = format!("{x:?}");
     if s.contains(['.', 'e', 'E']) {
         s
