@@ -83,9 +83,10 @@ pub enum Distortion {
     /// Extended unified (Khomutenko et al. 2016): `[α, β]`.
     Eucm([f64; 2]),
     /// Unified / Mei (OpenCV's omnidir, Kalibr's omni-radtan): `[ξ, k1, k2,
-    /// p1, p2]`, the radial-tangential distortion on the unit sphere's
-    /// projection plane.
-    Omni([f64; 5]),
+    /// p1, p2, s]`, the radial-tangential distortion on the unit sphere's
+    /// projection plane and OpenCV omnidir's skew `s` in pixels (the camera
+    /// matrix's (0, 1): u = fx·x + s·y + cx; 0 for Kalibr and camodocal).
+    Omni([f64; 6]),
     /// WoodScape's radial polynomial: `[k1, k2, k3, k4]`, the distance from
     /// the principal point ρ(θ) = k1 θ + k2 θ² + k3 θ³ + k4 θ⁴ in units of
     /// the focal length (WoodScape's files give ρ in pixels: focal length
@@ -151,7 +152,7 @@ impl Distortion {
             Distortion::Rational(_) => &["k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6"],
             Distortion::DoubleSphere(_) => &["xi", "alpha"],
             Distortion::Eucm(_) => &["alpha", "beta"],
-            Distortion::Omni(_) => &["xi", "k1", "k2", "p1", "p2"],
+            Distortion::Omni(_) => &["xi", "k1", "k2", "p1", "p2", "skew"],
             Distortion::Scaramuzza(o) => {
                 return ["c", "d", "e"]
                     .map(String::from)
@@ -188,7 +189,8 @@ impl Distortion {
             )),
             ("double-sphere", 2) => Ok(Distortion::DoubleSphere([c[0], c[1]])),
             ("eucm", 2) => Ok(Distortion::Eucm([c[0], c[1]])),
-            ("omni-radtan", 5) => Ok(Distortion::Omni([c[0], c[1], c[2], c[3], c[4]])),
+            ("omni-radtan", 5) => Ok(Distortion::Omni([c[0], c[1], c[2], c[3], c[4], 0.0])),
+            ("omni-radtan", 6) => Ok(Distortion::Omni([c[0], c[1], c[2], c[3], c[4], c[5]])),
             ("double-sphere", n) => Err(FieldError::new(
                 "distortion",
                 "2 double-sphere parameters xi, alpha",
@@ -201,7 +203,7 @@ impl Distortion {
             )),
             ("omni-radtan", n) => Err(FieldError::new(
                 "distortion",
-                "5 unified-model parameters xi, k1, k2, p1, p2",
+                "5 or 6 unified-model parameters xi, k1, k2, p1, p2[, skew]",
                 format!("{n}"),
             )),
             ("fisheye", n) => Err(FieldError::new(
@@ -238,7 +240,7 @@ impl Distortion {
             | Distortion::DoubleSphere(_)
             | Distortion::Eucm(_) => None,
             Distortion::RadTan([k1, k2, p1, p2, k3]) => Some([k1, k2, p1, p2, k3, 0.0, 0.0, 0.0]),
-            Distortion::Omni([_, k1, k2, p1, p2]) => Some([k1, k2, p1, p2, 0.0, 0.0, 0.0, 0.0]),
+            Distortion::Omni([_, k1, k2, p1, p2, _]) => Some([k1, k2, p1, p2, 0.0, 0.0, 0.0, 0.0]),
             Distortion::Rational(k) => Some(k),
         }
     }
@@ -512,12 +514,14 @@ fn project_within(m: &Intrinsics, limit: f64, p: &Vector3<f64>) -> Option<Point2
         Distortion::Scaramuzza(o) => ocam::project(&o, limit, p)?,
         Distortion::DoubleSphere([xi, alpha]) => sphere::double_sphere_project(xi, alpha, p)?,
         Distortion::Eucm([alpha, beta]) => sphere::eucm_project(alpha, beta, p)?,
-        Distortion::Omni([xi, ..]) => {
+        Distortion::Omni([xi, .., skew]) => {
             let (a, b) = sphere::unified_project(xi, p)?;
             if a * a + b * b > limit {
                 return None;
             }
-            pinhole_distort(&m.distortion.pinhole()?, a, b)
+            let (x, y) = pinhole_distort(&m.distortion.pinhole()?, a, b);
+            // u = fx·x + s·y + cx, as fx·(x + s/fx·y) + cx.
+            (x + skew / m.fx * y, y)
         }
     };
     let u = m.fx * xd + m.cx;
@@ -592,8 +596,9 @@ fn unproject_within(m: &Intrinsics, limit: f64, px: &Point2<f64>) -> Option<Unit
         Distortion::Eucm([alpha, beta]) => {
             sphere::eucm_unproject(alpha, beta, xd, yd).map(Unit::new_normalize)
         }
-        Distortion::Omni([xi, ..]) => {
-            let (a, b) = pinhole_undistort(&m.distortion.pinhole()?, limit, xd, yd)?;
+        Distortion::Omni([xi, .., skew]) => {
+            let (a, b) =
+                pinhole_undistort(&m.distortion.pinhole()?, limit, xd - skew / m.fx * yd, yd)?;
             sphere::unified_unproject(xi, a, b).map(Unit::new_normalize)
         }
     }

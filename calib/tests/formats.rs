@@ -913,7 +913,7 @@ fn kalibr_sphere_models_are_read_as_kalibr_writes_them_and_written_back() {
     let k: Vec<_> = rig.cameras.iter().map(|c| c.intrinsics).collect();
     assert_eq!(
         k[0].distortion,
-        Distortion::Omni([0.9, -0.1, 0.02, 0.001, -0.002])
+        Distortion::Omni([0.9, -0.1, 0.02, 0.001, -0.002, 0.0])
     );
     assert_eq!(
         (k[0].fx, k[0].fy, k[0].cx, k[0].cy),
@@ -1169,7 +1169,7 @@ fn camodocal_cameras_mean_what_camodocal_means() {
     let k = cam.intrinsics;
     assert_eq!(
         k.distortion,
-        Distortion::Omni([1.5, -0.05, 0.2, 0.001, -0.002])
+        Distortion::Omni([1.5, -0.05, 0.2, 0.001, -0.002, 0.0])
     );
     assert_eq!((k.fx, k.fy, k.cx, k.cy), (800.0, 810.0, 640.0, 480.0));
     // Mei's projection worked by hand: the unit sphere, the plane at ξ,
@@ -1351,4 +1351,56 @@ fn basalt_calibrations_mean_what_basalt_means() {
     for (text, parts) in cases {
         assert_mentions(&err(basalt::parse(&text, "calibration.json")), &parts);
     }
+}
+
+/// An OpenCV omnidir calibration as its calibration sample saves it
+/// (FileStorage YAML: K with its skew, D as 1×4, xi as 1×1).
+const OMNIDIR: &str = "%YAML:1.0\n---\ncalibration_time: \"Fri 27 Nov 2026 07:50:00 UTC\"\nnFrames: 20\nimage_width: 1280\nimage_height: 960\nflags: 0\ncamera_matrix: !!opencv-matrix\n   rows: 3\n   cols: 3\n   dt: d\n   data: [ 8.0000000000000000e+02, 1.5000000000000000e+00,\n       6.4000000000000000e+02, 0., 8.1000000000000000e+02,\n       4.8000000000000000e+02, 0., 0., 1. ]\ndistortion_coefficients: !!opencv-matrix\n   rows: 1\n   cols: 4\n   dt: d\n   data: [ -5.0000000000000003e-02, 2.0000000000000001e-01,\n       1.0000000000000000e-03, -2.0000000000000000e-03 ]\nxi: !!opencv-matrix\n   rows: 1\n   cols: 1\n   dt: d\n   data: [ 1.5000000000000000e+00 ]\nrms: 3.0000000000000000e-01\n";
+
+#[test]
+fn opencv_omnidir_files_mean_what_omnidir_means() {
+    let c = opencv::parse(OMNIDIR, false, "omni.yaml", None).unwrap();
+    let k = c.intrinsics;
+    assert_eq!(
+        k.distortion,
+        Distortion::Omni([1.5, -0.05, 0.2, 0.001, -0.002, 1.5])
+    );
+    assert_eq!((k.fx, k.fy, k.cx, k.cy), (800.0, 810.0, 640.0, 480.0));
+    // Mei's projection with omnidir's skew, worked by hand:
+    // u = fx·x + s·y + cx.
+    let q = k.project(&Vector3::new(0.5, -0.3, 0.8)).unwrap();
+    assert!(
+        (q.x - 814.3355742094254 - 1.5 * (374.08058871971537 - 480.0) / 810.0).abs() < 1e-9,
+        "{q}"
+    );
+    assert!((q.y - 374.08058871971537).abs() < 1e-9, "{q}");
+    let r = k.unproject(&q).unwrap();
+    assert!((r.into_inner() - Vector3::new(0.5, -0.3, 0.8).normalize()).norm() < 1e-12);
+    // Written back as omnidir's keys (YAML and XML) and read again.
+    let cam = rigview_calib::Camera {
+        name: "omni".into(),
+        device: None,
+        intrinsics: k,
+        pose: None,
+    };
+    for xml in [false, true] {
+        let text = opencv::write(&cam, xml).unwrap();
+        assert!(text.contains("xi") && text.contains("omnidir"), "{text}");
+        let back =
+            opencv::parse(&text, xml, "back", None).unwrap_or_else(|e| panic!("{e}\n{text}"));
+        assert_eq!(back.intrinsics, k, "{text}");
+    }
+    // Skew without xi is not omnidir, and omnidir has 4 coefficients.
+    let no_xi = OMNIDIR.split("xi:").next().unwrap().to_owned();
+    assert_mentions(
+        &err(opencv::parse(&no_xi, false, "omni.yaml", None)),
+        &["omni.yaml", "camera_matrix", "skew"],
+    );
+    let five = OMNIDIR
+        .replace("cols: 4", "cols: 5")
+        .replace("-2.0000000000000000e-03 ]", "-2.0000000000000000e-03, 0. ]");
+    assert_mentions(
+        &err(opencv::parse(&five, false, "omni.yaml", None)),
+        &["omni.yaml", "distortion_coefficients", "k1, k2, p1, p2"],
+    );
 }

@@ -68,7 +68,7 @@ fn build(c: &mut Criterion) {
     let models = [
         Distortion::DoubleSphere([-0.2, 0.6]),
         Distortion::Eucm([0.6, 1.1]),
-        Distortion::Omni([0.9, -0.05, 0.004, 0.0005, -0.0005]),
+        Distortion::Omni([0.9, -0.05, 0.004, 0.0005, -0.0005, 0.0]),
         Distortion::RadialPoly([1.0, -0.05, 0.06, -0.015]),
         // z = −s + a·ρ² reaches 0 (90°) at the real lens's radius.
         Distortion::Scaramuzza(

@@ -81,7 +81,7 @@ fn every_sphere_model_renders_and_its_surround_view_lines_neighbours_up() {
         (Distortion::DoubleSphere([-0.2, 0.6]), 250.0, 1, 0.05),
         (Distortion::Eucm([0.6, 1.1]), 260.0, 0, 0.05),
         (
-            Distortion::Omni([0.9, -0.05, 0.004, 0.0005, -0.0005]),
+            Distortion::Omni([0.9, -0.05, 0.004, 0.0005, -0.0005, 0.0]),
             420.0,
             0,
             0.1,

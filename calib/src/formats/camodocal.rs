@@ -71,7 +71,7 @@ pub fn parse(text: &str, file: &str, fallback_name: &str) -> Result<Camera> {
             (
                 [number(&proj, "gamma1")?, number(&proj, "gamma2")?],
                 [number(&proj, "u0")?, number(&proj, "v0")?],
-                Distortion::Omni([number(&mirror, "xi")?, k1, k2, p1, p2]),
+                Distortion::Omni([number(&mirror, "xi")?, k1, k2, p1, p2, 0.0]),
             )
         }
         "KANNALA_BRANDT" => (
@@ -149,7 +149,7 @@ pub fn write(camera: &Camera) -> Result<String> {
         )
     };
     Ok(match k.distortion {
-        Distortion::Omni([xi, k1, k2, p1, p2]) => format!(
+        Distortion::Omni([xi, k1, k2, p1, p2, 0.0]) => format!(
             "{}mirror_parameters:\n   xi: {}\n{}projection_parameters:\n   gamma1: {}\n   gamma2: {}\n   u0: {}\n   v0: {}\n",
             head("MEI"),
             n(xi),
@@ -182,8 +182,9 @@ pub fn write(camera: &Camera) -> Result<String> {
         ),
         other => {
             return Err(CalibError::Argument(format!(
-                "camera \"{}\": camodocal's files hold MEI (omni-radtan), KANNALA_BRANDT \
-                 (fisheye) and PINHOLE (radial-tangential without k3), not {}; write it as rig",
+                "camera \"{}\": camodocal's files hold MEI (omni-radtan without skew), \
+                 KANNALA_BRANDT (fisheye) and PINHOLE (radial-tangential without k3), not this {}; \
+                 write it as rig",
                 camera.name,
                 other.model_name()
             )))

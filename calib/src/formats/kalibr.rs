@@ -86,14 +86,14 @@ pub fn parse(text: &str, file: &str) -> Result<Rig> {
         let distortion = match (model, dmodel) {
             ("ds", "none") => Distortion::DoubleSphere([params[0], params[1]]),
             ("eucm", "none") => Distortion::Eucm([params[0], params[1]]),
-            ("omni", "none") => Distortion::Omni([params[0], 0.0, 0.0, 0.0, 0.0]),
+            ("omni", "none") => Distortion::Omni([params[0], 0.0, 0.0, 0.0, 0.0, 0.0]),
             ("omni", "radtan") => {
                 let k = cam.numbers(
                     "distortion_coeffs",
                     Some(4),
                     "4 radtan coefficients [k1, k2, r1, r2]",
                 )?;
-                Distortion::Omni([params[0], k[0], k[1], k[2], k[3]])
+                Distortion::Omni([params[0], k[0], k[1], k[2], k[3], 0.0])
             }
             ("pinhole", "equidistant") => {
                 let k = cam.numbers(
@@ -238,7 +238,14 @@ pub fn write(rig: &Rig) -> Result<String> {
         let (dm, coeffs) = match k.distortion {
             Distortion::Fisheye(d) => ("equidistant", d.to_vec()),
             Distortion::DoubleSphere(_) | Distortion::Eucm(_) => ("none", Vec::new()),
-            Distortion::Omni(d) => ("radtan", d[1..].to_vec()),
+            Distortion::Omni(d) if d[5] == 0.0 => ("radtan", d[1..5].to_vec()),
+            Distortion::Omni(d) => {
+                return Err(CalibError::Argument(format!(
+                    "camera \"{}\": Kalibr's omni model has no skew, and its skew is {} px; \
+                     write it as rig or opencv-yaml (omnidir)",
+                    c.name, d[5]
+                )))
+            }
             Distortion::RadTan(d) if d[4] == 0.0 => ("radtan", d[..4].to_vec()),
             Distortion::RadTan(d) => {
                 return Err(CalibError::Argument(format!(

@@ -1,7 +1,10 @@
 //! OpenCV FileStorage calibration files (YAML and XML), one camera a file.
 //!
 //! Keys read:
-//! - `camera_matrix` (3×3, no skew);
+//! - `camera_matrix` (3×3, no skew but in OpenCV omnidir's files);
+//! - `xi` (a number or 1×1 matrix): OpenCV omnidir's unified model, with
+//!   `distortion_coefficients` k1, k2, p1, p2 and the camera matrix's skew
+//!   (`camera_model: omnidir`, which rigview writes, or none);
 //! - `dist_coeffs` (or `distortion_coefficients`, OpenCV's calibration
 //!   sample's name): 4 fisheye coefficients, or 4, 5, 8, 12 or 14 pinhole
 //!   coefficients in OpenCV's order (k1, k2, p1, p2, k3, k4, k5, k6, then
@@ -250,8 +253,12 @@ impl Reader<'_> {
             return Err(self.field(key, expected, format!("{rows}×{cols}")));
         }
         let data_node = cv("reading matrix data", n.get("data"))?;
+        // OpenCV's XML reader gives the data of a 1×1 matrix (omnidir's
+        // xi) as a number, not a list of one.
         let count = if data_node.is_seq().unwrap_or(false) {
             data_node.size().unwrap_or(0) as i64
+        } else if Self::number(&data_node).is_some() {
+            1
         } else {
             -1
         };
@@ -369,10 +376,19 @@ impl Reader<'_> {
                 ),
             ));
         }
-        if k[(0, 1)] != 0.0 {
+        // OpenCV omnidir's files (the unified model) carry ξ as `xi`, a
+        // number or a 1×1 matrix, and may have a skew.
+        let xi = match self.node("xi")? {
+            None => None,
+            Some(n) => match Self::number(&n) {
+                Some(v) if v.is_finite() => Some(v),
+                _ => self.vector("xi", 1)?.map(|v| v[0]),
+            },
+        };
+        if k[(0, 1)] != 0.0 && xi.is_none() {
             return Err(self.field(
                 "camera_matrix",
-                "no skew (element (0,1) = 0)",
+                "no skew (element (0,1) = 0) outside OpenCV omnidir's files (which have xi)",
                 format!("{}", k[(0, 1)]),
             ));
         }
@@ -417,12 +433,13 @@ impl Reader<'_> {
                     "fisheye" => Some(ModelKind::Fisheye),
                     "pinhole" => Some(ModelKind::Pinhole),
                     "rational" => Some(ModelKind::Rational),
+                    "omnidir" => Some(ModelKind::Omni),
                     _ if n.is_string().unwrap_or(false) => {
                         return Err(CalibError::UnknownModel {
                             file: self.file.into(),
                             field: "camera_model".into(),
                             model: s,
-                            supported: "fisheye, pinhole, rational".into(),
+                            supported: "fisheye, pinhole, rational, omnidir".into(),
                         })
                     }
                     _ => {
@@ -440,7 +457,25 @@ impl Reader<'_> {
             .or(hint)
             .or(surround.map(|_| ModelKind::Fisheye))
             .or((n >= 5).then_some(ModelKind::Pinhole));
-        let distortion = match kind {
+        let distortion = if let Some(xi) = xi {
+            if declared.is_some_and(|d| d != ModelKind::Omni) {
+                return Err(self.field(
+                    "camera_model",
+                    "\"omnidir\" or none in a file with xi (OpenCV omnidir's unified model)",
+                    format!("{declared:?}"),
+                ));
+            }
+            if n != 4 {
+                return Err(self.field(
+                    dist_key,
+                    "4 coefficients k1, k2, p1, p2 (OpenCV omnidir)",
+                    format!("{n}"),
+                ));
+            }
+            let d = &dist.data;
+            Distortion::Omni([xi, d[0], d[1], d[2], d[3], k[(0, 1)]])
+        } else {
+            match kind {
             Some(ModelKind::Fisheye) if n == 4 => {
                 Distortion::Fisheye([dist.data[0], dist.data[1], dist.data[2], dist.data[3]])
             }
@@ -504,6 +539,7 @@ impl Reader<'_> {
                     "no camera_model",
                 ))
             }
+        }
         };
         let intrinsics = Intrinsics {
             width,
@@ -573,15 +609,30 @@ pub fn write(camera: &Camera, xml: bool) -> Result<String> {
             "",
         ),
     )?;
-    let cm = k.camera_matrix();
-    let flat: Vec<f64> = cm.iter().flatten().copied().collect();
+    let mut cm = k.camera_matrix();
     let ctx = "writing a FileStorage file";
-    cv(ctx, fs.write_mat("camera_matrix", &mat_f64(3, 3, &flat)?))?;
-    let d = k.distortion.coefficients();
-    cv(
-        ctx,
-        fs.write_mat("dist_coeffs", &mat_f64(d.len() as i32, 1, d)?),
-    )?;
+    if let Distortion::Omni([xi, k1, k2, p1, p2, skew]) = k.distortion {
+        // As OpenCV omnidir writes it: K with its skew, D (1×4), xi (1×1).
+        cm[0][1] = skew;
+        let flat: Vec<f64> = cm.iter().flatten().copied().collect();
+        cv(ctx, fs.write_mat("camera_matrix", &mat_f64(3, 3, &flat)?))?;
+        cv(
+            ctx,
+            fs.write_mat(
+                "distortion_coefficients",
+                &mat_f64(1, 4, &[k1, k2, p1, p2])?,
+            ),
+        )?;
+        cv(ctx, fs.write_mat("xi", &mat_f64(1, 1, &[xi])?))?;
+    } else {
+        let flat: Vec<f64> = cm.iter().flatten().copied().collect();
+        cv(ctx, fs.write_mat("camera_matrix", &mat_f64(3, 3, &flat)?))?;
+        let d = k.distortion.coefficients();
+        cv(
+            ctx,
+            fs.write_mat("dist_coeffs", &mat_f64(d.len() as i32, 1, d)?),
+        )?;
+    }
     let res = [
         i32::try_from(k.width).unwrap_or(i32::MAX),
         i32::try_from(k.height).unwrap_or(i32::MAX),
@@ -591,14 +642,14 @@ pub fn write(camera: &Camera, xml: bool) -> Result<String> {
         Distortion::Fisheye(_) => "fisheye",
         Distortion::RadTan(_) => "pinhole",
         Distortion::Rational(_) => "rational",
+        Distortion::Omni(_) => "omnidir",
         Distortion::DoubleSphere(_)
         | Distortion::Eucm(_)
-        | Distortion::Omni(_)
         | Distortion::RadialPoly(_)
         | Distortion::Scaramuzza(_) => {
             return Err(CalibError::Argument(format!(
-                "camera \"{}\": OpenCV's calibration files hold the fisheye, pinhole and \
-                 rational models, not {}; write it as rig or kalibr",
+                "camera \"{}\": OpenCV's calibration files hold the fisheye, pinhole, \
+                 rational and omnidir (omni-radtan) models, not {}; write it as rig or kalibr",
                 camera.name,
                 k.distortion.model_name()
             )))

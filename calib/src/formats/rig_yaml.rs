@@ -16,7 +16,7 @@
 //!   principal_point_px: [496.64, 331.20]
 //!   distortion: [-0.0437, 0.0217, -0.0264, 0.0084]   # fisheye: k1..k4; pinhole-radtan: k1, k2, p1, p2, k3;
 //!                                                    # pinhole-rational: k1, k2, p1, p2, k3, k4, k5, k6;
-//!                                                    # omni-radtan: k1, k2, p1, p2; none for the others
+//!                                                    # omni-radtan: k1, k2, p1, p2[, skew (px)]; none for the others
 //!   # xi: -0.2               # double-sphere and omni-radtan: ξ (unitless)
 //!   # alpha: 0.6             # double-sphere and eucm: α (unitless)
 //!   # beta: 1.1              # eucm: β (unitless)
@@ -419,7 +419,10 @@ pub fn to_string(rig: &Rig) -> Result<String> {
                         Distortion::DoubleSphere(_)
                         | Distortion::Eucm(_)
                         | Distortion::Scaramuzza(_) => Vec::new(),
-                        Distortion::Omni([_, rest @ ..]) => rest.to_vec(),
+                        Distortion::Omni([_, k1, k2, p1, p2, skew]) if skew != 0.0 => {
+                            vec![k1, k2, p1, p2, skew]
+                        }
+                        Distortion::Omni([_, k1, k2, p1, p2, _]) => vec![k1, k2, p1, p2],
                         d => d.coefficients().to_vec(),
                     },
                     pose: c.pose.as_ref().map(|p| {

@@ -244,7 +244,7 @@ fn sphere_cameras() -> [Intrinsics; 5] {
         sphere_camera(Distortion::DoubleSphere([0.3, 0.45])),
         sphere_camera(Distortion::Eucm([0.6, 1.1])),
         sphere_camera(Distortion::Eucm([0.4, 0.9])),
-        sphere_camera(Distortion::Omni([0.9, -0.1, 0.02, 0.001, -0.002])),
+        sphere_camera(Distortion::Omni([0.9, -0.1, 0.02, 0.001, -0.002, 0.0])),
     ]
 }
 
@@ -262,7 +262,7 @@ fn sphere_models_project_as_their_papers_formulas_worked_by_hand() {
             [802.3050955728509, 379.3708407448325],
         ),
         (
-            sphere_camera(Distortion::Omni([0.9, -0.1, 0.02, 0.001, -0.002])),
+            sphere_camera(Distortion::Omni([0.9, -0.1, 0.02, 0.001, -0.002, 0.0])),
             [727.4698266746568, 425.761335098215],
         ),
     ] {
@@ -335,7 +335,7 @@ fn sphere_models_refuse_what_lies_beyond_their_valid_cone() {
         (Distortion::DoubleSphere([0.1, 1.0]), "alpha"),
         (Distortion::DoubleSphere([1.5, 0.5]), "xi"),
         (Distortion::Eucm([0.5, 0.0]), "beta"),
-        (Distortion::Omni([-0.1, 0.0, 0.0, 0.0, 0.0]), "xi"),
+        (Distortion::Omni([-0.1, 0.0, 0.0, 0.0, 0.0, 0.0]), "xi"),
     ] {
         let e = sphere_camera(d).validate().unwrap_err();
         assert_eq!(e.field, field, "{e}");
