@@ -59,6 +59,8 @@ pub enum ModelKind {
     RadialPoly,
     /// Scaramuzza's omnidirectional model (OCamCalib: pol, invpol, c, d, e).
     Scaramuzza,
+    /// Pinhole with the field-of-view distortion (Devernay and Faugeras; ω).
+    Fov,
 }
 
 /// The lens model and its distortion coefficients.
@@ -92,6 +94,10 @@ pub enum Distortion {
     /// the focal length (WoodScape's files give ρ in pixels: focal length
     /// 1, and `fy` the aspect ratio).
     RadialPoly([f64; 4]),
+    /// Pinhole with the field-of-view distortion of Devernay and Faugeras
+    /// (Kalibr's `pinhole-fov`): `[ω]`, the distorted radius
+    /// `r_d = atan(2 r tan(ω/2)) / ω` of the radius `r` on the plane z = 1.
+    Fov([f64; 1]),
     /// Scaramuzza's omnidirectional model as OCamCalib calibrates it
     /// ([`ocam`]); its focal length is 1 and its centre the principal
     /// point.
@@ -113,6 +119,7 @@ impl Distortion {
             Distortion::Eucm(_) => "eucm",
             Distortion::Omni(_) => "omni-radtan",
             Distortion::RadialPoly(_) => "radial-poly",
+            Distortion::Fov(_) => "pinhole-fov",
             Distortion::Scaramuzza(_) => "scaramuzza",
         }
     }
@@ -127,6 +134,7 @@ impl Distortion {
             Distortion::Eucm(_) => ModelKind::Eucm,
             Distortion::Omni(_) => ModelKind::Omni,
             Distortion::RadialPoly(_) => ModelKind::RadialPoly,
+            Distortion::Fov(_) => ModelKind::Fov,
             Distortion::Scaramuzza(_) => ModelKind::Scaramuzza,
         }
     }
@@ -135,6 +143,7 @@ impl Distortion {
     pub fn coefficients(&self) -> &[f64] {
         match self {
             Distortion::Fisheye(k) | Distortion::RadialPoly(k) => k,
+            Distortion::Fov(k) => k,
             Distortion::RadTan(k) => k,
             Distortion::Rational(k) => k,
             Distortion::DoubleSphere(k) | Distortion::Eucm(k) => k,
@@ -148,6 +157,7 @@ impl Distortion {
     pub fn coefficient_names(&self) -> Vec<String> {
         let names: &[&str] = match self {
             Distortion::Fisheye(_) | Distortion::RadialPoly(_) => &["k1", "k2", "k3", "k4"],
+            Distortion::Fov(_) => &["omega"],
             Distortion::RadTan(_) => &["k1", "k2", "p1", "p2", "k3"],
             Distortion::Rational(_) => &["k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6"],
             Distortion::DoubleSphere(_) => &["xi", "alpha"],
@@ -182,6 +192,12 @@ impl Distortion {
                 Ok(Distortion::Rational(k))
             }
             ("radial-poly", 4) => Ok(Distortion::RadialPoly([c[0], c[1], c[2], c[3]])),
+            ("pinhole-fov", 1) => Ok(Distortion::Fov([c[0]])),
+            ("pinhole-fov", n) => Err(FieldError::new(
+                "distortion",
+                "1 field-of-view parameter omega (radians)",
+                format!("{n}"),
+            )),
             ("radial-poly", n) => Err(FieldError::new(
                 "distortion",
                 "4 radial-polynomial coefficients k1..k4",
@@ -237,6 +253,7 @@ impl Distortion {
             Distortion::Fisheye(_)
             | Distortion::RadialPoly(_)
             | Distortion::Scaramuzza(_)
+            | Distortion::Fov(_)
             | Distortion::DoubleSphere(_)
             | Distortion::Eucm(_) => None,
             Distortion::RadTan([k1, k2, p1, p2, k3]) => Some([k1, k2, p1, p2, k3, 0.0, 0.0, 0.0]),
@@ -348,6 +365,12 @@ impl Intrinsics {
                 range("beta", beta, beta > 0.0, "β > 0")?;
             }
             Distortion::Omni([xi, ..]) => range("xi", xi, xi >= 0.0, "ξ ≥ 0")?,
+            Distortion::Fov([w]) => range(
+                "distortion[0]",
+                w,
+                (0.0..std::f64::consts::PI).contains(&w),
+                "ω in [0, π) radians",
+            )?,
             Distortion::RadialPoly([k1, ..]) => range(
                 "distortion[0]",
                 k1,
@@ -399,7 +422,7 @@ impl Intrinsics {
                 .distortion
                 .pinhole()
                 .map_or(0.0, |k| pinhole_r2_max(&k)),
-            Distortion::DoubleSphere(_) | Distortion::Eucm(_) => 0.0,
+            Distortion::DoubleSphere(_) | Distortion::Eucm(_) | Distortion::Fov(_) => 0.0,
         }
     }
 
@@ -418,6 +441,8 @@ impl Intrinsics {
                 .clamp(-1.0, 1.0)
                 .acos(),
             Distortion::Eucm([alpha, beta]) => sphere::eucm_theta_max(alpha, beta),
+            // In front of the camera: r_d stays below π/(2ω) as r grows.
+            Distortion::Fov(_) => std::f64::consts::FRAC_PI_2,
             Distortion::Omni([xi, ..]) => sphere::unified_theta_max(xi, self.validity_limit()),
         }
     }
@@ -511,6 +536,14 @@ fn project_within(m: &Intrinsics, limit: f64, p: &Vector3<f64>) -> Option<Point2
             pinhole_distort(&k, a, b)
         }
         Distortion::RadialPoly(k) => radial_project(p, limit, |t| poly_rho(&k, t))?,
+        Distortion::Fov([w]) => {
+            if p.z <= 0.0 || !p.z.is_finite() {
+                return None;
+            }
+            let (a, b) = (p.x / p.z, p.y / p.z);
+            let s = fov_scale(w, a.hypot(b));
+            (a * s, b * s)
+        }
         Distortion::Scaramuzza(o) => ocam::project(&o, limit, p)?,
         Distortion::DoubleSphere([xi, alpha]) => sphere::double_sphere_project(xi, alpha, p)?,
         Distortion::Eucm([alpha, beta]) => sphere::eucm_project(alpha, beta, p)?,
@@ -590,6 +623,25 @@ fn unproject_within(m: &Intrinsics, limit: f64, px: &Point2<f64>) -> Option<Unit
                 .then(|| invert_increasing(|t| (poly_rho(&k, t), poly_drho(&k, t)), rho, limit))
         }),
         Distortion::Scaramuzza(o) => ocam::unproject(&o, limit, xd, yd).map(Unit::new_normalize),
+        Distortion::Fov([w]) => {
+            let rd = xd.hypot(yd);
+            if rd == 0.0 {
+                return Some(Vector3::z_axis());
+            }
+            // r_d ω reaches π/2 at r = ∞: beyond, no point of the plane.
+            let r = if w.abs() < 1e-8 {
+                rd
+            } else if rd * w < std::f64::consts::FRAC_PI_2 {
+                (rd * w).tan() / (2.0 * (w / 2.0).tan())
+            } else {
+                return None;
+            };
+            Some(Unit::new_normalize(Vector3::new(
+                xd * r / rd,
+                yd * r / rd,
+                1.0,
+            )))
+        }
         Distortion::DoubleSphere([xi, alpha]) => {
             sphere::double_sphere_unproject(xi, alpha, xd, yd).map(Unit::new_normalize)
         }
@@ -601,6 +653,16 @@ fn unproject_within(m: &Intrinsics, limit: f64, px: &Point2<f64>) -> Option<Unit
                 pinhole_undistort(&m.distortion.pinhole()?, limit, xd - skew / m.fx * yd, yd)?;
             sphere::unified_unproject(xi, a, b).map(Unit::new_normalize)
         }
+    }
+}
+
+/// `r_d / r` of the field-of-view distortion at the radius `r` (1 at the
+/// centre; the undistorted model for ω → 0).
+fn fov_scale(w: f64, r: f64) -> f64 {
+    if r == 0.0 || w.abs() < 1e-8 {
+        1.0
+    } else {
+        (2.0 * r * (w / 2.0).tan()).atan() / (w * r)
     }
 }
 

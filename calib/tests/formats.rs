@@ -455,8 +455,13 @@ fn bad_kalibr_and_ros_files_get_errors_that_name_file_and_field() {
             ],
         ),
         (
+            good.replacen("distortion_model: equidistant", "distortion_model: kb8", 1),
+            vec!["chain.yaml", "cam0.distortion_model", "pinhole-kb8"],
+        ),
+        (
+            // Kalibr's fov distortion has one coefficient.
             good.replacen("distortion_model: equidistant", "distortion_model: fov", 1),
-            vec!["chain.yaml", "cam0.distortion_model", "pinhole-fov"],
+            vec!["chain.yaml", "cam0.distortion_coeffs", "1 field-of-view"],
         ),
         (
             good.replacen("intrinsics:", "intrinsic:", 1),
@@ -1403,4 +1408,13 @@ fn opencv_omnidir_files_mean_what_omnidir_means() {
         &err(opencv::parse(&five, false, "omni.yaml", None)),
         &["omni.yaml", "distortion_coefficients", "k1, k2, p1, p2"],
     );
+}
+
+#[test]
+fn kalibr_pinhole_fov_is_read_and_written() {
+    let text = "cam0:\n  camera_model: pinhole\n  intrinsics: [300.0, 310.0, 640.0, 480.0]\n  distortion_model: fov\n  distortion_coeffs: [0.9]\n  resolution: [1280, 960]\n  rostopic: /cam0/image_raw\n";
+    let rig = kalibr::parse(text, "fov.yaml").unwrap();
+    assert_eq!(rig.cameras[0].intrinsics.distortion, Distortion::Fov([0.9]));
+    let back = kalibr::parse(&kalibr::write(&rig).unwrap(), "back.yaml").unwrap();
+    assert_eq!(back.cameras[0].intrinsics, rig.cameras[0].intrinsics);
 }

@@ -56,7 +56,7 @@ pub fn parse(text: &str, file: &str) -> Result<Rig> {
         let model = cam.string("camera_model", "pinhole")?;
         let dmodel = cam.string("distortion_model", "equidistant or radtan")?;
         const SUPPORTED: &str = "pinhole-equi (distortion_model equidistant), pinhole-radtan, \
-             pinhole-none, omni-radtan, omni-none, ds-none, eucm-none";
+             pinhole-fov, pinhole-none, omni-radtan, omni-none, ds-none, eucm-none";
         // The projection's own parameters come before [fu, fv, pu, pv].
         let (own, own_names) = match model {
             "pinhole" => (0, ""),
@@ -112,6 +112,14 @@ pub fn parse(text: &str, file: &str) -> Result<Rig> {
                 Distortion::RadTan([k[0], k[1], k[2], k[3], 0.0])
             }
             ("pinhole", "none") => Distortion::RadTan([0.0; 5]),
+            ("pinhole", "fov") => {
+                let k = cam.numbers(
+                    "distortion_coeffs",
+                    Some(1),
+                    "1 field-of-view coefficient [w]",
+                )?;
+                Distortion::Fov([k[0]])
+            }
             (_, other) => {
                 return Err(CalibError::UnknownModel {
                     file: file.into(),
@@ -237,6 +245,7 @@ pub fn write(rig: &Rig) -> Result<String> {
         );
         let (dm, coeffs) = match k.distortion {
             Distortion::Fisheye(d) => ("equidistant", d.to_vec()),
+            Distortion::Fov(d) => ("fov", d.to_vec()),
             Distortion::DoubleSphere(_) | Distortion::Eucm(_) => ("none", Vec::new()),
             Distortion::Omni(d) if d[5] == 0.0 => ("radtan", d[1..5].to_vec()),
             Distortion::Omni(d) => {

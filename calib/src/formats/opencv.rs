@@ -524,7 +524,8 @@ impl Reader<'_> {
                 | ModelKind::Eucm
                 | ModelKind::Omni
                 | ModelKind::RadialPoly
-                | ModelKind::Scaramuzza),
+                | ModelKind::Scaramuzza
+                | ModelKind::Fov),
             ) => {
                 return Err(self.field(
                     "camera_model",
@@ -646,7 +647,8 @@ pub fn write(camera: &Camera, xml: bool) -> Result<String> {
         Distortion::DoubleSphere(_)
         | Distortion::Eucm(_)
         | Distortion::RadialPoly(_)
-        | Distortion::Scaramuzza(_) => {
+        | Distortion::Scaramuzza(_)
+        | Distortion::Fov(_) => {
             return Err(CalibError::Argument(format!(
                 "camera \"{}\": OpenCV's calibration files hold the fisheye, pinhole, \
                  rational and omnidir (omni-radtan) models, not {}; write it as rig or kalibr",

@@ -329,7 +329,8 @@ pub fn write(camera: &Camera) -> Result<String> {
         | Distortion::Eucm(_)
         | Distortion::Omni(_)
         | Distortion::RadialPoly(_)
-        | Distortion::Scaramuzza(_) => {
+        | Distortion::Scaramuzza(_)
+        | Distortion::Fov(_) => {
             return Err(CalibError::Argument(format!(
                 "camera \"{}\": camera_info has no {} model (its models are plumb_bob, \
                  rational_polynomial and equidistant); write it as rig or kalibr",

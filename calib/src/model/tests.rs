@@ -413,3 +413,40 @@ fn the_radial_polynomial_round_trips_and_stops_where_it_folds() {
     .unwrap_err();
     assert_eq!(e.field, "distortion[0]", "{e}");
 }
+
+#[test]
+fn the_field_of_view_model_projects_as_devernay_and_faugeras_wrote_it() {
+    let k = sphere_camera(Distortion::Fov([0.9]));
+    // r_d = atan(2 r tan(ω/2)) / ω, worked by hand for (0.5, −0.3, 0.8).
+    let q = k.project(&Vector3::new(0.5, -0.3, 0.8)).unwrap();
+    assert!((q.x - 815.3623378279683).abs() < 1e-9, "{q}");
+    assert!((q.y - 371.2753505466597).abs() < 1e-9, "{q}");
+    // Round trips over the forward hemisphere, on the image.
+    let mut worst: f64 = 0.0;
+    for i in 0..60 {
+        let theta = f64::from(i) * 1.5 / 60.0;
+        for j in 0..16 {
+            let phi = std::f64::consts::TAU * f64::from(j) / 16.0;
+            let p = Vector3::new(
+                theta.sin() * phi.cos(),
+                theta.sin() * phi.sin(),
+                theta.cos(),
+            );
+            let q = k.project(&p).unwrap();
+            let r = k.unproject(&q).unwrap();
+            assert!((r.into_inner() - p).norm() < 1e-9, "θ {theta}");
+            worst = worst.max((k.project(&r).unwrap() - q).norm());
+        }
+    }
+    assert!(worst < 1e-6, "{worst} px");
+    // Nothing behind the camera, and nothing beyond r_d = π/(2ω).
+    assert!(k.project(&Vector3::new(1.0, 0.0, -0.1)).is_none());
+    let edge = std::f64::consts::FRAC_PI_2 / 0.9;
+    assert!(k
+        .unproject(&Point2::new(k.cx + k.fx * edge * 1.001, k.cy))
+        .is_none());
+    // ω = 0 is the undistorted pinhole.
+    let plain = sphere_camera(Distortion::Fov([0.0]));
+    let q = plain.project(&Vector3::new(0.5, -0.3, 0.8)).unwrap();
+    assert!((q.x - (640.0 + 300.0 * 0.625)).abs() < 1e-9, "{q}");
+}

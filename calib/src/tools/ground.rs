@@ -202,6 +202,7 @@ fn undistort(k: &Intrinsics, corners: &[[f64; 2]]) -> Result<Vec<[f64; 2]>> {
             | Distortion::Omni(_)
             | Distortion::RadialPoly(_)
             | Distortion::Scaramuzza(_)
+            | Distortion::Fov(_)
     ) {
         // Models OpenCV does not know: the model's own unprojection, onto
         // the plane z = 1 (a corner the mats give lies in front).

@@ -242,7 +242,8 @@ fn run(views: &[View], board: Board, model: ModelKind, w: u32, h: u32) -> Result
         | ModelKind::Eucm
         | ModelKind::Omni
         | ModelKind::RadialPoly
-        | ModelKind::Scaramuzza => {
+        | ModelKind::Scaramuzza
+        | ModelKind::Fov => {
             return Err(CalibError::Argument(format!(
                 "OpenCV cannot calibrate the {model:?} model"
             )))
