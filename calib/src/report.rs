@@ -141,7 +141,14 @@ pub fn summary(loaded: &Loaded) -> String {
             .coefficient_names()
             .iter()
             .zip(k.distortion.coefficients())
-            .map(|(n, v)| format!("{n} {v:.6}"))
+            .map(|(n, v)| {
+                // Polynomial coefficients of high order are tiny.
+                if *v != 0.0 && v.abs() < 1e-5 {
+                    format!("{n} {v:.6e}")
+                } else {
+                    format!("{n} {v:.6}")
+                }
+            })
             .collect();
         let _ = writeln!(
             s,
