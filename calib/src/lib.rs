@@ -11,6 +11,7 @@
 //! ([`tools`]). Without it, reading or writing an OpenCV file is a
 //! [`CalibError::NeedsFeature`] naming the file.
 
+pub mod convert;
 #[cfg(feature = "opencv")]
 mod cvutil;
 pub mod error;

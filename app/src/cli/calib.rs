@@ -71,6 +71,10 @@ pub struct ConvertArgs {
     /// Output format (default: .xml → opencv-xml, otherwise rig).
     #[arg(long, value_enum)]
     pub to: Option<Format>,
+    /// Fit every camera to this lens model first (for tools that read one
+    /// model only), reporting the reprojection error over the image.
+    #[arg(long, value_enum)]
+    pub to_model: Option<ModelKind>,
 }
 
 /// Options of `rigview calib intrinsics`.
@@ -158,6 +162,7 @@ pub fn run(args: &CalibArgs, out: &mut dyn Write) -> Result<()> {
         CalibCommand::Convert(a) => calibration::convert(
             &a.input,
             a.read.reading(),
+            a.to_model,
             &Writing {
                 path: a.output.clone(),
                 format: a.to,
@@ -267,6 +272,56 @@ mod tests {
         }
         let shown = run_args(&["show", &s(&rig)]).unwrap();
         assert!(shown.contains("format: rig"), "{shown}");
+    }
+
+    #[test]
+    fn convert_fits_the_real_fisheyes_to_another_model_and_reports_the_error() {
+        let nz = data().join("surround-nz");
+        let d = tmp("to-model");
+        let out_path = d.join("ds.yaml");
+        let out = run_args(&[
+            "convert",
+            &s(&nz),
+            &s(&out_path),
+            "--to-model",
+            "double-sphere",
+        ])
+        .unwrap();
+        assert!(out.contains("front: fisheye → double-sphere"), "{out}");
+        // Each camera's largest reprojection error, as reported.
+        let reported = |name: &str| -> f64 {
+            let line = out
+                .lines()
+                .find(|l| l.starts_with(&format!("{name}: ")))
+                .unwrap();
+            let before = line.split(" px at most").next().unwrap();
+            before.rsplit(' ').next().unwrap().parse().unwrap()
+        };
+        let fisheye = formats::load(&nz, None, None).unwrap().rig;
+        let ds = formats::load(&out_path, None, None).unwrap().rig;
+        for c in &ds.cameras {
+            assert_eq!(c.intrinsics.distortion.kind(), ModelKind::DoubleSphere);
+            let real = fisheye.camera(&c.name).unwrap();
+            assert_eq!(c.pose, real.pose);
+            // The report holds: rays of the real lens land within the
+            // reported largest error of where the double sphere puts them.
+            let most = reported(&c.name);
+            for px in [
+                [480.0, 320.0],
+                [100.0, 320.0],
+                [480.0, 40.0],
+                [700.0, 500.0],
+            ] {
+                let px = nalgebra::Point2::new(px[0], px[1]);
+                let ray = real.intrinsics.unproject(&px).unwrap();
+                let q = c.intrinsics.project(&ray).unwrap();
+                assert!(
+                    (q - px).norm() <= most + 1e-9,
+                    "{}: {q} for {px}, {most}",
+                    c.name
+                );
+            }
+        }
     }
 
     #[test]

@@ -61,11 +61,33 @@ pub fn show(path: &Path, reading: Reading, out: &mut dyn Write) -> Result<()> {
 pub fn convert(
     input: &Path,
     reading: Reading,
+    model: Option<ModelKind>,
     output: &Writing,
     out: &mut dyn Write,
 ) -> Result<()> {
-    let loaded = reading.load(input)?;
-    output.save(&loaded.rig, out)
+    let mut rig = reading.load(input)?.rig;
+    if let Some(model) = model {
+        for c in &mut rig.cameras {
+            let fit = rigview_calib::convert::fit_model(&c.intrinsics, model)
+                .with_context(|| format!("fitting camera \"{}\" to {model:?}", c.name))?;
+            writeln!(
+                out,
+                "{}: {} → {}: reprojection error {:.3} px RMS, {:.3} px at most, over {} of {} rays \
+                 of the image; it sees {:.1}° from the axis, the fit reaches {:.1}°",
+                c.name,
+                c.intrinsics.distortion.model_name(),
+                fit.intrinsics.distortion.model_name(),
+                fit.rms_px,
+                fit.max_px,
+                fit.fitted,
+                fit.rays,
+                fit.source_fov_deg,
+                fit.reach_deg
+            )?;
+            c.intrinsics = fit.intrinsics;
+        }
+    }
+    output.save(&rig, out)
 }
 
 /// One camera's intrinsic calibration from chessboard images.
