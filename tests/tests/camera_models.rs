@@ -1,4 +1,5 @@
-//! Every camera model through the simulated rig and the surround view: a
+//! Every camera model through the simulated rig, the surround view and the
+//! panorama: a
 //! rig whose cameras use the double-sphere, the extended unified or the
 //! unified (Mei) model renders, and the surround view built from the same
 //! rig lines neighbouring cameras up in their overlaps; a view built with
@@ -10,6 +11,7 @@ use rigview_calib::formats::{self, Format};
 use rigview_calib::model::ocam::Ocam;
 use rigview_calib::{Distortion, Rig};
 use rigview_core::image::{FrameView, PixelFormat};
+use rigview_core::panorama::{CylinderSpec, Panorama, PanoramaOptions};
 use rigview_core::sim::{reference_rig, SimConfig, SimRender};
 use rigview_core::source::Frame;
 use rigview_core::surround::{CanvasSpec, Composer, SurroundOptions, SurroundView};
@@ -132,6 +134,15 @@ fn every_sphere_model_renders_and_its_surround_view_lines_neighbours_up() {
             };
         }
         let off = overlap_difference(&render, &wrong);
+        // The panorama of the same rig: its maps, masks and overlaps (an
+        // error if neighbours shared no pixel of the cylinder).
+        let cylinder = CylinderSpec {
+            width: 1024,
+            height: 256,
+            ..CylinderSpec::default()
+        };
+        let pano = Panorama::build(render.rig(), &cylinder, &PanoramaOptions::default()).unwrap();
+        assert_eq!(pano.bands().len(), render.rig().neighbours.len(), "{name}");
         println!("{name}: overlap difference {same:.4} with the rig rendered, {off:.4} with a wrong lens");
         // The lenses here spread the overlaps over fewer pixels than the
         // reference lens (0.16–0.17 against 0.13); one parameter off by a
