@@ -103,9 +103,14 @@ impl Pose {
     /// `Rotation3::from_matrix` iterates from the identity and can end at
     /// another rotation near a half turn from it).
     pub fn rotation(&self) -> Rotation3<f64> {
-        let q =
-            UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(self.rotation));
-        UnitQuaternion::new_normalize(q.into_inner()).to_rotation_matrix()
+        UnitQuaternion::new_normalize(self.quaternion().into_inner()).to_rotation_matrix()
+    }
+
+    /// The rotation as a quaternion, by Shepperd's closed form from the
+    /// stored matrix (exact for every orientation), as the formats that
+    /// write quaternions give it.
+    pub fn quaternion(&self) -> UnitQuaternion<f64> {
+        UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(self.rotation))
     }
 
     /// The camera centre in the rig frame, metres.

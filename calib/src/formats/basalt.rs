@@ -24,7 +24,7 @@
 //! the rig is posed in its first camera's frame (as a Kalibr camchain);
 //! the cameras are named cam0, cam1, ….
 
-use nalgebra::{Quaternion, Rotation3, UnitQuaternion, Vector3};
+use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 use serde_norway::Value;
 
 use super::yaml::{self, Map};
@@ -37,13 +37,6 @@ const SUPPORTED: &str = "ds, eucm, kb4, pinhole";
 
 /// How far from unit length a quaternion may be.
 const UNIT_TOLERANCE: f64 = 1e-3;
-
-fn number(m: &Map<'_>, key: &str, expected: &str) -> Result<f64> {
-    let v = m.require(key, expected)?;
-    v.as_f64()
-        .filter(|x| x.is_finite())
-        .ok_or_else(|| m.error(key, expected, yaml::describe(v)))
-}
 
 fn list<'a>(m: &Map<'a>, key: &str, expected: &str) -> Result<&'a Vec<Value>> {
     match m.require(key, expected)? {
@@ -103,13 +96,13 @@ pub fn parse(text: &str, file: &str) -> Result<Rig> {
         let kind = cam.string("camera_type", SUPPORTED)?;
         let p = cam.map("intrinsics", "a map of the camera's parameters")?;
         let distortion = match kind {
-            "ds" => Distortion::DoubleSphere([number(&p, "xi", "ξ")?, number(&p, "alpha", "α")?]),
-            "eucm" => Distortion::Eucm([number(&p, "alpha", "α")?, number(&p, "beta", "β")?]),
+            "ds" => Distortion::DoubleSphere([p.number("xi", "ξ")?, p.number("alpha", "α")?]),
+            "eucm" => Distortion::Eucm([p.number("alpha", "α")?, p.number("beta", "β")?]),
             "kb4" => Distortion::Fisheye([
-                number(&p, "k1", "k1")?,
-                number(&p, "k2", "k2")?,
-                number(&p, "k3", "k3")?,
-                number(&p, "k4", "k4")?,
+                p.number("k1", "k1")?,
+                p.number("k2", "k2")?,
+                p.number("k3", "k3")?,
+                p.number("k4", "k4")?,
             ]),
             "pinhole" => Distortion::RadTan([0.0; 5]),
             other => {
@@ -138,10 +131,10 @@ pub fn parse(text: &str, file: &str) -> Result<Rig> {
         let intrinsics = Intrinsics {
             width: size[0] as u32,
             height: size[1] as u32,
-            fx: number(&p, "fx", "the focal length along x, pixels")?,
-            fy: number(&p, "fy", "the focal length along y, pixels")?,
-            cx: number(&p, "cx", "the principal point's x, pixels")?,
-            cy: number(&p, "cy", "the principal point's y, pixels")?,
+            fx: p.number("fx", "the focal length along x, pixels")?,
+            fy: p.number("fy", "the focal length along y, pixels")?,
+            cx: p.number("cx", "the principal point's x, pixels")?,
+            cy: p.number("cy", "the principal point's y, pixels")?,
             distortion,
         };
         intrinsics
@@ -155,10 +148,10 @@ pub fn parse(text: &str, file: &str) -> Result<Rig> {
             "a map of px, py, pz, qx, qy, qz, qw",
         )?;
         let q = Quaternion::new(
-            number(&t, "qw", "a unit quaternion's w")?,
-            number(&t, "qx", "a unit quaternion's x")?,
-            number(&t, "qy", "a unit quaternion's y")?,
-            number(&t, "qz", "a unit quaternion's z")?,
+            t.number("qw", "a unit quaternion's w")?,
+            t.number("qx", "a unit quaternion's x")?,
+            t.number("qy", "a unit quaternion's y")?,
+            t.number("qz", "a unit quaternion's z")?,
         );
         if (q.norm() - 1.0).abs() > UNIT_TOLERANCE {
             return Err(t.error(
@@ -169,9 +162,9 @@ pub fn parse(text: &str, file: &str) -> Result<Rig> {
         }
         let r = UnitQuaternion::from_quaternion(q).to_rotation_matrix();
         let tr = Vector3::new(
-            number(&t, "px", "metres")?,
-            number(&t, "py", "metres")?,
-            number(&t, "pz", "metres")?,
+            t.number("px", "metres")?,
+            t.number("py", "metres")?,
+            t.number("pz", "metres")?,
         );
         imu_poses.push((r, tr));
         cameras.push(Camera {
@@ -209,9 +202,7 @@ pub fn write(rig: &Rig) -> Result<String> {
                 c.name
             ))
         })?;
-        let q = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(
-            *pose.rotation_matrix(),
-        ));
+        let q = pose.quaternion();
         let t = pose.translation();
         poses.push(format!(
             "            {{\n                \"px\": {},\n                \"py\": {},\n                \"pz\": {},\n                \"qx\": {},\n                \"qy\": {},\n                \"qz\": {},\n                \"qw\": {}\n            }}",

@@ -44,13 +44,7 @@ pub fn parse(text: &str, file: &str, fallback_name: &str) -> Result<Camera> {
     let model = root.string("model_type", SUPPORTED)?;
     let width = root.pixels("image_width")?;
     let height = root.pixels("image_height")?;
-    let number = |m: &Map<'_>, key: &str| -> Result<f64> {
-        let expected = "a finite number";
-        let v = m.require(key, expected)?;
-        v.as_f64()
-            .filter(|x| x.is_finite())
-            .ok_or_else(|| m.error(key, expected, yaml::describe(v)))
-    };
+    let number = |m: &Map<'_>, key: &str| m.number(key, "a finite number");
     let proj = root.map(
         "projection_parameters",
         "a map of the projection's parameters",

@@ -31,7 +31,7 @@
 //! JSON is read with the YAML parser (JSON is YAML), so a syntax error
 //! names its line; the writer lays the file out as WoodScape's are.
 
-use nalgebra::{Quaternion, Rotation3, UnitQuaternion, Vector3};
+use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 
 use super::yaml::{self, Map};
 use crate::error::{CalibError, FieldError, Result};
@@ -67,12 +67,7 @@ pub fn parse(text: &str, file: &str, fallback_name: &str) -> Result<Camera> {
             return Err(intr.error("poly_order", "4 (k1..k4)", yaml::describe(order)));
         }
     }
-    let number = |key: &str, expected: &str| -> Result<f64> {
-        let v = intr.require(key, expected)?;
-        v.as_f64()
-            .filter(|x| x.is_finite())
-            .ok_or_else(|| intr.error(key, expected, yaml::describe(v)))
-    };
+    let number = |key: &str, expected: &str| intr.number(key, expected);
     let size = |key: &str| -> Result<u32> {
         let expected = "a positive whole number of pixels";
         let x = number(key, expected)?;
@@ -176,11 +171,7 @@ pub fn write(camera: &Camera) -> Result<String> {
             camera.name
         ))
     })?;
-    // Shepperd's closed form: exact for every rotation (`from_matrix`
-    // iterates from the identity and may stop short near a half turn).
-    let q = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(
-        *pose.rotation_matrix(),
-    ));
+    let q = pose.quaternion();
     let t = pose.translation();
     let (w, h) = (f64::from(k.width), f64::from(k.height));
     // A JSON string: the name with quotes and backslashes escaped.

@@ -133,6 +133,14 @@ impl<'a> Map<'a> {
         }
     }
 
+    /// A finite number.
+    pub fn number(&self, key: &str, expected: &str) -> Result<f64> {
+        let v = self.require(key, expected)?;
+        v.as_f64()
+            .filter(|x| x.is_finite())
+            .ok_or_else(|| self.error(key, expected, describe(v)))
+    }
+
     /// A list of finite numbers; `len` checks its length.
     pub fn numbers(&self, key: &str, len: Option<usize>, expected: &str) -> Result<Vec<f64>> {
         numbers_of(self.require(key, expected)?, len)
