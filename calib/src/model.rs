@@ -28,10 +28,11 @@
 //! 185° lens projects points slightly behind the camera plane. For z > 0
 //! both agree exactly.
 
-use nalgebra::{Point2, Unit, Vector3};
+use nalgebra::{Matrix2x3, Point2, Unit, Vector3};
 
 use crate::error::FieldError;
 
+mod jacobian;
 pub mod ocam;
 mod pinhole;
 mod solve;
@@ -399,6 +400,13 @@ impl Intrinsics {
         unproject_within(self, self.validity_limit(), px)
     }
 
+    /// The pixel of a point in the camera frame (as [`Intrinsics::project`])
+    /// and the projection's Jacobian there, `∂(u, v)/∂(x, y, z)`, in closed
+    /// form for every model; `None` where `project` has no pixel.
+    pub fn project_jacobian(&self, p: &Vector3<f64>) -> Option<(Point2<f64>, Matrix2x3<f64>)> {
+        jacobian::project_jacobian_within(self, self.validity_limit(), p)
+    }
+
     /// These intrinsics with their valid region found once, for projecting
     /// and unprojecting many points (a view's every pixel): the same
     /// answers as [`Intrinsics::project`] and [`Intrinsics::unproject`], to
@@ -515,6 +523,11 @@ impl Projector {
     /// As [`Intrinsics::project`].
     pub fn project(&self, p: &Vector3<f64>) -> Option<Point2<f64>> {
         project_within(&self.intrinsics, self.limit, p)
+    }
+
+    /// As [`Intrinsics::project_jacobian`].
+    pub fn project_jacobian(&self, p: &Vector3<f64>) -> Option<(Point2<f64>, Matrix2x3<f64>)> {
+        jacobian::project_jacobian_within(&self.intrinsics, self.limit, p)
     }
 
     /// As [`Intrinsics::unproject`].

@@ -7,11 +7,14 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
+mod surround_common;
+
+use nalgebra::{Point2, Rotation3, Vector3};
 use rigview_calib::formats::{self, Format};
 use rigview_calib::model::ocam::Ocam;
-use rigview_calib::{Distortion, Rig};
+use rigview_calib::{report, Distortion, Pose, Rig};
 use rigview_core::image::{FrameView, PixelFormat};
-use rigview_core::panorama::{CylinderSpec, Panorama, PanoramaOptions};
+use rigview_core::panorama::{CylinderSpec, MatchOptions, Panorama, PanoramaOptions};
 use rigview_core::sim::{reference_rig, SimConfig, SimRender};
 use rigview_core::source::Frame;
 use rigview_core::surround::{CanvasSpec, Composer, SurroundOptions, SurroundView};
@@ -76,10 +79,11 @@ fn overlap_difference(render: &SimRender, viewed: &Rig) -> f64 {
     diff / sum
 }
 
-#[test]
-fn every_sphere_model_renders_and_its_surround_view_lines_neighbours_up() {
-    // Lenses of about the reference camera's field of view.
-    let cases = [
+/// Lenses of about the reference camera's field of view, one of each new
+/// model: the lens, its focal length (pixels of the full-size image), and
+/// a coefficient (its index) and an error that make it wrong.
+fn lenses() -> [(Distortion, f64, usize, f64); 5] {
+    [
         (Distortion::DoubleSphere([-0.2, 0.6]), 250.0, 1, 0.05),
         (Distortion::Eucm([0.6, 1.1]), 260.0, 0, 0.05),
         (
@@ -105,7 +109,12 @@ fn every_sphere_model_renders_and_its_surround_view_lines_neighbours_up() {
             3,
             30.0,
         ),
-    ];
+    ]
+}
+
+#[test]
+fn every_sphere_model_renders_and_its_surround_view_lines_neighbours_up() {
+    let cases = lenses();
     let config = SimConfig {
         scale: 0.25,
         ..SimConfig::preset("overcast").unwrap()
@@ -134,6 +143,41 @@ fn every_sphere_model_renders_and_its_surround_view_lines_neighbours_up() {
             };
         }
         let off = overlap_difference(&render, &wrong);
+        // The metering masks (each camera's ground pixels): every masked
+        // pixel's ray meets the ground in the canvas, through this model.
+        let spec = CanvasSpec::default();
+        let view = SurroundView::build(render.rig(), &spec, &SurroundOptions::default()).unwrap();
+        for (mask, camera) in view.ground_masks().iter().zip(&render.rig().cameras) {
+            let projector = camera.projector().unwrap();
+            let (mut on, mut off_ground) = (0usize, 0usize);
+            let step = f64::from(camera.intrinsics.width) / mask.width() as f64;
+            for y in (0..mask.height()).step_by(5) {
+                for (x, _) in mask
+                    .row(y)
+                    .iter()
+                    .enumerate()
+                    .filter(|m| *m.1 > 0)
+                    .step_by(5)
+                {
+                    let px = nalgebra::Point2::new(x as f64 * step, y as f64 * step);
+                    match projector.ground_point(&px) {
+                        Some(g)
+                            if (spec.x_min_m - 1.0..=spec.x_max_m + 1.0).contains(&g.x)
+                                && (spec.y_min_m - 1.0..=spec.y_max_m + 1.0).contains(&g.y) =>
+                        {
+                            on += 1;
+                        }
+                        _ => off_ground += 1,
+                    }
+                }
+            }
+            let coverage = mask.coverage();
+            assert!(
+                coverage > 0.1 && off_ground * 200 <= on,
+                "{name} {}: mask covers {coverage:.2}, {on} pixels on the ground, {off_ground} not",
+                camera.name
+            );
+        }
         // The panorama of the same rig: its maps, masks and overlaps (an
         // error if neighbours shared no pixel of the cylinder).
         let cylinder = CylinderSpec {
@@ -213,4 +257,226 @@ fn a_rig_of_woodscape_files_gives_the_surround_view_of_the_same_rig_file() {
         assert!(wa.data == wb.data, "camera {}: the views differ", c.name);
     }
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Camera `k`'s rotation relative to camera 0's.
+fn relative(rig: &Rig, k: usize) -> Rotation3<f64> {
+    let r = |c: usize| {
+        Rotation3::from_matrix_unchecked(*rig.cameras[c].pose.unwrap().rotation_matrix())
+    };
+    r(0).inverse() * r(k)
+}
+
+/// How far camera `k` of `rig` is turned from `truth`'s, relative to
+/// camera 0, degrees.
+fn off(rig: &Rig, truth: &Rig, k: usize) -> f64 {
+    (relative(rig, k) * relative(truth, k).inverse())
+        .angle()
+        .to_degrees()
+}
+
+/// The panorama's matching and refinement on every model, as on the
+/// reference rig's fisheye lens: on the frames of a rig of each new model,
+/// Harris corners and BRIEF descriptors on the matching cylinder (with its
+/// floor) find inliers in every overlap of the true rig, and the product's
+/// refinement in rounds brings the cameras back from turns of 1.5° about
+/// three different axes.
+#[test]
+fn every_models_panorama_matches_and_refines() {
+    use rigview_core::panorama::{matching_spec, refine_in_rounds, RoundsOptions};
+    let config = SimConfig {
+        scale: 1.0,
+        ..SimConfig::preset("overcast").unwrap()
+    };
+    let spec = matching_spec(&CylinderSpec::default());
+    let turns = [
+        Vector3::new(0.3, -0.5, 1.0),
+        Vector3::new(1.0, 0.2, -0.3),
+        Vector3::new(-0.4, 1.0, 0.5),
+    ];
+    let fisheye = reference_rig().unwrap().cameras[0].intrinsics;
+    let lenses =
+        std::iter::once((fisheye.distortion, fisheye.fx)).chain(lenses().map(|l| (l.0, l.1)));
+    for (distortion, f) in lenses {
+        let name = distortion.model_name();
+        let render = SimRender::with_rig(&config, rig_with(distortion, f)).unwrap();
+        let truth = render.rig().clone();
+        let buffers: Vec<Vec<u8>> = (0..4)
+            .map(|k| surround_common::still(&render, k, 4000.0))
+            .collect();
+        let frames = surround_common::still_views(&render, &buffers);
+        let pano = Panorama::build(&truth, &spec, &PanoramaOptions::default()).unwrap();
+        let (pairs, _) = pano
+            .match_pairs(
+                &frames,
+                &rigview_tests::harris_subpixel,
+                &MatchOptions::default(),
+            )
+            .unwrap();
+        for p in &pairs {
+            println!(
+                "{name} {}–{}: corners {:?}, {} matches, {} inliers, rotation {:.3}°{}",
+                p.i,
+                p.j,
+                p.corners,
+                p.matches.len(),
+                p.inliers,
+                p.rotation.map_or(f64::NAN, |q| q.angle().to_degrees()),
+                p.problem
+                    .as_deref()
+                    .map(|s| format!(" ({s})"))
+                    .unwrap_or_default()
+            );
+            assert!(
+                p.inliers >= 10,
+                "{name} {}–{}: {} inliers",
+                p.i,
+                p.j,
+                p.inliers
+            );
+            let angle = p.rotation.unwrap().angle().to_degrees();
+            assert!(angle < 0.15, "{name} {}–{}: {angle}°", p.i, p.j);
+        }
+        let mut turned = truth.clone();
+        for (k, axis) in (1..4).zip(turns) {
+            let turn = Rotation3::from_axis_angle(
+                &nalgebra::Unit::new_normalize(axis),
+                1.5f64.to_radians(),
+            );
+            let pose = turned.cameras[k].pose.unwrap();
+            turned.cameras[k].pose =
+                Some(Pose::new(turn * pose.rotation_matrix(), *pose.translation()).unwrap());
+        }
+        let rounds = refine_in_rounds(
+            &turned,
+            &CylinderSpec::default(),
+            &PanoramaOptions::default(),
+            &frames,
+            &rigview_tests::harris_subpixel,
+            &RoundsOptions::default(),
+        )
+        .unwrap();
+        for k in 1..4 {
+            let left = off(&rounds.rig, &truth, k);
+            println!("{name} camera {k}: turned 1.5°, {left:.3}° after the refinement");
+            assert!(left < 0.2, "{name} camera {k}: {left}° from the truth");
+        }
+    }
+}
+
+/// `rig` with every camera's focal length times `s` (for Scaramuzza's
+/// model, whose focal length is in `pol`, there: pol_i · s^(1−i)).
+fn focal_times(rig: &Rig, s: f64) -> Rig {
+    let mut out = rig.clone();
+    for c in &mut out.cameras {
+        let k = &mut c.intrinsics;
+        if let Distortion::Scaramuzza(o) = k.distortion {
+            let pol: Vec<f64> = (0..o.pol().len())
+                .map(|i| o.pol()[i] * s.powi(1 - i as i32))
+                .collect();
+            k.distortion = Distortion::Scaramuzza(Ocam::new(&pol, &[], o.affine()).unwrap());
+        } else {
+            k.fx *= s;
+            k.fy *= s;
+        }
+    }
+    out
+}
+
+/// `rigview calib show` on every model: the model and its coefficients by
+/// name, the field of view across the image as the model projects it, the
+/// ground each camera sees, and no warnings for a lens whose image corners
+/// lie within the model; the same lens with a third of the focal length is
+/// warned of.
+#[test]
+fn calib_show_checks_every_model() {
+    for (distortion, f, _, _) in lenses() {
+        let name = distortion.model_name();
+        // The focal length at which the image corners are at 0.9 of the
+        // model's largest angle (by bisection on the scale of `f`).
+        let corner_angle = |s: f64| {
+            let k = focal_times(&rig_with(distortion, f), s).cameras[0].intrinsics;
+            k.unproject(&Point2::new(0.0, 0.0))
+                .map_or(f64::INFINITY, |r| r.z.acos() / k.max_incidence())
+        };
+        let (mut lo, mut hi) = (0.05, 20.0);
+        for _ in 0..60 {
+            let mid = f64::sqrt(lo * hi);
+            if corner_angle(mid) > 0.9 {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        let rig = focal_times(&rig_with(distortion, f), hi);
+        let shown = report::summary(&formats::Loaded {
+            rig: rig.clone(),
+            format: Format::Rig,
+            surround: None,
+        });
+        let k = rig.cameras[0].intrinsics;
+        // The horizontal field of view found independently: the angles
+        // whose projections reach the image's left and right edges
+        // (bisection on `project`; the summary unprojects the edges).
+        let reach = |edge: f64| {
+            let dir = if edge < k.cx { -1.0 } else { 1.0 };
+            let (mut lo, mut hi) = (0.0f64, k.max_incidence() * (1.0 - 1e-9));
+            for _ in 0..100 {
+                let mid = 0.5 * (lo + hi);
+                let (s, c) = mid.sin_cos();
+                let reached = k
+                    .project(&Vector3::new(dir * s, 0.0, c))
+                    .is_some_and(|q| (q.x - k.cx).abs() < (edge - k.cx).abs());
+                if reached {
+                    lo = mid;
+                } else {
+                    hi = mid;
+                }
+            }
+            lo.to_degrees()
+        };
+        let horizontal = reach(0.0) + reach(f64::from(k.width) - 1.0);
+        println!("{name}: focal length × {hi:.3}, horizontal {horizontal:.1}°");
+        assert!(
+            shown.contains(&format!("model: {name} ")),
+            "{name}: {shown}"
+        );
+        for coefficient in k.distortion.coefficient_names() {
+            assert!(
+                shown.contains(&format!("{coefficient} ")),
+                "{name}: {coefficient}"
+            );
+        }
+        assert!(
+            shown.contains(&format!("field of view: horizontal {horizontal:.1}°")),
+            "{name}: {horizontal:.1}° expected in {shown}"
+        );
+        assert_eq!(
+            shown.matches("sees ground from").count(),
+            4,
+            "{name}: {shown}"
+        );
+        assert!(shown.ends_with("\n0 warning(s)\n"), "{name}: {shown}");
+        // A third of the focal length: the corners lie beyond the model,
+        // and every camera says so; except where the model maps the whole
+        // image into its field: a unified camera whose distortion never
+        // folds (k1 −0.05, k2 0.004: its rays near the cone's edge lie
+        // arbitrarily far out), and Scaramuzza's, whose angle atan2(ρ,
+        // −pol(ρ)) rises to 180° as ρ grows (pol[2] > 0), taken up to the
+        // image's diagonal.
+        let covers_any_image =
+            matches!(distortion, Distortion::Omni(_) | Distortion::Scaramuzza(_));
+        let shown = report::summary(&formats::Loaded {
+            rig: focal_times(&rig, 1.0 / 3.0),
+            format: Format::Rig,
+            surround: None,
+        });
+        assert_eq!(
+            shown
+                .matches("the image corners lie beyond where the lens model is valid")
+                .count(),
+            if covers_any_image { 0 } else { 4 },
+            "{name}: {shown}"
+        );
+    }
 }

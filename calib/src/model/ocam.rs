@@ -164,6 +164,13 @@ pub(super) fn project(o: &Ocam, rho_max: f64, p: &Vector3<f64>) -> Option<(f64, 
     Some((x * e + y, x * c + y * d))
 }
 
+/// ρ at the ray's angle θ from the optical axis and dρ/dθ (the inverse
+/// of [`angle`]'s slope); θ within the model.
+pub(super) fn radius(o: &Ocam, rho_max: f64, theta: f64) -> (f64, f64) {
+    let rho = super::invert_increasing(|r| angle(o, r), theta, rho_max);
+    (rho, 1.0 / angle(o, rho).1)
+}
+
 /// The pixel offset `(column, row)` from the centre to the ray (not unit);
 /// `None` beyond the model.
 pub(super) fn unproject(o: &Ocam, rho_max: f64, du: f64, dv: f64) -> Option<Vector3<f64>> {

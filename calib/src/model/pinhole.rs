@@ -2,6 +2,8 @@
 //! distortion, where it is one to one, and its inversion. The unified
 //! model applies it on its projection plane too.
 
+use nalgebra::Matrix2;
+
 use super::{cached, first_stationary, invert_increasing, Family};
 
 /// The radial factor of OpenCV's pinhole distortion at r² = `s`,
@@ -45,6 +47,21 @@ pub(super) fn pinhole_distort(k: &[f64; 8], a: f64, b: f64) -> (f64, f64) {
     (
         a * radial + 2.0 * p1 * a * b + p2 * (r2 + 2.0 * a * a),
         b * radial + p1 * (r2 + 2.0 * b * b) + 2.0 * p2 * a * b,
+    )
+}
+
+/// `∂(xd, yd)/∂(a, b)` of [`pinhole_distort`].
+pub(super) fn distort_jacobian(k: &[f64; 8], a: f64, b: f64) -> Matrix2<f64> {
+    let [_, _, p1, p2, ..] = *k;
+    let radial = Radial::at(k, a * a + b * b);
+    let (f, df) = (radial.value(), radial.slope());
+    // r² = a² + b², so ∂f/∂a = 2a·f' and ∂f/∂b = 2b·f'.
+    let cross = 2.0 * a * b * df + 2.0 * p1 * a + 2.0 * p2 * b;
+    Matrix2::new(
+        f + 2.0 * a * a * df + 2.0 * p1 * b + 6.0 * p2 * a,
+        cross,
+        cross,
+        f + 2.0 * b * b * df + 6.0 * p1 * b + 2.0 * p2 * a,
     )
 }
 

@@ -224,7 +224,7 @@ fn validate_names_the_field() {
     assert_eq!(cam.validate().unwrap_err().field, "distortion[1]");
 }
 
-fn sphere_camera(distortion: Distortion) -> Intrinsics {
+pub(super) fn sphere_camera(distortion: Distortion) -> Intrinsics {
     Intrinsics {
         width: 1280,
         height: 960,
