@@ -29,6 +29,8 @@ pub enum ViewMode {
     Surround,
     /// The cylindrical panorama.
     Panorama,
+    /// The 3-D bowl around the vehicle.
+    Bowl,
 }
 
 impl ViewMode {
@@ -37,6 +39,7 @@ impl ViewMode {
         match self {
             Self::Surround => rigview_core::pipeline::ViewKind::Surround,
             Self::Panorama => rigview_core::pipeline::ViewKind::Panorama,
+            Self::Bowl => rigview_core::pipeline::ViewKind::Bowl,
         }
     }
 }

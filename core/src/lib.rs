@@ -30,6 +30,7 @@
 //! - [`synth`]: small synthetic high-dynamic-range scenes seen by linear
 //!   cameras, for the exposure core's own tests and benchmarks.
 
+pub mod bowl;
 pub mod cpu;
 pub mod error;
 pub mod eval;

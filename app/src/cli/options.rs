@@ -9,6 +9,7 @@ use std::time::Duration;
 
 use anyhow::{Context, Result};
 use clap::Args;
+use rigview_core::bowl::Viewpoint;
 use rigview_core::exposure::{LawKind, PixelFormat, ProbeParams, Simulation};
 use rigview_core::pipeline::{MeterRoi, PipelineOptions, ProcessingSettings, Strategy, ViewKind};
 use rigview_core::surround::BlendMode;
@@ -87,6 +88,7 @@ impl ViewArgs {
                 settings.window.view = match v {
                     ViewKind::Surround => ViewMode::Surround,
                     ViewKind::Panorama => ViewMode::Panorama,
+                    ViewKind::Bowl => ViewMode::Bowl,
                 };
             }
             store.save(&settings)?;
@@ -138,10 +140,15 @@ pub struct ProcessingArgs {
     #[arg(long, value_enum)]
     pub blend: Option<BlendMode>,
     /// The view composed (and what is metered, and where the overlap
-    /// ratios come from): the bird's-eye surround view, or the
-    /// cylindrical panorama with ratios from matched features.
+    /// ratios come from): the bird's-eye surround view, the cylindrical
+    /// panorama with ratios from matched features, or the 3-D bowl around
+    /// the vehicle (metered and balanced as the bird's-eye view).
     #[arg(long, value_enum)]
     pub view: Option<ViewKind>,
+    /// Where the bowl is seen from: top, rear, front, behind-left,
+    /// behind-right, left or right.
+    #[arg(long, value_name = "NAME", value_parser = viewpoint)]
+    pub viewpoint: Option<Viewpoint>,
     /// The panorama's radius, metres: what stands this far from the rig's
     /// centre lines up across the seams; nearer things show parallax.
     #[arg(long, value_name = "M")]
@@ -199,6 +206,9 @@ impl ProcessingArgs {
         if let Some(v) = self.view {
             p.view = v;
         }
+        if let Some(v) = self.viewpoint {
+            p.bowl.viewpoint = v;
+        }
         if let Some(r) = self.radius_m {
             p.panorama.radius_m = r;
         }
@@ -209,6 +219,11 @@ impl ProcessingArgs {
             p.panorama.refine_every = n;
         }
     }
+}
+
+/// A viewpoint of the bowl by its preset's name.
+fn viewpoint(name: &str) -> std::result::Result<Viewpoint, String> {
+    Viewpoint::preset(name).map_err(|e| e.to_string())
 }
 
 /// A number of seconds ≥ 0 given as `--what`.

@@ -6,6 +6,7 @@ use std::path::PathBuf;
 
 use anyhow::Result;
 use clap::Args;
+use rigview_core::bowl::{BowlSpec, Viewpoint};
 use rigview_core::surround::{BlendMode, CanvasSpec};
 
 use crate::commands::surround::{self, Stills};
@@ -50,12 +51,33 @@ pub struct SurroundArgs {
     /// A top-down picture of the vehicle to paste over its rectangle.
     #[arg(long)]
     pub vehicle_image: Option<PathBuf>,
+    /// What to compose: the bird's-eye view, or the 3-D bowl around the
+    /// vehicle (flat as far as the ground shown reaches, the vehicle model
+    /// in the middle) from `--viewpoint`.
+    #[arg(long, value_enum, default_value = "surround")]
+    pub view: StillView,
+    /// Where the bowl is seen from: top, rear, front, behind-left,
+    /// behind-right, left or right.
+    #[arg(long, value_name = "NAME", default_value = "behind-left")]
+    pub viewpoint: String,
+    /// The bowl picture's width and height, pixels.
+    #[arg(long, num_args = 2, value_names = ["W", "H"], default_values_t = [1280, 800])]
+    pub size_px: Vec<usize>,
+}
+
+/// What `rigview surround` composes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum StillView {
+    /// The bird's-eye view of the ground.
+    Surround,
+    /// The bowl around the vehicle from a viewpoint.
+    Bowl,
 }
 
 impl SurroundArgs {
     /// What to compose: the options given, the canvas's defaults for the
-    /// rest.
-    pub fn stills(&self) -> Stills {
+    /// rest; an unknown viewpoint is an error naming the presets.
+    pub fn stills(&self) -> Result<Stills> {
         let defaults = CanvasSpec::default();
         let four = |v: &Option<Vec<f64>>, d: [f64; 4]| match v.as_deref() {
             Some([a, b, c, e]) => [*a, *b, *c, *e],
@@ -70,25 +92,45 @@ impl SurroundArgs {
                 defaults.y_max_m,
             ],
         );
-        Stills {
+        let canvas = CanvasSpec {
+            x_min_m,
+            x_max_m,
+            y_min_m,
+            y_max_m,
+            px_per_m: self.px_per_m,
+            vehicle_m: four(&self.vehicle_m, defaults.vehicle_m),
+        };
+        let bowl = match self.view {
+            StillView::Surround => None,
+            StillView::Bowl => {
+                let viewpoint = Viewpoint::preset(&self.viewpoint)
+                    .map_err(|e| anyhow::anyhow!("--viewpoint: {e}"))?;
+                let size_px = match self.size_px.as_slice() {
+                    [w, h] => [*w, *h],
+                    _ => anyhow::bail!("--size-px: expected a width and a height"),
+                };
+                Some((
+                    BowlSpec {
+                        size_px,
+                        ..BowlSpec::around(&canvas)
+                    },
+                    viewpoint,
+                ))
+            }
+        };
+        Ok(Stills {
             rig: self.input.rig.clone(),
             images: self.input.images.clone(),
             out: self.out.clone(),
             blend: self.input.blend,
-            canvas: CanvasSpec {
-                x_min_m,
-                x_max_m,
-                y_min_m,
-                y_max_m,
-                px_per_m: self.px_per_m,
-                vehicle_m: four(&self.vehicle_m, defaults.vehicle_m),
-            },
+            canvas,
             vehicle_image: self.vehicle_image.clone(),
-        }
+            bowl,
+        })
     }
 }
 
 /// Runs `rigview surround`, reporting to `out`.
 pub fn run(args: &SurroundArgs, out: &mut dyn Write) -> Result<()> {
-    surround::run(&args.stills(), out)
+    surround::run(&args.stills()?, out)
 }

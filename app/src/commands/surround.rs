@@ -1,5 +1,6 @@
-//! Still images of a calibrated rig composed into a bird's-eye view
-//! (`rigview surround`), to check a calibration.
+//! Still images of a calibrated rig composed into a bird's-eye view or
+//! the bowl around the vehicle (`rigview surround`), to check a
+//! calibration.
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -7,6 +8,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context, Result};
 use rigview_calib::formats;
 use rigview_calib::rig::Rig;
+use rigview_core::bowl::{BowlSpec, BowlView, Viewpoint};
 use rigview_core::exposure::balance::pair_ratio;
 use rigview_core::exposure::{BalanceParams, FrameView, PixelFormat};
 use rigview_core::surround::{
@@ -29,6 +31,9 @@ pub struct Stills {
     pub canvas: CanvasSpec,
     /// A top-down picture of the vehicle to paste over its rectangle.
     pub vehicle_image: Option<PathBuf>,
+    /// The bowl and its viewpoint, to compose the bowl instead of the
+    /// bird's-eye view.
+    pub bowl: Option<(BowlSpec, Viewpoint)>,
 }
 
 /// Composes `stills`, reporting to `out`: the file written, each camera's
@@ -40,20 +45,44 @@ pub fn run(stills: &Stills, out: &mut dyn Write) -> Result<()> {
         .context("building the surround view")?;
     let frames = frames(&images)?;
     let mut canvas = Canvas::new(0, 0, 3);
-    Composer::new().compose(&view, &frames, stills.blend, &mut canvas)?;
-    if let Some(path) = &stills.vehicle_image {
-        paste_vehicle(&mut canvas, spec, path)?;
+    match &stills.bowl {
+        None => {
+            Composer::new().compose(&view, &frames, stills.blend, &mut canvas)?;
+            if let Some(path) = &stills.vehicle_image {
+                paste_vehicle(&mut canvas, spec, path)?;
+            }
+            save(&canvas, &stills.out)?;
+            writeln!(
+                out,
+                "wrote {} ({}×{} px, {} px/m, {} blending)",
+                stills.out.display(),
+                canvas.width,
+                canvas.height,
+                spec.px_per_m,
+                stills.blend.name()
+            )?;
+        }
+        Some((bowl, viewpoint)) => {
+            let view = BowlView::build(&rig, bowl, viewpoint).context("building the bowl view")?;
+            Composer::new().compose(view.mosaic(), &frames, stills.blend, &mut canvas)?;
+            view.paint_vehicle(&mut canvas)?;
+            save(&canvas, &stills.out)?;
+            writeln!(
+                out,
+                "wrote {} ({}×{} px, the bowl from yaw {:.0}°, pitch {:.0}°, {:.1} m; flat {:.1} m, wall {:.1} m high at {:.1} m; {} blending)",
+                stills.out.display(),
+                canvas.width,
+                canvas.height,
+                viewpoint.yaw_deg,
+                viewpoint.pitch_deg,
+                viewpoint.distance_m,
+                bowl.flat_m,
+                bowl.wall_height_m,
+                bowl.radius_m,
+                stills.blend.name()
+            )?;
+        }
     }
-    save(&canvas, &stills.out)?;
-    writeln!(
-        out,
-        "wrote {} ({}×{} px, {} px/m, {} blending)",
-        stills.out.display(),
-        canvas.width,
-        canvas.height,
-        spec.px_per_m,
-        stills.blend.name()
-    )?;
     for (cam, mask) in rig.cameras.iter().zip(view.ground_masks()) {
         writeln!(
             out,
@@ -233,7 +262,42 @@ mod tests {
                 vehicle_m: [-2.5, 2.5, -1.0, 1.0],
             },
             vehicle_image: Some(data().join("car.png")),
+            bowl: None,
         }
+    }
+
+    #[test]
+    fn composes_the_real_rig_into_the_bowl() {
+        let dir = std::env::temp_dir().join(format!("rigview-bowl-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let out_png = dir.join("bowl.png");
+        let images = ["front", "left", "back", "right"]
+            .iter()
+            .map(|n| data().join(format!("{n}.png")).display().to_string())
+            .collect();
+        let mut stills = args(images, out_png.clone());
+        let viewpoint = Viewpoint::preset("behind-left").unwrap();
+        stills.bowl = Some((
+            BowlSpec {
+                size_px: [400, 250],
+                ..BowlSpec::around(&stills.canvas)
+            },
+            viewpoint,
+        ));
+        let mut report = Vec::new();
+        run(&stills, &mut report).unwrap();
+        let report = String::from_utf8(report).unwrap();
+        assert!(report.contains("the bowl from yaw 145°"), "{report}");
+        let written = image::open(&out_png).unwrap().to_rgb8();
+        assert_eq!((written.width(), written.height()), (400, 250));
+        // The bowl fills the picture below the rim: most pixels show a
+        // camera or the vehicle.
+        let lit = written
+            .pixels()
+            .filter(|p| p.0.iter().any(|&v| v > 8))
+            .count();
+        assert!(lit * 10 > 7 * 400 * 250, "{lit} lit pixels");
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]

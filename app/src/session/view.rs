@@ -10,7 +10,7 @@ use rigview_calib::rig::Rig;
 use rigview_calib::tools::corners::{harris_corners, HarrisParams};
 use rigview_core::exposure::NeighbourGraph;
 use rigview_core::pipeline::{
-    check_view, PanoramaSettings, ProcessingSettings, SharedDetector, View, ViewKind,
+    check_view, BowlSettings, PanoramaSettings, ProcessingSettings, SharedDetector, View, ViewKind,
 };
 use rigview_core::source::CameraInfo;
 use rigview_core::surround::CanvasSpec;
@@ -33,6 +33,8 @@ pub struct ViewSpec {
     pub canvas: CanvasSpec,
     /// The panorama's settings.
     pub panorama: PanoramaSettings,
+    /// The bowl and its viewpoint.
+    pub bowl: BowlSettings,
     /// The live panorama's corner detector.
     pub detector: SharedDetector,
 }
@@ -43,6 +45,7 @@ impl std::fmt::Debug for ViewSpec {
             .field("kind", &self.kind)
             .field("canvas", &self.canvas)
             .field("panorama", &self.panorama)
+            .field("bowl", &self.bowl)
             .finish_non_exhaustive()
     }
 }
@@ -55,7 +58,16 @@ impl ViewSpec {
             kind,
             canvas: canvas_spec(),
             panorama: panorama.clone(),
+            bowl: BowlSettings::default(),
             detector: shared_detector(),
+        }
+    }
+
+    /// The view `processing` asks for, in a session.
+    pub fn processing(processing: &ProcessingSettings) -> Self {
+        Self {
+            bowl: processing.bowl.clone(),
+            ..Self::session(processing.view, &processing.panorama)
         }
     }
 
@@ -76,6 +88,7 @@ pub fn build_view(rig: &Rig, spec: &ViewSpec) -> Result<View> {
         rig,
         &spec.canvas,
         &spec.panorama,
+        &spec.bowl,
         spec.detector.clone(),
     )
     .with_context(|| format!("building the {} view", spec.kind.name()))
@@ -111,7 +124,7 @@ pub fn view_for(
     cameras: &[CameraInfo],
     processing: &ProcessingSettings,
 ) -> Result<(View, NeighbourGraph)> {
-    view_of(rig, cameras, processing.view, &processing.panorama)
+    view_with(rig, cameras, &ViewSpec::processing(processing))
 }
 
 /// Loads a calibration file (any supported format) and builds the view

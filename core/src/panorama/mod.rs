@@ -340,7 +340,7 @@ impl Panorama {
                 }
             },
             |k| {
-                Error::invalid(
+                Some(Error::invalid(
                     "panorama",
                     format!("camera `{}`'s view of the cylinder", cameras.sources[k].0),
                     "a camera looking outwards",
@@ -352,7 +352,7 @@ impl Panorama {
                         options.overlap_deg,
                         headings[k].to_degrees()
                     ),
-                )
+                ))
             },
         )?;
         let masks =

@@ -60,7 +60,9 @@ pub use settings::{Control, MeterRoi, PanoramaSettings, ProcessingSettings, Stra
 pub use sink::{Processed, SetSink};
 pub use telemetry::{CameraRow, PairMatchRow, StageTimes, Telemetry, TelemetryRow, MATCH_COLUMNS};
 pub use threads::{Notify, Pipeline, PipelineOptions, PipelineStatus};
-pub use view::{LivePanorama, PairMatchReport, PanoramaReport, SharedDetector, View};
+pub use view::{
+    BowlSettings, LiveBowl, LivePanorama, PairMatchReport, PanoramaReport, SharedDetector, View,
+};
 
 #[cfg(test)]
 mod tests {

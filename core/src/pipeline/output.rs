@@ -153,4 +153,10 @@ pub struct Output {
     /// The panorama's latest matching and refinement (the panorama view
     /// only).
     pub panorama: Option<Arc<super::PanoramaReport>>,
+    /// The view the processor had for this set (`None`: none), which
+    /// `canvas` shows when it is composed.
+    pub view: Option<super::ViewKind>,
+    /// The bowl's viewpoint `canvas` shows (the bowl view only), and
+    /// whether another one is being built.
+    pub bowl: Option<(crate::bowl::Viewpoint, bool)>,
 }

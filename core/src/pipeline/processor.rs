@@ -219,6 +219,9 @@ impl Processor {
         if let Some(p) = self.view.as_mut().and_then(View::panorama_mut) {
             p.set_settings(&settings.panorama);
         }
+        if let Some(b) = self.view.as_mut().and_then(View::bowl_mut) {
+            b.set_wanted(&settings.bowl);
+        }
         self.shared_settings = Arc::new(settings.clone());
         self.settings = settings;
         if roi_changed || metering_changed {
@@ -337,6 +340,10 @@ impl Processor {
                 self.update_masks();
             }
         }
+        // The bowl takes in a viewpoint its builder finished.
+        if let Some(b) = self.view.as_mut().and_then(View::bowl_mut) {
+            b.poll();
+        }
         let views = frames
             .iter()
             .map(|f| f.view())
@@ -418,8 +425,12 @@ impl Processor {
                 // (the surround view shows the ground, which the gains
                 // rarely clip).
                 let capped = matches!(view, View::Panorama(_));
+                // The bowl shows its own picture (with the vehicle painted
+                // over it) at the gains of the bird's-eye view's seams.
+                let bowl = view.bowl().map(|b| b.shown().clone());
+                let shown_view = view.display_mosaic();
                 let view = view.mosaic();
-                let (w, h) = view.size();
+                let (w, h) = shown_view.size();
                 let mut canvas = Canvas::new(w, h, channels);
                 let inputs: Vec<DisplayInput> = cameras
                     .iter()
@@ -487,13 +498,20 @@ impl Processor {
                         }
                     }
                 }
-                match self.composer.compose_with_gains(
-                    view,
-                    &shown,
-                    self.settings.blend,
-                    Some(&composer_gains),
-                    &mut canvas,
-                ) {
+                let composed = self
+                    .composer
+                    .compose_with_gains(
+                        shown_view,
+                        &shown,
+                        self.settings.blend,
+                        Some(&composer_gains),
+                        &mut canvas,
+                    )
+                    .and_then(|()| match &bowl {
+                        Some(b) => b.paint_vehicle(&mut canvas),
+                        None => Ok(()),
+                    });
+                match composed {
                     Ok(()) => Some(Arc::new(canvas)),
                     Err(e) => {
                         compose_error = Some(e.to_string());
@@ -522,6 +540,12 @@ impl Processor {
             settings: self.shared_settings.clone(),
             step,
             panorama: report,
+            view: self.view.as_ref().map(View::kind),
+            bowl: self
+                .view
+                .as_ref()
+                .and_then(View::bowl)
+                .map(|b| (*b.shown().viewpoint(), b.building())),
         };
         Ok((output, commands))
     }

@@ -91,6 +91,8 @@ pub enum ViewKind {
     Surround,
     /// The cylindrical panorama (the surroundings at a chosen radius).
     Panorama,
+    /// The bowl around the vehicle, seen from a viewpoint.
+    Bowl,
 }
 
 impl ViewKind {
@@ -99,6 +101,7 @@ impl ViewKind {
         match self {
             Self::Surround => "surround",
             Self::Panorama => "panorama",
+            Self::Bowl => "bowl",
         }
     }
 }
@@ -231,6 +234,9 @@ pub struct ProcessingSettings {
     pub view: ViewKind,
     /// The live panorama.
     pub panorama: PanoramaSettings,
+    /// The bowl and its viewpoint (a change applies live, built in the
+    /// background).
+    pub bowl: super::BowlSettings,
 }
 
 impl Default for ProcessingSettings {
@@ -245,6 +251,7 @@ impl Default for ProcessingSettings {
             display: DisplaySettings::default(),
             view: ViewKind::Surround,
             panorama: PanoramaSettings::default(),
+            bowl: super::BowlSettings::default(),
         }
     }
 }
@@ -273,6 +280,7 @@ impl ProcessingSettings {
         self.balance.validate()?;
         self.display.validate()?;
         self.panorama.validate()?;
+        self.bowl.validate()?;
         self.metering.validate()
     }
 }

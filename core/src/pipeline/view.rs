@@ -51,7 +51,10 @@ use crate::panorama::{
 use crate::source::FrameSet;
 use crate::surround::{Mosaic, SurroundView};
 
+mod bowl;
 mod worker;
+
+pub use bowl::{BowlSettings, LiveBowl};
 
 use worker::{Done, Job, Worker};
 
@@ -68,6 +71,9 @@ pub enum View {
     Surround(Box<SurroundView>),
     /// The cylindrical panorama, with its matching and refinement.
     Panorama(Box<LivePanorama>),
+    /// The bowl around the vehicle from a viewpoint, metered and balanced
+    /// on the bird's-eye view.
+    Bowl(Box<LiveBowl>),
 }
 
 impl From<SurroundView> for View {
@@ -84,12 +90,14 @@ impl From<LivePanorama> for View {
 
 impl View {
     /// Builds the view `kind` of `rig` (poses in the vehicle frame); the
-    /// surround view on `canvas`, the panorama as `panorama` says.
+    /// surround view on `canvas`, the panorama as `panorama` says, the bowl
+    /// as `bowl` says (balanced on `canvas`).
     pub fn build(
         kind: ViewKind,
         rig: &Rig,
         canvas: &crate::surround::CanvasSpec,
         panorama: &PanoramaSettings,
+        bowl: &BowlSettings,
         detector: SharedDetector,
     ) -> Result<Self> {
         Ok(match kind {
@@ -103,6 +111,7 @@ impl View {
                 panorama,
                 detector,
             )?)),
+            ViewKind::Bowl => Self::Bowl(Box::new(LiveBowl::new(rig, canvas, bowl)?)),
         })
     }
 
@@ -111,14 +120,26 @@ impl View {
         match self {
             Self::Surround(_) => ViewKind::Surround,
             Self::Panorama(_) => ViewKind::Panorama,
+            Self::Bowl(_) => ViewKind::Bowl,
         }
     }
 
-    /// The maps, weights and plans the composer works on.
+    /// The maps, weights and overlaps the cameras are metered and balanced
+    /// on (the bowl's: the bird's-eye view's).
     pub fn mosaic(&self) -> &Mosaic {
         match self {
             Self::Surround(v) => v,
             Self::Panorama(p) => p.panorama.mosaic(),
+            Self::Bowl(b) => b.surround(),
+        }
+    }
+
+    /// The maps, weights and plans of what is shown: the bowl's picture
+    /// for the bowl, otherwise [`View::mosaic`].
+    pub fn display_mosaic(&self) -> &Mosaic {
+        match self {
+            Self::Bowl(b) => b.shown().mosaic(),
+            _ => self.mosaic(),
         }
     }
 
@@ -130,6 +151,7 @@ impl View {
             (_, MeterRoi::Full) => None,
             (Self::Surround(v), MeterRoi::Ground) => Some(v.ground_masks()),
             (Self::Panorama(p), MeterRoi::Ground) => Some(p.panorama.source_masks()),
+            (Self::Bowl(b), MeterRoi::Ground) => Some(b.surround().ground_masks()),
         }
     }
 
@@ -137,7 +159,7 @@ impl View {
     pub fn surround(&self) -> Option<&SurroundView> {
         match self {
             Self::Surround(v) => Some(v),
-            Self::Panorama(_) => None,
+            Self::Panorama(_) | Self::Bowl(_) => None,
         }
     }
 
@@ -145,14 +167,14 @@ impl View {
     pub fn into_surround(self) -> Option<SurroundView> {
         match self {
             Self::Surround(v) => Some(*v),
-            Self::Panorama(_) => None,
+            Self::Panorama(_) | Self::Bowl(_) => None,
         }
     }
 
     /// The live panorama, if this is it.
     pub fn panorama(&self) -> Option<&LivePanorama> {
         match self {
-            Self::Surround(_) => None,
+            Self::Surround(_) | Self::Bowl(_) => None,
             Self::Panorama(p) => Some(p),
         }
     }
@@ -160,8 +182,24 @@ impl View {
     /// The live panorama, to change.
     pub fn panorama_mut(&mut self) -> Option<&mut LivePanorama> {
         match self {
-            Self::Surround(_) => None,
+            Self::Surround(_) | Self::Bowl(_) => None,
             Self::Panorama(p) => Some(p),
+        }
+    }
+
+    /// The live bowl, if this is it.
+    pub fn bowl(&self) -> Option<&LiveBowl> {
+        match self {
+            Self::Bowl(b) => Some(b),
+            _ => None,
+        }
+    }
+
+    /// The live bowl, to change.
+    pub fn bowl_mut(&mut self) -> Option<&mut LiveBowl> {
+        match self {
+            Self::Bowl(b) => Some(b),
+            _ => None,
         }
     }
 }

@@ -324,7 +324,7 @@ impl std::ops::Deref for SurroundView {
 
 /// Which side of the vehicle a camera looks past.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Side {
+pub(crate) enum Side {
     Front,
     Left,
     Back,
@@ -332,6 +332,17 @@ enum Side {
 }
 
 impl Side {
+    /// The side each camera looks past, by the yaw of its optical axis.
+    pub(crate) fn of_cameras(projectors: &[rigview_calib::rig::CameraProjector]) -> Vec<Self> {
+        projectors
+            .iter()
+            .map(|p| {
+                let axis = p.pose().optical_axis();
+                Self::of_yaw(axis.y.atan2(axis.x))
+            })
+            .collect()
+    }
+
     fn of_yaw(yaw: f64) -> Self {
         let d = yaw.to_degrees();
         if d.abs() <= 45.0 {
@@ -346,7 +357,7 @@ impl Side {
     }
 
     /// Whether a ground point lies beyond this side of the vehicle.
-    fn beyond(self, vehicle: &[f64; 4], x: f64, y: f64) -> bool {
+    pub(crate) fn beyond(self, vehicle: &[f64; 4], x: f64, y: f64) -> bool {
         let [x0, x1, y0, y1] = *vehicle;
         match self {
             Side::Front => x > x1,
@@ -378,14 +389,7 @@ impl SurroundView {
         let cameras = mosaic::vehicle_cameras(rig, what)?;
         let (w, h) = spec.size();
         // Where each camera sees: within its side.
-        let sides: Vec<Side> = cameras
-            .projectors
-            .iter()
-            .map(|p| {
-                let axis = p.pose().optical_axis();
-                Side::of_yaw(axis.y.atan2(axis.x))
-            })
-            .collect();
+        let sides = Side::of_cameras(&cameras.projectors);
         let projectors = &cameras.projectors;
         let (mut mosaic, maps) = Mosaic::build(
             what,
@@ -408,7 +412,7 @@ impl SurroundView {
                 }
             },
             |k| {
-                Error::invalid(
+                Some(Error::invalid(
                     "surround view",
                     format!("camera `{}`'s view of the canvas", cameras.sources[k].0),
                     "a pose looking at the ground",
@@ -416,7 +420,7 @@ impl SurroundView {
                         "none of x ∈ [{}, {}], y ∈ [{}, {}] m beyond the vehicle's {:?} side",
                         spec.x_min_m, spec.x_max_m, spec.y_min_m, spec.y_max_m, sides[k]
                     ),
-                )
+                ))
             },
         )?;
         let masks =

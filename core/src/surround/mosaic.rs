@@ -114,7 +114,8 @@ impl Mosaic {
     /// `locate(col, row, out)` pushes `(camera, source position)` for each
     /// camera that may show the pixel `(col, row)`; positions outside the
     /// image (less one pixel right and below) are dropped. A camera that
-    /// shows no pixel is the error `empty(camera)`. `locate` runs on a
+    /// shows no pixel is the error `empty(camera)`, or, where that is
+    /// `None`, a layer that covers nothing. `locate` runs on a
     /// grid of `grid` pixels and the maps are interpolated where that is
     /// exact enough ([`grid::map_canvas`]; 1: every pixel exactly).
     pub(crate) fn build<L>(
@@ -123,7 +124,7 @@ impl Mosaic {
         cameras: &[(String, (usize, usize))],
         grid: usize,
         locate: L,
-        empty: impl Fn(usize) -> Error,
+        empty: impl Fn(usize) -> Option<Error>,
     ) -> Result<(Self, Maps)>
     where
         L: Fn(usize, usize, &mut Vec<(usize, Point2<f64>)>) + Sync,
@@ -171,7 +172,16 @@ impl Mosaic {
         let regions: Vec<Region> = regions
             .into_iter()
             .enumerate()
-            .map(|(k, r)| r.ok_or_else(|| empty(k)))
+            .map(|(k, r)| match r {
+                Some(r) => Ok(r),
+                None => empty(k).map_or(
+                    Ok(Region {
+                        roi: [0, 0, 0, 0],
+                        distance: Vec::new(),
+                    }),
+                    Err,
+                ),
+            })
             .collect::<Result<_>>()?;
         // The weights, one thread per camera.
         let layers = std::thread::scope(|scope| {

@@ -1,0 +1,323 @@
+use nalgebra::Vector3;
+
+use super::*;
+use crate::sim::reference_rig;
+use crate::surround::CameraLayer;
+
+/// A small picture, for speed.
+fn small() -> BowlSpec {
+    BowlSpec {
+        size_px: [320, 200],
+        ..BowlSpec::default()
+    }
+}
+
+/// Camera `layer`'s source position at picture pixel (col, row), if it
+/// shows it.
+fn mapped(layer: &CameraLayer, col: usize, row: usize) -> Option<[f32; 2]> {
+    let [c0, r0, rw, rh] = layer.roi;
+    if col < c0 || row < r0 || col >= c0 + rw || row >= r0 + rh {
+        return None;
+    }
+    let m = layer.map[(row - r0) * rw + (col - c0)];
+    (m[0] >= 0.0).then_some(m)
+}
+
+#[test]
+fn the_surface_is_flat_then_rises_as_specified() {
+    let s = BowlSpec::default();
+    let [_, x1, _, y1] = s.vehicle_m;
+    assert_eq!(s.height(x1 + s.flat_m - 1e-9, 0.0), Some(0.0));
+    assert_eq!(s.height(0.0, 0.0), Some(0.0));
+    // Half way up the wall's run: H/2^steepness.
+    let mid = x1 + 0.5 * (s.flat_m + s.radius_m);
+    let h = s.height(mid, 0.0).unwrap();
+    assert!((h - s.wall_height_m / 4.0).abs() < 1e-12, "{h}");
+    // The rounded rectangle: measured from the corner diagonally.
+    let d = 0.5 * (s.flat_m + s.radius_m) / 2f64.sqrt();
+    let h = s.height(x1 + d, y1 + d).unwrap();
+    assert!((h - s.wall_height_m / 4.0).abs() < 1e-9, "{h}");
+    assert_eq!(s.height(x1 + s.radius_m + 0.01, 0.0), None);
+    // Round: from the centre.
+    let round = BowlSpec {
+        footprint: Footprint::Round,
+        ..s.clone()
+    };
+    assert!((round.footprint_distance(3.0, 4.0) - 5.0).abs() < 1e-12);
+}
+
+#[test]
+fn rays_meet_the_ground_and_the_wall_where_the_formula_says() {
+    let s = BowlSpec::default();
+    let [_, x1, _, _] = s.vehicle_m;
+    // Straight down onto the flat part.
+    let eye = Vector3::new(3.0, 1.0, 5.0);
+    let p = s.intersect(&eye, &-Vector3::z()).unwrap();
+    assert!((p - Vector3::new(3.0, 1.0, 0.0)).norm() < 1e-12, "{p}");
+    // Level at height z0 from the vehicle: meets the wall where
+    // H·u^s = z0, u = (d − flat)/(radius − flat).
+    let z0 = 1.0;
+    let p = s
+        .intersect(&Vector3::new(0.0, 0.0, z0), &Vector3::x())
+        .unwrap();
+    let u = (z0 / s.wall_height_m).powf(1.0 / s.steepness);
+    let want = x1 + s.flat_m + u * (s.radius_m - s.flat_m);
+    assert!(
+        (p.x - want).abs() < 1e-9 && (p.z - z0).abs() < 1e-9,
+        "{p} against x {want}"
+    );
+    // Upwards over the rim: nothing.
+    let up = Vector3::new(1.0, 0.0, 1.0).normalize();
+    assert!(s.intersect(&Vector3::new(0.0, 0.0, 1.0), &up).is_none());
+}
+
+#[test]
+fn viewpoints_orbit_animate_and_project() {
+    for name in PRESETS {
+        let v = Viewpoint::preset(name).unwrap();
+        v.validate().unwrap();
+        // Every preset's eye is inside the bowl, above its surface.
+        let eye = v.eye();
+        let s = BowlSpec::default();
+        let h = s
+            .height(eye.x, eye.y)
+            .unwrap_or_else(|| panic!("{name}: beyond the rim"));
+        assert!(eye.z > h + 0.3, "{name}: eye {eye} on a surface at {h}");
+        // Ray and projection are inverse.
+        let cam = v.camera(640, 400);
+        let p = cam.eye + cam.ray(100.5, 300.5) * 7.0;
+        let (c, r) = cam.project(&p).unwrap();
+        assert!(
+            (c - 100.5).abs() < 1e-9 && (r - 300.5).abs() < 1e-9,
+            "{name}"
+        );
+    }
+    let e = Viewpoint::preset("sideways").unwrap_err().to_string();
+    assert!(e.contains("viewpoint") && e.contains("behind-left"), "{e}");
+    // The top view shows the front up and the left on the left.
+    let top = Viewpoint::preset("top").unwrap().camera(640, 400);
+    let (_, r_front) = top.project(&Vector3::new(3.0, 0.0, 0.0)).unwrap();
+    let (c_left, _) = top.project(&Vector3::new(0.0, 3.0, 0.0)).unwrap();
+    assert!(r_front < 200.0 && c_left < 320.0, "{r_front} {c_left}");
+    // Animation: the ends, the shorter way round in azimuth.
+    let a = Viewpoint {
+        yaw_deg: 170.0,
+        ..Viewpoint::default()
+    };
+    let b = Viewpoint {
+        yaw_deg: -170.0,
+        pitch_deg: 60.0,
+        ..Viewpoint::default()
+    };
+    assert_eq!(a.towards(&b, 0.0), a);
+    let end = a.towards(&b, 1.0);
+    assert!(
+        (end.yaw_deg - 190.0).abs() < 1e-9 && (end.pitch_deg - 60.0).abs() < 1e-12,
+        "{end:?}"
+    );
+    assert!((a.towards(&b, 0.5).yaw_deg - 180.0).abs() < 1e-9);
+    // Orbit: elevation and distance stay in range.
+    let o = a.orbited(30.0, 500.0, 1e-6);
+    assert_eq!((o.pitch_deg, o.distance_m), (90.0, 100.0));
+    assert!((o.yaw_deg - -160.0).abs() < 1e-9, "{}", o.yaw_deg);
+}
+
+#[test]
+fn bad_specs_are_refused_with_the_field() {
+    let ok = BowlSpec::default();
+    ok.validate().unwrap();
+    let cases = [
+        (
+            BowlSpec {
+                radius_m: ok.flat_m,
+                ..ok.clone()
+            },
+            "bowl.radius_m",
+        ),
+        (
+            BowlSpec {
+                steepness: f64::NAN,
+                ..ok.clone()
+            },
+            "bowl.steepness",
+        ),
+        (
+            BowlSpec {
+                vehicle_m: [1.0, -1.0, -1.0, 1.0],
+                ..ok.clone()
+            },
+            "bowl.vehicle_m",
+        ),
+        (
+            BowlSpec {
+                size_px: [0, 800],
+                ..ok.clone()
+            },
+            "bowl.size_px",
+        ),
+    ];
+    for (spec, field) in cases {
+        let e = spec.validate().unwrap_err().to_string();
+        assert!(e.contains(field), "{e} should name {field}");
+    }
+    let far = Viewpoint {
+        distance_m: 1e4,
+        ..Viewpoint::default()
+    };
+    let e = far.validate().unwrap_err().to_string();
+    assert!(e.contains("viewpoint.distance_m"), "{e}");
+}
+
+/// A ground point of the simulated rig renders where its projection
+/// says: the pixel whose ray meets the ground at P samples each camera
+/// that shows P at that camera's projection of P.
+#[test]
+fn a_ground_point_renders_where_its_projection_says() {
+    let rig = reference_rig().unwrap();
+    let spec = small();
+    let view = BowlView::build(&rig, &spec, &Viewpoint::preset("top").unwrap()).unwrap();
+    let cam = view.camera();
+    // Ahead of the vehicle, and beside its front-left corner.
+    for ground in [Vector3::new(4.0, 0.4, 0.0), Vector3::new(3.2, 2.0, 0.0)] {
+        let (c, r) = cam.project(&ground).unwrap();
+        let (col, row) = (c.floor() as usize, r.floor() as usize);
+        let p = spec
+            .intersect(&cam.eye, &cam.ray(col as f64 + 0.5, row as f64 + 0.5))
+            .unwrap();
+        assert!(
+            p.z == 0.0 && (p - ground).norm() < 0.1,
+            "{p} against {ground}"
+        );
+        let mut shown = 0;
+        for layer in view.mosaic().layers() {
+            let projector = rig.cameras[layer.camera].projector().unwrap();
+            if let Some(m) = mapped(layer, col, row) {
+                let want = projector.project_rig(&p).unwrap();
+                let e = (f64::from(m[0]) - want.x).hypot(f64::from(m[1]) - want.y);
+                assert!(e < 0.05, "{}: {e} px", layer.name);
+                shown += 1;
+            }
+        }
+        assert!(shown >= 1, "{ground}: no camera shows it");
+    }
+}
+
+/// A point on the wall near `radius_m`, off the vehicle's front-left
+/// corner, where the front and left cameras overlap: both cameras' maps
+/// at its pixel sample that same point.
+#[test]
+fn a_wall_point_lines_up_across_the_two_cameras_that_see_it() {
+    let rig = reference_rig().unwrap();
+    let spec = small();
+    let view = BowlView::build(&rig, &spec, &Viewpoint::preset("behind-right").unwrap()).unwrap();
+    let cam = view.camera();
+    let [_, x1, _, y1] = spec.vehicle_m;
+    // Just below the rim (a pixel's ray through the rim itself may pass
+    // over it).
+    let d = (spec.radius_m - 0.2) / 2f64.sqrt();
+    let wall = Vector3::new(x1 + d, y1 + d, spec.height(x1 + d, y1 + d).unwrap());
+    assert!(wall.z > 0.9 * spec.wall_height_m, "{wall}");
+    let (c, r) = cam.project(&wall).unwrap();
+    let (col, row) = (c.floor() as usize, r.floor() as usize);
+    let p = spec
+        .intersect(&cam.eye, &cam.ray(col as f64 + 0.5, row as f64 + 0.5))
+        .unwrap();
+    assert!((p - wall).norm() < 0.2, "{p} against {wall}");
+    let seen: Vec<&str> = view
+        .mosaic()
+        .layers()
+        .iter()
+        .filter_map(|layer| {
+            let m = mapped(layer, col, row)?;
+            let want = rig.cameras[layer.camera]
+                .projector()
+                .unwrap()
+                .project_rig(&p)
+                .unwrap();
+            let e = (f64::from(m[0]) - want.x).hypot(f64::from(m[1]) - want.y);
+            assert!(e < 0.05, "{}: {e} px", layer.name);
+            Some(layer.name.as_str())
+        })
+        .collect();
+    assert_eq!(seen, ["front", "left"]);
+}
+
+/// From every preset, each pixel whose ray meets the bowl shows a camera
+/// or the vehicle: the vehicle (with its shadow) covers the blind area
+/// under it, and nothing within the bowl is left black.
+#[test]
+fn the_vehicle_covers_the_blind_area_from_every_viewpoint() {
+    let rig = reference_rig().unwrap();
+    let spec = small();
+    for name in PRESETS {
+        let view = BowlView::build(&rig, &spec, &Viewpoint::preset(name).unwrap()).unwrap();
+        let cam = view.camera();
+        let [w, h] = spec.size_px;
+        let (mut holes, mut bowl) = (0, 0);
+        for row in 0..h {
+            for col in 0..w {
+                let ray = cam.ray(col as f64 + 0.5, row as f64 + 0.5);
+                if spec.intersect(&cam.eye, &ray).is_none() {
+                    continue;
+                }
+                bowl += 1;
+                let camera = view
+                    .mosaic()
+                    .layers()
+                    .iter()
+                    .any(|l| mapped(l, col, row).is_some());
+                let vehicle = view.vehicle_at(col, row).is_some_and(|c| c[3] >= 128);
+                if !camera && !vehicle {
+                    holes += 1;
+                }
+            }
+        }
+        println!("{name}: {holes} of {bowl} pixels of the bowl show nothing");
+        assert!(bowl > w * h / 3, "{name}: {bowl}");
+        assert!(
+            holes * 10_000 <= bowl,
+            "{name}: {holes} of {bowl} pixels show nothing"
+        );
+        // From above, every ray descends onto the bowl (none slips past
+        // the ground by rounding).
+        if name == "top" {
+            assert_eq!(bowl, w * h, "{name}");
+        }
+        assert!(view.vehicle_coverage() > 0.005, "{name}");
+    }
+    // From above, the vehicle's rectangle is covered opaquely.
+    let view = BowlView::build(&rig, &spec, &Viewpoint::preset("top").unwrap()).unwrap();
+    let cam = view.camera();
+    let [x0, x1, y0, y1] = spec.vehicle_m;
+    for (x, y) in [(x0 + 0.05, y0 + 0.05), (0.0, 0.0), (x1 - 0.05, y1 - 0.05)] {
+        let (c, r) = cam.project(&Vector3::new(x, y, 0.0)).unwrap();
+        let at = view.vehicle_at(c as usize, r as usize);
+        assert!(at.is_some_and(|c| c[3] == 255), "({x}, {y}): {at:?}");
+    }
+}
+
+#[test]
+fn the_vehicle_is_painted_over_grey_and_colour_pictures() {
+    let rig = reference_rig().unwrap();
+    let spec = small();
+    let view = BowlView::build(&rig, &spec, &Viewpoint::preset("top").unwrap()).unwrap();
+    let [w, h] = spec.size_px;
+    for ch in [1, 3] {
+        let mut canvas = Canvas::new(w, h, ch);
+        canvas.data.fill(255);
+        view.paint_vehicle(&mut canvas).unwrap();
+        let (c, r) = view.camera().project(&Vector3::new(0.0, 0.0, 1.5)).unwrap();
+        let at = (r as usize * w + c as usize) * ch;
+        // The roof: the body's colour, lit from above.
+        assert!(
+            canvas.data[at] < 250 && canvas.data[at] > 120,
+            "{}",
+            canvas.data[at]
+        );
+        // Far from the vehicle: untouched.
+        assert_eq!(canvas.data[ch * 5], 255);
+    }
+    let mut wrong = Canvas::new(w + 1, h, 1);
+    let e = view.paint_vehicle(&mut wrong).unwrap_err().to_string();
+    assert!(e.contains("321×200"), "{e}");
+}

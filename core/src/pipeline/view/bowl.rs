@@ -1,0 +1,181 @@
+//! The live bowl view: what is shown is the bowl from the operator's
+//! viewpoint; what is metered and balanced is the bird's-eye view's ground
+//! and overlaps, whatever the viewpoint (see [`crate::bowl`]). A new
+//! viewpoint or bowl is built on a thread of its own and taken in at the
+//! start of a later set, so that moving the viewpoint never holds up the
+//! per-set path; while one is being built, only the latest request waits.
+
+use std::sync::mpsc::{self, Receiver, TryRecvError};
+use std::sync::Arc;
+
+use rigview_calib::rig::Rig;
+use serde::{Deserialize, Serialize};
+
+use crate::bowl::{BowlSpec, BowlView, Viewpoint};
+use crate::error::{Error, Result};
+use crate::surround::{CanvasSpec, SurroundOptions, SurroundView};
+
+/// The bowl and the viewpoint it is seen from.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct BowlSettings {
+    /// The bowl, the vehicle and the picture's size.
+    pub spec: BowlSpec,
+    /// Where it is seen from.
+    pub viewpoint: Viewpoint,
+}
+
+impl BowlSettings {
+    /// Checks the bowl and the viewpoint; errors name the field.
+    pub fn validate(&self) -> Result<()> {
+        self.spec.validate()?;
+        self.viewpoint.validate()
+    }
+}
+
+/// A bowl being built in the background: for which settings, and where
+/// its result arrives.
+type Pending = (BowlSettings, Receiver<Result<BowlView>>);
+
+/// The live bowl view.
+#[derive(Debug)]
+pub struct LiveBowl {
+    rig: Arc<Rig>,
+    surround: SurroundView,
+    shown: Arc<BowlView>,
+    /// The settings `shown` was built with.
+    built: BowlSettings,
+    /// The settings asked for last.
+    wanted: BowlSettings,
+    pending: Option<Pending>,
+    /// The latest build's error, if it failed.
+    problem: Option<String>,
+}
+
+impl LiveBowl {
+    /// The bowl view of `rig` (poses in the vehicle frame) as `settings`
+    /// say, balanced on the bird's-eye view of `canvas`.
+    pub fn new(rig: &Rig, canvas: &CanvasSpec, settings: &BowlSettings) -> Result<Self> {
+        let surround = SurroundView::build(rig, canvas, &SurroundOptions::default())?;
+        let shown = BowlView::build(rig, &settings.spec, &settings.viewpoint)?;
+        Ok(Self {
+            rig: Arc::new(rig.clone()),
+            surround,
+            shown: Arc::new(shown),
+            built: settings.clone(),
+            wanted: settings.clone(),
+            pending: None,
+            problem: None,
+        })
+    }
+
+    /// The bird's-eye view the cameras are metered and balanced on.
+    pub fn surround(&self) -> &SurroundView {
+        &self.surround
+    }
+
+    /// The bowl shown now.
+    pub fn shown(&self) -> &Arc<BowlView> {
+        &self.shown
+    }
+
+    /// The settings of the bowl shown now.
+    pub fn built(&self) -> &BowlSettings {
+        &self.built
+    }
+
+    /// Why the latest build failed, if it did (the previous bowl stays).
+    pub fn problem(&self) -> Option<&str> {
+        self.problem.as_deref()
+    }
+
+    /// Whether a build is under way.
+    pub fn building(&self) -> bool {
+        self.pending.is_some()
+    }
+
+    /// Asks for the bowl as `settings` say: built in the background,
+    /// after the one under way if there is one.
+    pub fn set_wanted(&mut self, settings: &BowlSettings) {
+        self.wanted = settings.clone();
+        self.start();
+    }
+
+    /// Takes in a finished build; returns whether the bowl shown changed.
+    pub fn poll(&mut self) -> bool {
+        let result = match &self.pending {
+            None => return false,
+            Some((_, rx)) => match rx.try_recv() {
+                Ok(r) => r,
+                Err(TryRecvError::Empty) => return false,
+                Err(TryRecvError::Disconnected) => Err(stopped()),
+            },
+        };
+        self.take_in(result)
+    }
+
+    /// Waits for the builds asked for so far (tests, offline tools).
+    pub fn settle(&mut self) {
+        while let Some((_, rx)) = &self.pending {
+            let result = rx.recv().unwrap_or_else(|_| Err(stopped()));
+            self.take_in(result);
+        }
+    }
+
+    /// Takes in the pending build's result and starts the next one;
+    /// returns whether the bowl shown changed.
+    fn take_in(&mut self, result: Result<BowlView>) -> bool {
+        let Some((settings, _)) = self.pending.take() else {
+            return false;
+        };
+        let changed = match result {
+            Ok(view) => {
+                self.shown = Arc::new(view);
+                self.built = settings;
+                self.problem = None;
+                true
+            }
+            Err(e) => {
+                self.problem = Some(e.to_string());
+                // Not again for the same settings.
+                self.wanted = self.built.clone();
+                false
+            }
+        };
+        self.start();
+        changed
+    }
+
+    /// Starts building what is wanted, if it is not shown and nothing is
+    /// under way.
+    fn start(&mut self) {
+        if self.pending.is_some() || self.wanted == self.built {
+            return;
+        }
+        let (tx, rx) = mpsc::channel();
+        let (rig, settings) = (self.rig.clone(), self.wanted.clone());
+        let job = settings.clone();
+        let spawned = std::thread::Builder::new()
+            .name("rigview-bowl".into())
+            .spawn(move || {
+                let _ = tx.send(BowlView::build(&rig, &job.spec, &job.viewpoint));
+            });
+        match spawned {
+            Ok(_) => self.pending = Some((settings, rx)),
+            Err(e) => {
+                self.problem = Some(format!("cannot start the bowl's build thread: {e}"));
+                self.wanted = self.built.clone();
+            }
+        }
+    }
+}
+
+/// The error of a build thread that ended without a result.
+fn stopped() -> Error {
+    Error::invalid(
+        "bowl view",
+        "its build",
+        "a bowl",
+        "a build thread that stopped",
+    )
+}
