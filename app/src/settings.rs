@@ -63,6 +63,8 @@ pub struct WindowSettings {
     pub selected_camera: usize,
     /// Calibration files opened recently, newest first.
     pub recent: Vec<PathBuf>,
+    /// The bowl view turns to the rear view while the vehicle reverses.
+    pub rear_when_reversing: bool,
 }
 
 impl Default for WindowSettings {
@@ -75,6 +77,7 @@ impl Default for WindowSettings {
             plot_seconds: 20.0,
             selected_camera: 0,
             recent: Vec::new(),
+            rear_when_reversing: true,
         }
     }
 }

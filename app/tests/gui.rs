@@ -828,3 +828,141 @@ fn view_panorama_shows_a_composed_panorama_with_match_counts() {
         rigview::settings::ViewMode::Panorama
     );
 }
+
+#[test]
+fn view_bowl_shows_the_bowl_and_the_operator_moves_the_viewpoint() {
+    use rigview_core::bowl::Viewpoint;
+    use rigview_core::pipeline::ViewKind;
+    let dir = tempfile::tempdir().unwrap();
+    let log = LogBuffer::new();
+    let _events = logging::capture(&log);
+    let app = app(dir.path(), None, &log);
+    let mut h = harness(app);
+    step_until(&mut h, 120.0, "first sets", |a| a.shown() >= 2);
+    // View → Bowl.
+    h.get_by_label("View").click();
+    for _ in 0..3 {
+        h.step();
+    }
+    h.get_by_label("Bowl (3-D, around the vehicle)").click();
+    let before = h.state().shown();
+    step_until(&mut h, 120.0, "the bowl", |a| {
+        a.latest().is_some_and(|o| o.view == Some(ViewKind::Bowl))
+    });
+    assert!(h.state().shown() > before, "the window froze");
+    let out = h.state().latest().unwrap().clone();
+    let canvas = out.canvas.as_ref().expect("no bowl picture");
+    assert_eq!((canvas.width, canvas.height), (1280, 800));
+    let mean = canvas.data.iter().map(|&v| f64::from(v)).sum::<f64>() / canvas.data.len() as f64;
+    assert!(mean > 20.0, "the bowl is black (mean {mean:.1})");
+    // A preset: the viewpoint moves there smoothly (through viewpoints in
+    // between) and the picture follows.
+    let top = Viewpoint::preset("top").unwrap();
+    h.get_by_label("top").click();
+    let mut seen = Vec::new();
+    step_until(&mut h, 120.0, "the top view", |a| {
+        a.latest()
+            .and_then(|o| o.bowl)
+            .is_some_and(|(v, building)| v == top && !building)
+    });
+    for _ in 0..3 {
+        h.step();
+        seen.push(h.state().settings().processing.bowl.viewpoint);
+    }
+    assert!(seen.iter().all(|v| *v == top), "{seen:?}");
+    // A drag up and to the right orbits: the azimuth turns, the eye
+    // comes down from the top.
+    // The middle of the central panel, on the picture.
+    let canvas_at = egui::pos2(700.0, 350.0);
+    h.drag_at(canvas_at);
+    for k in 1..=5 {
+        h.hover_at(canvas_at + egui::vec2(10.0 * k as f32, -20.0 * k as f32));
+        h.step();
+    }
+    h.drop_at(canvas_at + egui::vec2(50.0, -100.0));
+    h.step();
+    let orbited = h.state().settings().processing.bowl.viewpoint;
+    assert!(orbited.pitch_deg < 80.0, "{orbited:?}");
+    assert!(
+        (orbited.distance_m - top.distance_m).abs() < 1e-9,
+        "{orbited:?}"
+    );
+    assert!((orbited.yaw_deg - top.yaw_deg).abs() > 5.0, "{orbited:?}");
+    // Reversing: the rear view while it lasts, then back.
+    h.get_by_label("Reversing (R)").click();
+    let rear = Viewpoint::preset("rear").unwrap();
+    step_until(&mut h, 20.0, "the rear view", |a| {
+        a.settings().processing.bowl.viewpoint == rear
+    });
+    h.get_by_label("Reversing (R)").click();
+    step_until(&mut h, 20.0, "the viewpoint from before", |a| {
+        a.settings().processing.bowl.viewpoint == orbited
+    });
+    // The view and the viewpoint persist.
+    h.state_mut().finish();
+    let again = app_recording(dir.path(), Some(1), &log, None);
+    assert_eq!(
+        again.settings().window.view,
+        rigview::settings::ViewMode::Bowl
+    );
+    assert_eq!(again.settings().processing.bowl.viewpoint, orbited);
+}
+
+/// The bowl of the simulated rig (quarter resolution, ten sets in lock
+/// step) from three presets, as golden images.
+#[test]
+fn snapshots_of_the_bowl_from_three_viewpoints() {
+    use rigview_core::bowl::Viewpoint;
+    use rigview_core::pipeline::ViewKind;
+    let config = SimConfig {
+        scale: 0.25,
+        ..SimConfig::default()
+    };
+    let render = Arc::new(SimRender::new(&config).unwrap());
+    let cams = render.cameras().to_vec();
+    let mut results = SnapshotResults::new();
+    for name in ["top", "behind-left", "left"] {
+        let mut settings = ProcessingSettings {
+            view: ViewKind::Bowl,
+            ..ProcessingSettings::default()
+        };
+        settings.bowl.spec.size_px = [640, 400];
+        settings.bowl.viewpoint = Viewpoint::preset(name).unwrap();
+        let (view, graph) = session::view_for(render.rig(), &cams, &settings).unwrap();
+        let mut p = Processor::new(cams.clone(), Some(view), graph, settings).unwrap();
+        let mut rig = SimRig::new(render.clone(), SimRigOptions::default()).unwrap();
+        let mut last = None;
+        for _ in 0..10 {
+            let set = rig.next_set(Duration::from_secs(1)).unwrap().unwrap();
+            let (out, commands) = p
+                .process(&set, std::time::Instant::now(), StageTimes::default())
+                .unwrap();
+            rig.apply(&commands).unwrap();
+            last = Some(out);
+        }
+        let canvas = last.unwrap().canvas.unwrap();
+        assert_eq!((canvas.width, canvas.height), (640, 400));
+        let image = if canvas.channels == 3 {
+            egui::ColorImage::from_rgb([canvas.width, canvas.height], &canvas.data)
+        } else {
+            egui::ColorImage::from_gray([canvas.width, canvas.height], &canvas.data)
+        };
+        let mut texture: Option<egui::TextureHandle> = None;
+        let mut h = Harness::builder()
+            .with_size([640.0, 400.0])
+            .build_ui(move |ui| {
+                let t = texture.get_or_insert_with(|| {
+                    ui.ctx()
+                        .load_texture("bowl", image.clone(), egui::TextureOptions::LINEAR)
+                });
+                ui.add(egui::Image::new(egui::load::SizedTexture::new(
+                    t.id(),
+                    egui::vec2(640.0, 400.0),
+                )));
+            });
+        h.run();
+        h.snapshot_options(format!("bowl_{name}"), &SnapshotOptions::new());
+        results.extend_harness(&mut h);
+    }
+    results.unwrap();
+}

@@ -117,6 +117,11 @@ fn controls_inner(app: &mut RigviewApp, ui: &mut Ui) {
     if changed {
         app.settings_changed();
     }
+    if app.settings.window.view == crate::settings::ViewMode::Bowl {
+        ui.separator();
+        ui.heading("Bowl");
+        super::bowl::parameters(app, ui);
+    }
     ui.separator();
     ui.heading("Per-camera override");
     override_section(app, ui);

@@ -18,6 +18,7 @@
 //! [`plots`].
 
 pub mod background;
+mod bowl;
 pub mod closing;
 pub mod controls;
 pub mod messages;
@@ -72,6 +73,7 @@ pub struct RigviewApp {
     displayed_trigger: Option<u64>,
     closing: Closing,
     cpu: CpuMeter,
+    bowl: bowl::BowlState,
 }
 
 impl std::fmt::Debug for RigviewApp {
@@ -169,6 +171,7 @@ impl RigviewApp {
             displayed_trigger: None,
             closing: Closing::new(options.quit_after, options.screenshot),
             cpu: CpuMeter::start(),
+            bowl: bowl::BowlState::default(),
         };
         if let Some(r) = app.record.recorder() {
             let text = format!("recording into {}", r.file().display());
@@ -536,6 +539,7 @@ impl RigviewApp {
         // what reached the log is shown.
         self.messages.forward(self.status.as_ref());
         self.take_output(&ctx);
+        bowl::step(self, &ctx);
         panels::menu_bar(self, ui);
         panels::replay_bar(self, ui);
         panels::status_bar(self, ui);

@@ -104,6 +104,8 @@ pub(super) fn menu_bar(app: &mut RigviewApp, ui: &mut Ui) {
                     .radio_value(&mut view, ViewMode::Surround, "Surround view (bird's eye)")
                     .changed()
                     | ui.radio_value(&mut view, ViewMode::Panorama, "Panorama (cylindrical)")
+                        .changed()
+                    | ui.radio_value(&mut view, ViewMode::Bowl, "Bowl (3-D, around the vehicle)")
                         .changed();
                 if picked {
                     app.switch_view(view);
@@ -457,19 +459,28 @@ pub(super) fn cameras_panel(app: &mut RigviewApp, ui: &mut Ui) {
 
 pub(super) fn central(app: &mut RigviewApp, ui: &mut Ui) {
     egui::CentralPanel::default_margins().show(ui, |ui| {
-        let panorama = app.settings.window.view == ViewMode::Panorama;
+        let mode = app.settings.window.view;
+        let panorama = mode == ViewMode::Panorama;
+        let bowl = mode == ViewMode::Bowl;
         if panorama {
             panorama_bar(app, ui);
         }
-        let what = if panorama {
-            "panorama"
-        } else {
-            "surround view"
+        if bowl {
+            super::bowl::bar(app, ui);
+        }
+        let what = match mode {
+            ViewMode::Panorama => "panorama",
+            ViewMode::Bowl => "bowl view",
+            ViewMode::Surround => "surround view",
         };
         // The output shows the view the pipeline composed: while the
         // chosen one is being built, the other one goes on.
-        let shown = app.latest.as_ref().map(|o| o.panorama.is_some());
-        let Some(t) = app.canvas_tex.as_ref().filter(|_| shown == Some(panorama)) else {
+        let shown = app.latest.as_ref().map(|o| o.view);
+        let Some(t) = app
+            .canvas_tex
+            .as_ref()
+            .filter(|_| shown == Some(Some(mode.kind())))
+        else {
             let msg = match &app.latest {
                 _ if app.is_loading() => format!("building the {what}…"),
                 Some(out) => match &out.compose_error {
@@ -500,7 +511,12 @@ pub(super) fn central(app: &mut RigviewApp, ui: &mut Ui) {
         let id = t.id();
         ui.vertical_centered(|ui| {
             ui.add(egui::Label::new(caption.unwrap_or_default()).truncate());
-            let (area, _) = ui.allocate_exact_size(layout.size, Sense::hover());
+            let sense = if bowl {
+                Sense::click_and_drag()
+            } else {
+                Sense::hover()
+            };
+            let (area, response) = ui.allocate_exact_size(layout.size, sense);
             for piece in &layout.pieces {
                 let rect = layout.rect(area, piece);
                 let uv = Rect::from_min_max(
@@ -515,6 +531,9 @@ pub(super) fn central(app: &mut RigviewApp, ui: &mut Ui) {
                 if let Some(out) = &app.latest {
                     draw_matches(ui, area, &layout, out);
                 }
+            }
+            if bowl {
+                super::bowl::interact(app, ui, &response);
             }
         });
     });

@@ -13,7 +13,7 @@ use rigview_core::pipeline::{
     check_view, BowlSettings, PanoramaSettings, ProcessingSettings, SharedDetector, View, ViewKind,
 };
 use rigview_core::source::CameraInfo;
-use rigview_core::surround::CanvasSpec;
+use rigview_core::surround::{BlendMode, CanvasSpec};
 
 /// The canvas every session composes on: 10 m × 10 m at 100 px/m.
 pub fn canvas_spec() -> CanvasSpec {
@@ -35,6 +35,9 @@ pub struct ViewSpec {
     pub panorama: PanoramaSettings,
     /// The bowl and its viewpoint.
     pub bowl: BowlSettings,
+    /// How the view's overlaps are blended (the bowl's plan is built for
+    /// it with the view).
+    pub blend: BlendMode,
     /// The live panorama's corner detector.
     pub detector: SharedDetector,
 }
@@ -59,6 +62,7 @@ impl ViewSpec {
             canvas: canvas_spec(),
             panorama: panorama.clone(),
             bowl: BowlSettings::default(),
+            blend: BlendMode::default(),
             detector: shared_detector(),
         }
     }
@@ -67,6 +71,7 @@ impl ViewSpec {
     pub fn processing(processing: &ProcessingSettings) -> Self {
         Self {
             bowl: processing.bowl.clone(),
+            blend: processing.blend,
             ..Self::session(processing.view, &processing.panorama)
         }
     }
@@ -88,7 +93,7 @@ pub fn build_view(rig: &Rig, spec: &ViewSpec) -> Result<View> {
         rig,
         &spec.canvas,
         &spec.panorama,
-        &spec.bowl,
+        (&spec.bowl, spec.blend),
         spec.detector.clone(),
     )
     .with_context(|| format!("building the {} view", spec.kind.name()))

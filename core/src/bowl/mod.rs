@@ -102,6 +102,13 @@ impl Default for BowlSpec {
 /// The largest picture side, pixels.
 const MAX_SIDE: usize = 8192;
 
+/// How far (source pixels) the interpolated maps of the bowl may stray
+/// from the exact ones: the bowl is shown, not measured on, and a tenth
+/// of a pixel is not seen; the views that are measured on keep
+/// [`grid::MAP_TOLERANCE_PX`]. It lets four of five cells of the picture
+/// be interpolated rather than cast pixel by pixel.
+const MAP_TOLERANCE_PX: f64 = 0.1;
+
 impl BowlSpec {
     /// The bowl around `canvas`'s vehicle, flat as far as the canvas
     /// reaches from it (the nearer of its ends and sides).
@@ -213,7 +220,7 @@ impl BowlView {
             what,
             (w, h),
             &cameras.sources,
-            grid,
+            (grid, MAP_TOLERANCE_PX),
             |c, r, found| {
                 let ray = camera.ray(c as f64 + 0.5, r as f64 + 0.5);
                 let Some(p) = spec.intersect(&camera.eye, &ray) else {
@@ -351,6 +358,10 @@ fn vehicle_overlay(spec: &BowlSpec, camera: &VirtualCamera) -> Vec<(u32, [u8; 4]
     } else {
         (0, w, 0, h)
     };
+    // Only from outside the bowl (or under its surface) can the bowl
+    // stand between the eye and the vehicle.
+    let eye = camera.eye;
+    let eye_over_bowl = spec.height(eye.x, eye.y).is_some_and(|h| eye.z > h);
     let mut out = Vec::new();
     for r in r0..r1 {
         for c in c0..c1 {
@@ -362,9 +373,10 @@ fn vehicle_overlay(spec: &BowlSpec, camera: &VirtualCamera) -> Vec<(u32, [u8; 4]
                 };
                 // The bowl in front of the vehicle (a viewpoint outside
                 // the bowl) hides it.
-                let hidden = spec
-                    .intersect(&camera.eye, &ray)
-                    .is_some_and(|p| (p - camera.eye).norm() < hit.t - 1e-6);
+                let hidden = !eye_over_bowl
+                    && spec
+                        .intersect(&camera.eye, &ray)
+                        .is_some_and(|p| (p - camera.eye).norm() < hit.t - 1e-6);
                 if hidden {
                     continue;
                 }

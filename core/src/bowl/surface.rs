@@ -5,12 +5,14 @@ use nalgebra::Vector3;
 
 use super::{BowlSpec, Footprint};
 
-/// Samples along a ray before the crossing is bisected: fine enough that
-/// no crossing of the wall's smooth curve falls between two (a ray from
-/// inside the bowl crosses the surface once).
-const MARCH_STEPS: usize = 192;
-/// Bisections of the bracketed crossing (its length halves each time).
-const BISECTIONS: usize = 48;
+/// Samples along a ray before the crossing is bisected. A ray from inside
+/// the bowl crosses the surface once, so the first sample below it
+/// brackets the crossing; only a ray grazing the wall could dip below and
+/// out again between two samples.
+const MARCH_STEPS: usize = 32;
+/// The search in the bracket stops when it is this long, relative to the
+/// distance along the ray.
+const TOLERANCE: f64 = 1e-10;
 
 impl BowlSpec {
     /// The horizontal distance of ground point `(x, y)` from where the
@@ -37,7 +39,13 @@ impl BowlSpec {
             Some(0.0)
         } else if d <= self.radius_m {
             let u = (d - self.flat_m) / (self.radius_m - self.flat_m);
-            Some(self.wall_height_m * u.powf(self.steepness))
+            // Whole exponents (the default 2) without `powf`.
+            let curve = if self.steepness.fract() == 0.0 {
+                u.powi(self.steepness as i32)
+            } else {
+                u.powf(self.steepness)
+            };
+            Some(self.wall_height_m * curve)
         } else {
             None
         }
@@ -81,20 +89,56 @@ impl BowlSpec {
         if !(t_end.is_finite() && t_end > 0.0) {
             return None;
         }
+        // From over the flat part, a descending ray meets the ground where
+        // it reaches z = 0 if that is on the flat part too: the distance
+        // from a convex footprint is convex along the ray, so it stays
+        // within the flat part between the two, where the surface is the
+        // ground.
+        let flat = |x: f64, y: f64| self.footprint_distance(x, y) <= self.flat_m;
+        if dir.z < 0.0 && origin.z > 0.0 && flat(origin.x, origin.y) {
+            let p = origin + dir * (-origin.z / dir.z);
+            if flat(p.x, p.y) {
+                return Some(Vector3::new(p.x, p.y, 0.0));
+            }
+        }
         let mut entered = self.height(origin.x, origin.y).is_some();
         let mut t_prev = 0.0;
         for i in 1..=MARCH_STEPS {
             let t = t_end * i as f64 / MARCH_STEPS as f64;
             if above(t, entered).is_some_and(|v| v <= 0.0) {
-                // Bisect between the last sample above (or beyond the rim)
-                // and this one.
+                // Regula falsi (the Illinois variant) between the last
+                // sample above (or beyond the rim) and this one: the
+                // distance above the surface is smooth there.
                 let (mut lo, mut hi) = (t_prev, t);
-                for _ in 0..BISECTIONS {
-                    let mid = 0.5 * (lo + hi);
-                    if above(mid, entered).is_some_and(|v| v <= 0.0) {
-                        hi = mid;
+                let (mut f_lo, mut f_hi) = (
+                    above(lo, entered).unwrap_or(f64::INFINITY),
+                    above(hi, entered).unwrap_or(0.0),
+                );
+                let mut side = 0;
+                for _ in 0..100 {
+                    if hi - lo <= TOLERANCE * hi {
+                        break;
+                    }
+                    let mid = if f_lo.is_finite() && f_lo > f_hi {
+                        (lo + (hi - lo) * f_lo / (f_lo - f_hi)).clamp(lo, hi)
                     } else {
-                        lo = mid;
+                        0.5 * (lo + hi)
+                    };
+                    match above(mid, entered) {
+                        Some(v) if v <= 0.0 => {
+                            (hi, f_hi) = (mid, v);
+                            if side == -1 {
+                                f_lo *= 0.5;
+                            }
+                            side = -1;
+                        }
+                        v => {
+                            (lo, f_lo) = (mid, v.unwrap_or(f64::INFINITY));
+                            if side == 1 {
+                                f_hi *= 0.5;
+                            }
+                            side = 1;
+                        }
                     }
                 }
                 let p = origin + dir * hi;

@@ -329,7 +329,7 @@ impl Panorama {
             what,
             (w, h),
             &cameras.sources,
-            grid,
+            (grid, grid::MAP_TOLERANCE_PX),
             |c, r, found| {
                 let (co, s, shows) = &columns[c];
                 let p = surface.point(*co, *s, slopes[r]);

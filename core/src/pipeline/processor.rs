@@ -220,7 +220,7 @@ impl Processor {
             p.set_settings(&settings.panorama);
         }
         if let Some(b) = self.view.as_mut().and_then(View::bowl_mut) {
-            b.set_wanted(&settings.bowl);
+            b.set_wanted(&settings.bowl, settings.blend);
         }
         self.shared_settings = Arc::new(settings.clone());
         self.settings = settings;

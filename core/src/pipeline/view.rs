@@ -91,13 +91,13 @@ impl From<LivePanorama> for View {
 impl View {
     /// Builds the view `kind` of `rig` (poses in the vehicle frame); the
     /// surround view on `canvas`, the panorama as `panorama` says, the bowl
-    /// as `bowl` says (balanced on `canvas`).
+    /// as `bowl` says (balanced on `canvas`, its plan for `blend` built).
     pub fn build(
         kind: ViewKind,
         rig: &Rig,
         canvas: &crate::surround::CanvasSpec,
         panorama: &PanoramaSettings,
-        bowl: &BowlSettings,
+        (bowl, blend): (&BowlSettings, crate::surround::BlendMode),
         detector: SharedDetector,
     ) -> Result<Self> {
         Ok(match kind {
@@ -111,7 +111,7 @@ impl View {
                 panorama,
                 detector,
             )?)),
-            ViewKind::Bowl => Self::Bowl(Box::new(LiveBowl::new(rig, canvas, bowl)?)),
+            ViewKind::Bowl => Self::Bowl(Box::new(LiveBowl::new(rig, canvas, bowl, blend)?)),
         })
     }
 

@@ -395,7 +395,7 @@ impl SurroundView {
             what,
             (w, h),
             &cameras.sources,
-            grid,
+            (grid, grid::MAP_TOLERANCE_PX),
             |c, r, found| {
                 let (x, y) = spec.ground(c as f64 + 0.5, r as f64 + 0.5);
                 if spec.on_vehicle(x, y) {

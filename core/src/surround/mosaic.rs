@@ -116,13 +116,14 @@ impl Mosaic {
     /// image (less one pixel right and below) are dropped. A camera that
     /// shows no pixel is the error `empty(camera)`, or, where that is
     /// `None`, a layer that covers nothing. `locate` runs on a
-    /// grid of `grid` pixels and the maps are interpolated where that is
-    /// exact enough ([`grid::map_canvas`]; 1: every pixel exactly).
+    /// grid of `grid` pixels and the maps are interpolated where that errs
+    /// by at most `tolerance` source pixels ([`grid::map_canvas`]; a grid
+    /// of 1: every pixel exactly).
     pub(crate) fn build<L>(
         what: &'static str,
         (w, h): (usize, usize),
         cameras: &[(String, (usize, usize))],
-        grid: usize,
+        (grid, tolerance): (usize, f64),
         locate: L,
         empty: impl Fn(usize) -> Option<Error>,
     ) -> Result<(Self, Maps)>
@@ -130,8 +131,7 @@ impl Mosaic {
         L: Fn(usize, usize, &mut Vec<(usize, Point2<f64>)>) + Sync,
     {
         let sizes: Vec<(usize, usize)> = cameras.iter().map(|(_, size)| *size).collect();
-        let (source, count) =
-            grid::map_canvas((w, h), &sizes, &locate, (grid, grid::MAP_TOLERANCE_PX));
+        let (source, count) = grid::map_canvas((w, h), &sizes, &locate, (grid, tolerance));
         // Per camera, its part of the canvas and the distance of each of
         // its pixels from its exclusive region (which lies within it, so
         // the distances there are those over the whole canvas).
@@ -268,6 +268,13 @@ impl Mosaic {
     pub fn pair_observations(&self, frames: &[FrameView<'_>]) -> Result<Vec<PairObservation>> {
         self.check_frames(frames)?;
         Ok(observations(&self.overlaps, frames))
+    }
+
+    /// Builds the per-frame plan of `mode` now, if it is not built yet:
+    /// for a view built off the per-set path, so that its first
+    /// composition does not build it there.
+    pub fn prepare(&self, mode: BlendMode) {
+        self.plan(mode);
     }
 
     /// The per-frame plan of `mode` (built on its first use).

@@ -13,7 +13,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::bowl::{BowlSpec, BowlView, Viewpoint};
 use crate::error::{Error, Result};
-use crate::surround::{CanvasSpec, SurroundOptions, SurroundView};
+use crate::surround::{BlendMode, CanvasSpec, SurroundOptions, SurroundView};
 
 /// The bowl and the viewpoint it is seen from.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -50,14 +50,23 @@ pub struct LiveBowl {
     pending: Option<Pending>,
     /// The latest build's error, if it failed.
     problem: Option<String>,
+    /// The blend mode whose plan a build prepares.
+    blend: BlendMode,
 }
 
 impl LiveBowl {
     /// The bowl view of `rig` (poses in the vehicle frame) as `settings`
-    /// say, balanced on the bird's-eye view of `canvas`.
-    pub fn new(rig: &Rig, canvas: &CanvasSpec, settings: &BowlSettings) -> Result<Self> {
+    /// say, balanced on the bird's-eye view of `canvas`, its plan for
+    /// `blend` built.
+    pub fn new(
+        rig: &Rig,
+        canvas: &CanvasSpec,
+        settings: &BowlSettings,
+        blend: BlendMode,
+    ) -> Result<Self> {
         let surround = SurroundView::build(rig, canvas, &SurroundOptions::default())?;
         let shown = BowlView::build(rig, &settings.spec, &settings.viewpoint)?;
+        shown.mosaic().prepare(blend);
         Ok(Self {
             rig: Arc::new(rig.clone()),
             surround,
@@ -66,6 +75,7 @@ impl LiveBowl {
             wanted: settings.clone(),
             pending: None,
             problem: None,
+            blend,
         })
     }
 
@@ -94,10 +104,12 @@ impl LiveBowl {
         self.pending.is_some()
     }
 
-    /// Asks for the bowl as `settings` say: built in the background,
-    /// after the one under way if there is one.
-    pub fn set_wanted(&mut self, settings: &BowlSettings) {
+    /// Asks for the bowl as `settings` say, composed in `blend`: built
+    /// (with its plan for `blend`) in the background, after the one under
+    /// way if there is one.
+    pub fn set_wanted(&mut self, settings: &BowlSettings, blend: BlendMode) {
         self.wanted = settings.clone();
+        self.blend = blend;
         self.start();
     }
 
@@ -154,11 +166,15 @@ impl LiveBowl {
         }
         let (tx, rx) = mpsc::channel();
         let (rig, settings) = (self.rig.clone(), self.wanted.clone());
-        let job = settings.clone();
+        let (job, blend) = (settings.clone(), self.blend);
         let spawned = std::thread::Builder::new()
             .name("rigview-bowl".into())
             .spawn(move || {
-                let _ = tx.send(BowlView::build(&rig, &job.spec, &job.viewpoint));
+                let built = BowlView::build(&rig, &job.spec, &job.viewpoint);
+                if let Ok(view) = &built {
+                    view.mosaic().prepare(blend);
+                }
+                let _ = tx.send(built);
             });
         match spawned {
             Ok(_) => self.pending = Some((settings, rx)),
