@@ -54,6 +54,8 @@ use crate::surround::{Mosaic, SurroundView};
 mod bowl;
 mod worker;
 
+#[cfg(test)]
+use bowl::MOTION_FOR_TESTS;
 pub use bowl::{BowlSettings, LiveBowl};
 
 use worker::{Done, Job, Worker};

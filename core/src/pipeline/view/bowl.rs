@@ -4,9 +4,13 @@
 //! viewpoint or bowl is built on a thread of its own and taken in at the
 //! start of a later set, so that moving the viewpoint never holds up the
 //! per-set path; while one is being built, only the latest request waits.
+//! While the viewpoint keeps changing (an orbit), each is built at half
+//! the picture's size (in half the time, on the 2-core machine of
+//! `BENCHMARKS.md`), and the full size follows once it rests.
 
 use std::sync::mpsc::{self, Receiver, TryRecvError};
 use std::sync::Arc;
+use std::time::{Duration, Instant};
 
 use rigview_calib::rig::Rig;
 use serde::{Deserialize, Serialize};
@@ -33,9 +37,17 @@ impl BowlSettings {
     }
 }
 
-/// A bowl being built in the background: for which settings, and where
-/// its result arrives.
-type Pending = (BowlSettings, Receiver<Result<BowlView>>);
+/// A bowl being built in the background: for which settings, whether at
+/// half size, and where its result arrives.
+type Pending = (BowlSettings, bool, Receiver<Result<BowlView>>);
+
+/// Requests closer together than this are a viewpoint in motion, built at
+/// half size.
+const MOTION: Duration = Duration::from_millis(400);
+
+/// How long the tests wait for a viewpoint to come to rest.
+#[cfg(test)]
+pub(super) const MOTION_FOR_TESTS: Duration = Duration::from_millis(450);
 
 /// The live bowl view.
 #[derive(Debug)]
@@ -45,6 +57,10 @@ pub struct LiveBowl {
     shown: Arc<BowlView>,
     /// The settings `shown` was built with.
     built: BowlSettings,
+    /// Whether `shown` is a half-size preview.
+    preview: bool,
+    /// When the settings were last asked for.
+    asked: Option<Instant>,
     /// The settings asked for last.
     wanted: BowlSettings,
     pending: Option<Pending>,
@@ -72,6 +88,8 @@ impl LiveBowl {
             surround,
             shown: Arc::new(shown),
             built: settings.clone(),
+            preview: false,
+            asked: None,
             wanted: settings.clone(),
             pending: None,
             problem: None,
@@ -108,16 +126,30 @@ impl LiveBowl {
     /// (with its plan for `blend`) in the background, after the one under
     /// way if there is one.
     pub fn set_wanted(&mut self, settings: &BowlSettings, blend: BlendMode) {
+        if *settings != self.wanted {
+            self.asked = Some(Instant::now());
+        }
         self.wanted = settings.clone();
         self.blend = blend;
         self.start();
     }
 
+    /// Whether the bowl shown is a half-size preview of a viewpoint in
+    /// motion.
+    pub fn is_preview(&self) -> bool {
+        self.preview
+    }
+
     /// Takes in a finished build; returns whether the bowl shown changed.
     pub fn poll(&mut self) -> bool {
         let result = match &self.pending {
-            None => return false,
-            Some((_, rx)) => match rx.try_recv() {
+            None => {
+                // A preview whose viewpoint has come to rest: the full
+                // size now.
+                self.start();
+                return false;
+            }
+            Some((_, _, rx)) => match rx.try_recv() {
                 Ok(r) => r,
                 Err(TryRecvError::Empty) => return false,
                 Err(TryRecvError::Disconnected) => Err(stopped()),
@@ -128,7 +160,7 @@ impl LiveBowl {
 
     /// Waits for the builds asked for so far (tests, offline tools).
     pub fn settle(&mut self) {
-        while let Some((_, rx)) = &self.pending {
+        while let Some((_, _, rx)) = &self.pending {
             let result = rx.recv().unwrap_or_else(|_| Err(stopped()));
             self.take_in(result);
         }
@@ -137,13 +169,14 @@ impl LiveBowl {
     /// Takes in the pending build's result and starts the next one;
     /// returns whether the bowl shown changed.
     fn take_in(&mut self, result: Result<BowlView>) -> bool {
-        let Some((settings, _)) = self.pending.take() else {
+        let Some((settings, preview, _)) = self.pending.take() else {
             return false;
         };
         let changed = match result {
             Ok(view) => {
                 self.shown = Arc::new(view);
                 self.built = settings;
+                self.preview = preview;
                 self.problem = None;
                 true
             }
@@ -161,12 +194,18 @@ impl LiveBowl {
     /// Starts building what is wanted, if it is not shown and nothing is
     /// under way.
     fn start(&mut self) {
-        if self.pending.is_some() || self.wanted == self.built {
+        let moving = self.asked.is_some_and(|t| t.elapsed() < MOTION);
+        // Shown as asked, and whole unless still in motion.
+        let done = self.wanted == self.built && (moving || !self.preview);
+        if self.pending.is_some() || done {
             return;
         }
         let (tx, rx) = mpsc::channel();
         let (rig, settings) = (self.rig.clone(), self.wanted.clone());
-        let (job, blend) = (settings.clone(), self.blend);
+        let (mut job, blend) = (settings.clone(), self.blend);
+        if moving {
+            job.spec.size_px = job.spec.size_px.map(|n| (n / 2).max(16));
+        }
         let spawned = std::thread::Builder::new()
             .name("rigview-bowl".into())
             .spawn(move || {
@@ -177,7 +216,7 @@ impl LiveBowl {
                 let _ = tx.send(built);
             });
         match spawned {
-            Ok(_) => self.pending = Some((settings, rx)),
+            Ok(_) => self.pending = Some((settings, moving, rx)),
             Err(e) => {
                 self.problem = Some(format!("cannot start the bowl's build thread: {e}"));
                 self.wanted = self.built.clone();

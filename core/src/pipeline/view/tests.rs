@@ -64,3 +64,56 @@ fn held_patches_follow_the_exposures_and_saturate() {
     };
     assert!((rescaled(&sat, 0.5, 1.0).saturated_i - 0.5).abs() < 1e-6);
 }
+
+#[test]
+fn a_moving_viewpoint_is_previewed_at_half_size_then_built_whole() {
+    use crate::bowl::{BowlSpec, Viewpoint};
+    use crate::surround::{BlendMode, CanvasSpec};
+    let rig = crate::sim::reference_rig().unwrap();
+    let settings = BowlSettings {
+        spec: BowlSpec {
+            size_px: [320, 200],
+            ..BowlSpec::default()
+        },
+        viewpoint: Viewpoint::preset("top").unwrap(),
+    };
+    let mut bowl =
+        LiveBowl::new(&rig, &CanvasSpec::default(), &settings, BlendMode::Linear).unwrap();
+    assert_eq!(bowl.shown().mosaic().size(), (320, 200));
+    assert!(!bowl.is_preview());
+    // A new viewpoint, asked for just now: in motion, built at half size.
+    let turned = BowlSettings {
+        viewpoint: settings.viewpoint.orbited(20.0, -30.0, 1.0),
+        ..settings.clone()
+    };
+    bowl.set_wanted(&turned, BlendMode::Linear);
+    assert!(bowl.building());
+    bowl.settle();
+    assert_eq!(bowl.built(), &turned);
+    assert!(bowl.is_preview());
+    assert_eq!(bowl.shown().mosaic().size(), (160, 100));
+    // At rest: the whole size follows.
+    std::thread::sleep(MOTION_FOR_TESTS);
+    assert!(!bowl.poll(), "nothing was built yet");
+    assert!(bowl.building());
+    bowl.settle();
+    assert!(!bowl.is_preview());
+    assert_eq!(bowl.shown().mosaic().size(), (320, 200));
+    assert_eq!(bowl.built(), &turned);
+    // The same again asks for nothing.
+    bowl.set_wanted(&turned, BlendMode::Linear);
+    assert!(!bowl.building());
+    // A bowl that cannot be built leaves the one shown and says why.
+    let bad = BowlSettings {
+        spec: BowlSpec {
+            steepness: 100.0,
+            ..turned.spec.clone()
+        },
+        ..turned.clone()
+    };
+    bowl.set_wanted(&bad, BlendMode::Linear);
+    bowl.settle();
+    assert_eq!(bowl.built(), &turned);
+    let problem = bowl.problem().unwrap_or_default();
+    assert!(problem.contains("bowl.steepness"), "{problem}");
+}
