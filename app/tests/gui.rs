@@ -898,6 +898,15 @@ fn view_bowl_shows_the_bowl_and_the_operator_moves_the_viewpoint() {
     step_until(&mut h, 20.0, "the viewpoint from before", |a| {
         a.settings().processing.bowl.viewpoint == orbited
     });
+    // The bird's-eye view beside the bowl.
+    assert!(h.state().latest().unwrap().beside.is_none());
+    h.get_by_label("Bird's-eye view beside").click();
+    step_until(&mut h, 60.0, "the bird's-eye view beside", |a| {
+        a.latest().is_some_and(|o| o.beside.is_some())
+    });
+    let out = h.state().latest().unwrap().clone();
+    let beside = out.beside.as_ref().unwrap();
+    assert_eq!((beside.width, beside.height), (1000, 1000));
     // The view and the viewpoint persist.
     h.state_mut().finish();
     let again = app_recording(dir.path(), Some(1), &log, None);
@@ -906,6 +915,7 @@ fn view_bowl_shows_the_bowl_and_the_operator_moves_the_viewpoint() {
         rigview::settings::ViewMode::Bowl
     );
     assert_eq!(again.settings().processing.bowl.viewpoint, orbited);
+    assert!(again.settings().processing.bowl.beside);
 }
 
 /// The bowl of the simulated rig (quarter resolution, ten sets in lock

@@ -113,6 +113,15 @@ pub(super) fn bar(app: &mut RigviewApp, ui: &mut Ui) {
         {
             app.window_changed();
         }
+        if ui
+            .checkbox(
+                &mut app.settings.processing.bowl.beside,
+                "Bird's-eye view beside",
+            )
+            .changed()
+        {
+            app.settings_changed();
+        }
         ui.separator();
         let building = app
             .latest

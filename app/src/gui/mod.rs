@@ -49,6 +49,24 @@ use crate::session::{self, Session, SourceSpec};
 use crate::session::{RecordSpec, ReplayControl, ReplaySpec};
 use crate::settings::{Settings, SettingsStore};
 
+/// Puts a composed view into its texture (made on first use).
+fn upload(
+    ctx: &egui::Context,
+    slot: &mut Option<TextureHandle>,
+    name: &str,
+    c: &rigview_core::surround::Canvas,
+) {
+    let image = if c.channels == 3 {
+        ColorImage::from_rgb([c.width, c.height], &c.data)
+    } else {
+        ColorImage::from_gray([c.width, c.height], &c.data)
+    };
+    match slot {
+        Some(t) => t.set(image, TextureOptions::LINEAR),
+        None => *slot = Some(ctx.load_texture(name, image, TextureOptions::LINEAR)),
+    }
+}
+
 /// The app's state.
 pub struct RigviewApp {
     session: Option<Session>,
@@ -59,6 +77,8 @@ pub struct RigviewApp {
     /// The pipeline's status, taken once per window frame.
     status: Option<PipelineStatus>,
     canvas_tex: Option<TextureHandle>,
+    /// The bird's-eye view beside the bowl.
+    beside_tex: Option<TextureHandle>,
     thumb_tex: Vec<Option<TextureHandle>>,
     messages: Messages,
     background: Background,
@@ -157,6 +177,7 @@ impl RigviewApp {
             latest: None,
             status: None,
             canvas_tex: None,
+            beside_tex: None,
             thumb_tex: vec![None; n],
             messages,
             background: Background::default(),
@@ -310,6 +331,7 @@ impl RigviewApp {
         self.latest = None;
         self.status = None;
         self.canvas_tex = None;
+        self.beside_tex = None;
         self.thumb_tex = vec![None; n];
         let level = self.settings.processing.controller.fixed_exposure;
         self.manual = vec![(false, level); n];
@@ -500,18 +522,11 @@ impl RigviewApp {
             return;
         };
         if let Some(c) = &out.canvas {
-            let image = if c.channels == 3 {
-                ColorImage::from_rgb([c.width, c.height], &c.data)
-            } else {
-                ColorImage::from_gray([c.width, c.height], &c.data)
-            };
-            match &mut self.canvas_tex {
-                Some(t) => t.set(image, TextureOptions::LINEAR),
-                None => {
-                    self.canvas_tex =
-                        Some(ctx.load_texture("surround", image, TextureOptions::LINEAR));
-                }
-            }
+            upload(ctx, &mut self.canvas_tex, "surround", c);
+        }
+        match &out.beside {
+            Some(c) => upload(ctx, &mut self.beside_tex, "beside", c),
+            None => self.beside_tex = None,
         }
         if self.thumb_tex.len() != out.cameras.len() {
             self.thumb_tex = vec![None; out.cameras.len()];

@@ -504,13 +504,39 @@ pub(super) fn central(app: &mut RigviewApp, ui: &mut Ui) {
         });
         let caption_h =
             ui.text_style_height(&egui::TextStyle::Body) + ui.spacing().item_spacing.y;
-        let avail = ui.available_size() - Vec2::new(0.0, caption_h);
+        let mut avail = ui.available_size() - Vec2::new(0.0, caption_h);
         let [w, h] = t.size();
         let gap = ui.spacing().item_spacing.y;
+        // The bird's-eye view beside the bowl: its own share of the width.
+        let beside = app
+            .beside_tex
+            .as_ref()
+            .filter(|_| bowl)
+            .map(|b| (b.id(), b.size()));
+        let beside_share = beside.map(|(_, [bw, bh])| {
+            let share = (avail.y * bw as f32 / bh as f32).min(0.4 * avail.x);
+            avail.x -= share + gap;
+            share
+        });
         let layout = Layout::fit(avail, [w as f32, h as f32], panorama, gap);
         let id = t.id();
         ui.vertical_centered(|ui| {
             ui.add(egui::Label::new(caption.unwrap_or_default()).truncate());
+            if let (Some((beside_id, [bw, bh])), Some(share)) = (beside, beside_share) {
+                ui.horizontal_top(|ui| {
+                    let (area, response) =
+                        ui.allocate_exact_size(layout.size, Sense::click_and_drag());
+                    egui::Image::new(egui::load::SizedTexture::new(id, area.size()))
+                        .paint_at(ui, area);
+                    let scale = (share / bw as f32).min(avail.y / bh as f32);
+                    let size = Vec2::new(bw as f32 * scale, bh as f32 * scale);
+                    let (right, _) = ui.allocate_exact_size(size, Sense::hover());
+                    egui::Image::new(egui::load::SizedTexture::new(beside_id, size))
+                        .paint_at(ui, right);
+                    super::bowl::interact(app, ui, &response);
+                });
+                return;
+            }
             let sense = if bowl {
                 Sense::click_and_drag()
             } else {

@@ -153,6 +153,9 @@ pub struct Output {
     /// The panorama's latest matching and refinement (the panorama view
     /// only).
     pub panorama: Option<Arc<super::PanoramaReport>>,
+    /// The bird's-eye view composed beside the bowl, when the bowl's
+    /// settings ask for it ([`super::BowlSettings::beside`]).
+    pub beside: Option<Arc<Canvas>>,
     /// The view the processor had for this set (`None`: none), which
     /// `canvas` shows when it is composed.
     pub view: Option<super::ViewKind>,

@@ -410,6 +410,7 @@ impl Processor {
         let t2 = Instant::now();
         let mut compose_error = None;
         let mut display_gains = Vec::new();
+        let mut beside = None;
         let canvas = match (&self.view, self.compose) {
             (Some(view), true) => {
                 let channels = if views
@@ -511,6 +512,21 @@ impl Processor {
                         Some(b) => b.paint_vehicle(&mut canvas),
                         None => Ok(()),
                     });
+                // The bird's-eye view beside the bowl, at the same gains.
+                if bowl.is_some() && self.settings.bowl.beside && composed.is_ok() {
+                    let (bw, bh) = view.size();
+                    let mut birds_eye = Canvas::new(bw, bh, channels);
+                    match self.composer.compose_with_gains(
+                        view,
+                        &shown,
+                        self.settings.blend,
+                        Some(&composer_gains),
+                        &mut birds_eye,
+                    ) {
+                        Ok(()) => beside = Some(Arc::new(birds_eye)),
+                        Err(e) => compose_error = Some(e.to_string()),
+                    }
+                }
                 match composed {
                     Ok(()) => Some(Arc::new(canvas)),
                     Err(e) => {
@@ -533,6 +549,7 @@ impl Processor {
             cameras,
             pairs,
             canvas,
+            beside,
             display_gains,
             compose_error,
             overlay: self.overlay.clone(),

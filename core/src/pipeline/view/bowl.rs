@@ -27,6 +27,9 @@ pub struct BowlSettings {
     pub spec: BowlSpec,
     /// Where it is seen from.
     pub viewpoint: Viewpoint,
+    /// Compose the bird's-eye view too, to show beside the bowl (as
+    /// production surround views do).
+    pub beside: bool,
 }
 
 impl BowlSettings {
@@ -126,7 +129,7 @@ impl LiveBowl {
     /// (with its plan for `blend`) in the background, after the one under
     /// way if there is one.
     pub fn set_wanted(&mut self, settings: &BowlSettings, blend: BlendMode) {
-        if *settings != self.wanted {
+        if !same_bowl(settings, &self.wanted) {
             self.asked = Some(Instant::now());
         }
         self.wanted = settings.clone();
@@ -196,7 +199,7 @@ impl LiveBowl {
     fn start(&mut self) {
         let moving = self.asked.is_some_and(|t| t.elapsed() < MOTION);
         // Shown as asked, and whole unless still in motion.
-        let done = self.wanted == self.built && (moving || !self.preview);
+        let done = same_bowl(&self.wanted, &self.built) && (moving || !self.preview);
         if self.pending.is_some() || done {
             return;
         }
@@ -223,6 +226,12 @@ impl LiveBowl {
             }
         }
     }
+}
+
+/// Whether two settings give the same bowl picture (what is composed
+/// beside it does not change it).
+fn same_bowl(a: &BowlSettings, b: &BowlSettings) -> bool {
+    a.spec == b.spec && a.viewpoint == b.viewpoint
 }
 
 /// The error of a build thread that ended without a result.

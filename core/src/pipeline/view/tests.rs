@@ -76,6 +76,7 @@ fn a_moving_viewpoint_is_previewed_at_half_size_then_built_whole() {
             ..BowlSpec::default()
         },
         viewpoint: Viewpoint::preset("top").unwrap(),
+        beside: false,
     };
     let mut bowl =
         LiveBowl::new(&rig, &CanvasSpec::default(), &settings, BlendMode::Linear).unwrap();
@@ -100,8 +101,15 @@ fn a_moving_viewpoint_is_previewed_at_half_size_then_built_whole() {
     assert!(!bowl.is_preview());
     assert_eq!(bowl.shown().mosaic().size(), (320, 200));
     assert_eq!(bowl.built(), &turned);
-    // The same again asks for nothing.
+    // The same again asks for nothing, nor does the bird's-eye view
+    // beside it.
     bowl.set_wanted(&turned, BlendMode::Linear);
+    assert!(!bowl.building());
+    let beside = BowlSettings {
+        beside: true,
+        ..turned.clone()
+    };
+    bowl.set_wanted(&beside, BlendMode::Linear);
     assert!(!bowl.building());
     // A bowl that cannot be built leaves the one shown and says why.
     let bad = BowlSettings {
