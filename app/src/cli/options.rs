@@ -149,6 +149,10 @@ pub struct ProcessingArgs {
     /// behind-right, left or right.
     #[arg(long, value_name = "NAME", value_parser = viewpoint)]
     pub viewpoint: Option<Viewpoint>,
+    /// A Wavefront OBJ file of the vehicle for the bowl (y up, front along
+    /// −z; scaled onto the vehicle's box) instead of the built-in model.
+    #[arg(long, value_name = "FILE")]
+    pub vehicle_model: Option<std::path::PathBuf>,
     /// The panorama's radius, metres: what stands this far from the rig's
     /// centre lines up across the seams; nearer things show parallax.
     #[arg(long, value_name = "M")]
@@ -208,6 +212,9 @@ impl ProcessingArgs {
         }
         if let Some(v) = self.viewpoint {
             p.bowl.viewpoint = v;
+        }
+        if let Some(m) = &self.vehicle_model {
+            p.bowl.spec.vehicle_model = Some(m.clone());
         }
         if let Some(r) = self.radius_m {
             p.panorama.radius_m = r;

@@ -60,6 +60,10 @@ pub struct SurroundArgs {
     /// behind-right, left or right.
     #[arg(long, value_name = "NAME", default_value = "behind-left")]
     pub viewpoint: String,
+    /// A Wavefront OBJ file of the vehicle for the bowl (y up, front along
+    /// −z; scaled onto the vehicle's box) instead of the built-in model.
+    #[arg(long, value_name = "FILE")]
+    pub vehicle_model: Option<PathBuf>,
     /// The bowl picture's width and height, pixels.
     #[arg(long, num_args = 2, value_names = ["W", "H"], default_values_t = [1280, 800])]
     pub size_px: Vec<usize>,
@@ -112,6 +116,7 @@ impl SurroundArgs {
                 Some((
                     BowlSpec {
                         size_px,
+                        vehicle_model: self.vehicle_model.clone(),
                         ..BowlSpec::around(&canvas)
                     },
                     viewpoint,

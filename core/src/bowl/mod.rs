@@ -34,6 +34,7 @@
 //! patches (see [`crate::pipeline::View`]), so moving the viewpoint never
 //! changes what the cameras are balanced on.
 
+mod mesh;
 mod surface;
 mod vehicle;
 mod viewpoint;
@@ -46,6 +47,7 @@ use serde::{Deserialize, Serialize};
 
 use rigview_calib::rig::Rig;
 
+pub use mesh::Mesh;
 pub use vehicle::{VehicleHit, VehicleModel};
 pub use viewpoint::{Viewpoint, VirtualCamera, PRESETS};
 
@@ -86,6 +88,10 @@ pub struct BowlSpec {
     pub vehicle_m: [f64; 4],
     /// The vehicle model's height, metres.
     pub vehicle_height_m: f64,
+    /// A Wavefront OBJ file of the vehicle to show instead of the built-in
+    /// model (y up, front along −z; scaled onto the vehicle's box).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub vehicle_model: Option<std::path::PathBuf>,
     /// The picture's width and height, pixels.
     pub size_px: [usize; 2],
 }
@@ -127,6 +133,7 @@ impl BowlSpec {
             footprint: Footprint::RoundedRectangle,
             vehicle_m: canvas.vehicle_m,
             vehicle_height_m: 1.5,
+            vehicle_model: None,
             size_px: [1280, 800],
         }
     }
@@ -238,7 +245,12 @@ impl BowlView {
             |_| None,
         )?;
         mosaic.set_regions(Vec::new(), Vec::new());
-        let vehicle = vehicle_overlay(spec, &camera);
+        let mesh = spec
+            .vehicle_model
+            .as_deref()
+            .map(|p| Mesh::load_obj(p, spec.vehicle_m, spec.vehicle_height_m))
+            .transpose()?;
+        let vehicle = vehicle_overlay(spec, &camera, mesh.as_ref());
         Ok(Self {
             spec: spec.clone(),
             viewpoint: *viewpoint,
@@ -327,8 +339,18 @@ impl BowlView {
 /// The vehicle model's overlay on the picture: for each pixel it covers,
 /// the mean of 2 × 2 samples (colour weighted by opacity, and the
 /// coverage), in pixel order.
-fn vehicle_overlay(spec: &BowlSpec, camera: &VirtualCamera) -> Vec<(u32, [u8; 4])> {
-    let model = VehicleModel::new(spec.vehicle_m, spec.vehicle_height_m);
+fn vehicle_overlay(
+    spec: &BowlSpec,
+    camera: &VirtualCamera,
+    mesh: Option<&Mesh>,
+) -> Vec<(u32, [u8; 4])> {
+    let built_in = VehicleModel::new(spec.vehicle_m, spec.vehicle_height_m);
+    // A user's model is drawn over the built-in one's shadow.
+    let model = match mesh {
+        Some(_) => built_in.shadow_only(),
+        None => built_in,
+    };
+    let drawn = mesh.map(|m| m.rasterise(camera, spec.size_px[0], spec.size_px[1]));
     let [w, h] = spec.size_px;
     // Only the picture's part where the model's box projects (all of it
     // if a corner is behind the eye).
@@ -386,9 +408,20 @@ fn vehicle_overlay(spec: &BowlSpec, camera: &VirtualCamera) -> Vec<(u32, [u8; 4]
                 }
                 alpha += a;
             }
+            let (mut rgb, mut alpha) = (rgb.map(|s| s / alpha.max(1e-9)), alpha / 4.0);
+            // The user's model over the shadow.
+            if let Some(&(mesh_rgb, share)) = drawn.as_ref().and_then(|d| d.get(r * w + c)) {
+                if share > 0.0 {
+                    let total = share + alpha * (1.0 - share);
+                    for (v, m) in rgb.iter_mut().zip(mesh_rgb) {
+                        *v = (m * share + *v * alpha * (1.0 - share)) / total;
+                    }
+                    alpha = total;
+                }
+            }
             if alpha > 0.0 {
-                let px = rgb.map(|s| (s / alpha).round().clamp(0.0, 255.0) as u8);
-                let a = (alpha / 4.0 * 255.0).round().clamp(1.0, 255.0) as u8;
+                let px = rgb.map(|s| s.round().clamp(0.0, 255.0) as u8);
+                let a = (alpha * 255.0).round().clamp(1.0, 255.0) as u8;
                 out.push(((r * w + c) as u32, [px[0], px[1], px[2], a]));
             }
         }

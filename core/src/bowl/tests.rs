@@ -321,3 +321,81 @@ fn the_vehicle_is_painted_over_grey_and_colour_pictures() {
     let e = view.paint_vehicle(&mut wrong).unwrap_err().to_string();
     assert!(e.contains("321×200"), "{e}");
 }
+
+/// A unit cube as a Wavefront OBJ file (y up, front along −z), its faces
+/// in a red material.
+fn cube_obj(dir: &std::path::Path) -> std::path::PathBuf {
+    let mtl = "newmtl red\nKd 0.8 0.1 0.1\n";
+    std::fs::write(dir.join("cube.mtl"), mtl).unwrap();
+    let mut obj = String::from("mtllib cube.mtl\no cube\n");
+    for z in [0.0, 1.0] {
+        for y in [0.0, 1.0] {
+            for x in [0.0, 1.0] {
+                obj += &format!("v {x} {y} {z}\n");
+            }
+        }
+    }
+    // Corners 1..8: x fastest, then y, then z; six quads.
+    obj += "usemtl red\n";
+    for f in [
+        "1 3 4 2", "5 6 8 7", "1 2 6 5", "3 7 8 4", "1 5 7 3", "2 4 8 6",
+    ] {
+        obj += &format!("f {f}\n");
+    }
+    let path = dir.join("cube.obj");
+    std::fs::write(&path, obj).unwrap();
+    path
+}
+
+#[test]
+fn a_users_obj_model_is_scaled_onto_the_vehicle_and_drawn() {
+    let dir = std::env::temp_dir().join(format!("rigview-obj-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = cube_obj(&dir);
+    let spec = BowlSpec {
+        vehicle_model: Some(path.clone()),
+        ..small()
+    };
+    let mesh = Mesh::load_obj(&path, spec.vehicle_m, spec.vehicle_height_m).unwrap();
+    assert_eq!(mesh.len(), 12);
+    let rig = reference_rig().unwrap();
+    let top = Viewpoint::preset("top").unwrap();
+    let view = BowlView::build(&rig, &spec, &top).unwrap();
+    let cam = view.camera();
+    // From above the box covers the vehicle's rectangle opaquely, in its
+    // material's red (lit from above).
+    let [x0, x1, y0, y1] = spec.vehicle_m;
+    for (x, y) in [(x0 + 0.1, y0 + 0.1), (0.0, 0.0), (x1 - 0.1, y1 - 0.1)] {
+        let (c, r) = cam
+            .project(&Vector3::new(x, y, spec.vehicle_height_m))
+            .unwrap();
+        let at = view.vehicle_at(c as usize, r as usize).unwrap();
+        assert_eq!(at[3], 255, "({x}, {y}): {at:?}");
+        assert!(
+            at[0] > 150 && at[1] < 100 && at[2] < 100,
+            "({x}, {y}): {at:?}"
+        );
+    }
+    // Beyond the rectangle and its shadow: nothing.
+    let (c, r) = cam.project(&Vector3::new(x1 + 1.0, 0.0, 0.0)).unwrap();
+    assert!(view.vehicle_at(c as usize, r as usize).is_none());
+    // Bad files name themselves.
+    let missing = dir.join("none.obj");
+    let e = Mesh::load_obj(&missing, spec.vehicle_m, 1.5)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("none.obj"), "{e}");
+    let empty = dir.join("empty.obj");
+    std::fs::write(&empty, "o nothing\nv 0 0 0\n").unwrap();
+    let e = Mesh::load_obj(&empty, spec.vehicle_m, 1.5)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("empty.obj") && e.contains("triangles"), "{e}");
+    let flat = dir.join("flat.obj");
+    std::fs::write(&flat, "v 0 0 0\nv 1 0 0\nv 0 0 1\nf 1 2 3\n").unwrap();
+    let e = Mesh::load_obj(&flat, spec.vehicle_m, 1.5)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("flat.obj") && e.contains("extent"), "{e}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

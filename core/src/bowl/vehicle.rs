@@ -23,7 +23,9 @@ pub struct VehicleModel {
     wheels: Vec<(Vector3<f64>, f64, f64)>,
 }
 
-const BODY: [f64; 3] = [0.70, 0.74, 0.80];
+/// The body's colour (linear RGB, 0–1), also a user's model's where its
+/// file gives none.
+pub(super) const BODY: [f64; 3] = [0.70, 0.74, 0.80];
 const GLASS: [f64; 3] = [0.13, 0.16, 0.20];
 const TYRE: [f64; 3] = [0.08, 0.08, 0.09];
 const SHADOW: [f64; 3] = [0.0, 0.0, 0.0];
@@ -119,17 +121,16 @@ impl VehicleModel {
                 alpha: 200,
             });
         }
-        // One light from above and a little ahead and to the left, and
-        // some light from all round.
-        let light = Vector3::new(0.35, 0.25, 1.0).normalize();
-        let facing = if n.dot(dir) > 0.0 { -n } else { n };
-        let shade = 0.4 + 0.6 * facing.dot(&light).max(0.0);
-        let rgb = colour.map(|c| {
-            (255.0 * (c * shade).powf(1.0 / 2.2))
-                .round()
-                .clamp(0.0, 255.0) as u8
-        });
+        let rgb = shade(colour, &n, dir).map(|v| v.round().clamp(0.0, 255.0) as u8);
         Some(VehicleHit { t, rgb, alpha: 255 })
+    }
+
+    /// The model's shadow alone: what a user's model is drawn over.
+    pub fn shadow_only(&self) -> Self {
+        Self {
+            parts: self.parts.iter().filter(|p| p.shadow).copied().collect(),
+            wheels: Vec::new(),
+        }
     }
 }
 
@@ -200,4 +201,15 @@ fn wheel(
         }
     }
     best
+}
+
+/// The colour (0–255, display gamma) of a surface of colour `base` (linear
+/// RGB, 0–1) with normal `n`, seen along `view`: one light from above, a
+/// little ahead and to the left, and some light from all round; either
+/// side of a face is lit alike.
+pub(super) fn shade(base: [f64; 3], n: &Vector3<f64>, view: &Vector3<f64>) -> [f64; 3] {
+    let light = Vector3::new(0.35, 0.25, 1.0).normalize();
+    let facing = if n.dot(view) > 0.0 { -n } else { *n };
+    let lit = 0.4 + 0.6 * facing.dot(&light).max(0.0);
+    base.map(|c| 255.0 * (c * lit).clamp(0.0, 1.0).powf(1.0 / 2.2))
 }
