@@ -204,16 +204,24 @@ impl BowlView {
     /// Builds the bowl view of `rig` (poses in the vehicle frame) from
     /// `viewpoint`.
     pub fn build(rig: &Rig, spec: &BowlSpec, viewpoint: &Viewpoint) -> Result<Self> {
-        Self::build_on_grid(rig, spec, viewpoint, grid::MAP_GRID)
+        Self::build_on_grid(rig, spec, viewpoint, (grid::MAP_GRID, MAP_TOLERANCE_PX))
+    }
+
+    /// [`BowlView::build`] for a picture shown while the viewpoint moves:
+    /// the maps interpolated where they err by up to half a source pixel
+    /// (about twice as fast).
+    pub fn build_preview(rig: &Rig, spec: &BowlSpec, viewpoint: &Viewpoint) -> Result<Self> {
+        Self::build_on_grid(rig, spec, viewpoint, (grid::MAP_GRID, 0.5))
     }
 
     /// [`BowlView::build`] with the maps interpolated on a grid of `grid`
-    /// pixels (1: every pixel cast exactly).
+    /// pixels where that errs by at most `tolerance` source pixels (a grid
+    /// of 1: every pixel cast exactly).
     pub(crate) fn build_on_grid(
         rig: &Rig,
         spec: &BowlSpec,
         viewpoint: &Viewpoint,
-        grid: usize,
+        (grid, tolerance): (usize, f64),
     ) -> Result<Self> {
         spec.validate()?;
         viewpoint.validate()?;
@@ -227,7 +235,7 @@ impl BowlView {
             what,
             (w, h),
             &cameras.sources,
-            (grid, MAP_TOLERANCE_PX),
+            (grid, tolerance),
             |c, r, found| {
                 let ray = camera.ray(c as f64 + 0.5, r as f64 + 0.5);
                 let Some(p) = spec.intersect(&camera.eye, &ray) else {

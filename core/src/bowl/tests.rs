@@ -399,3 +399,57 @@ fn a_users_obj_model_is_scaled_onto_the_vehicle_and_drawn() {
     assert!(e.contains("flat.obj") && e.contains("extent"), "{e}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// The largest distance (source pixels) between two bowls' maps where
+/// both show a pixel, and the share of the pixels only one shows.
+fn map_difference(a: &BowlView, b: &BowlView) -> (f64, f64) {
+    let [w, h] = a.spec().size_px;
+    let (mut worst, mut differ, mut shown) = (0.0f64, 0usize, 0usize);
+    for (la, lb) in a.mosaic().layers().iter().zip(b.mosaic().layers()) {
+        for row in 0..h {
+            for col in 0..w {
+                match (mapped(la, col, row), mapped(lb, col, row)) {
+                    (Some(p), Some(q)) => {
+                        shown += 1;
+                        worst = worst.max(f64::from(p[0] - q[0]).hypot(f64::from(p[1] - q[1])));
+                    }
+                    (None, None) => {}
+                    _ => differ += 1,
+                }
+            }
+        }
+    }
+    (worst, differ as f64 / shown.max(1) as f64)
+}
+
+/// On the real surround-nz rig, the interpolated maps stay near the exact
+/// ones (every pixel cast): within their tolerance (0.1 source pixel, and
+/// half a pixel for a preview) but for where the probes of a cell miss
+/// its curvature.
+#[test]
+fn the_bowls_interpolated_maps_stay_near_the_exact_ones() {
+    let data = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/data/surround-nz");
+    let rig = rigview_calib::formats::load(&data, None, None).unwrap().rig;
+    let spec = BowlSpec {
+        size_px: [480, 300],
+        ..BowlSpec::around(&CanvasSpec::around_car_16x12(25.0))
+    };
+    let v = Viewpoint::preset("behind-left").unwrap();
+    let exact = BowlView::build_on_grid(&rig, &spec, &v, (1, 0.0)).unwrap();
+    for (what, view, limit) in [
+        ("whole", BowlView::build(&rig, &spec, &v).unwrap(), 0.1),
+        (
+            "preview",
+            BowlView::build_preview(&rig, &spec, &v).unwrap(),
+            1.0,
+        ),
+    ] {
+        let (worst, differ) = map_difference(&view, &exact);
+        eprintln!(
+            "{what}: worst {worst:.3} px, {:.4} % of the pixels differ in coverage",
+            100.0 * differ
+        );
+        assert!(worst <= limit, "{what}: {worst} px");
+        assert!(differ < 1e-3, "{what}: {differ}");
+    }
+}

@@ -5,8 +5,9 @@
 //! start of a later set, so that moving the viewpoint never holds up the
 //! per-set path; while one is being built, only the latest request waits.
 //! While the viewpoint keeps changing (an orbit), each is built at half
-//! the picture's size (in half the time, on the 2-core machine of
-//! `BENCHMARKS.md`), and the full size follows once it rests.
+//! the picture's size with its maps interpolated more loosely
+//! ([`BowlView::build_preview`]: a quarter of the time of the whole
+//! picture), and the whole picture follows once it rests.
 
 use std::sync::mpsc::{self, Receiver, TryRecvError};
 use std::sync::Arc;
@@ -212,7 +213,11 @@ impl LiveBowl {
         let spawned = std::thread::Builder::new()
             .name("rigview-bowl".into())
             .spawn(move || {
-                let built = BowlView::build(&rig, &job.spec, &job.viewpoint);
+                let built = if moving {
+                    BowlView::build_preview(&rig, &job.spec, &job.viewpoint)
+                } else {
+                    BowlView::build(&rig, &job.spec, &job.viewpoint)
+                };
                 if let Ok(view) = &built {
                     view.mosaic().prepare(blend);
                 }
