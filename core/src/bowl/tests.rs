@@ -441,7 +441,7 @@ fn the_bowls_interpolated_maps_stay_near_the_exact_ones() {
         (
             "preview",
             BowlView::build_preview(&rig, &spec, &v).unwrap(),
-            1.0,
+            0.8,
         ),
     ] {
         let (worst, differ) = map_difference(&view, &exact);
