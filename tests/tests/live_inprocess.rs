@@ -14,7 +14,9 @@
 //!   settles on the same simulated rig without Aravis (`SimRig` in a
 //!   `LockStep`: same start, same whole-frame metering, same ranges), and
 //!   at a stable fixed point of the estimator (`sim::truth::fixed_points`
-//!   on the noise-free renders), every camera having moved more than 1 EV.
+//!   on the noise-free renders, reading the darker frame the loop's last
+//!   estimate read, if it read one), every camera having moved more than
+//!   1 EV.
 //!   (Metered over whole frames, the cameras have one to three stable fixed
 //!   points each, at least 0.7 EV apart; from the same start both loops
 //!   reach the same one.)
@@ -279,6 +281,20 @@ fn four_in_process_fake_cameras_converge_on_the_simulated_rig_through_aravis() {
     let health = lp.source().health();
     let fed = lp.processed();
     let last = last.unwrap();
+    // Scale-and-clip reads what the saturated pixels hide from a darker
+    // frame of the same scene when the loop kept one: its fixed point is
+    // the estimator's reading that frame.
+    let darker: Vec<Option<f64>> = last
+        .cameras
+        .iter()
+        .map(|c| {
+            let declipped = c.estimate.as_ref().is_some_and(|e| e.declipped);
+            let controller = lp.processor_mut().controller_mut();
+            declipped
+                .then(|| controller.camera_mut(c.camera).ok()?.darker_frame())
+                .flatten()
+        })
+        .collect();
     let first_means = first_means.unwrap();
     drop(lp);
 
@@ -325,6 +341,7 @@ fn four_in_process_fake_cameras_converge_on_the_simulated_rig_through_aravis() {
             lo: (a.lo.min(b.lo) - 1.0).exp2(),
             hi: (a.hi.max(b.hi) + 1.0).exp2(),
             step_ev: 0.05,
+            darker: darker[cam],
             ..Default::default()
         };
         let nearest = truth::fixed_points(&render, cam, 0.0, None, &search)

@@ -757,3 +757,107 @@ fn a_change_of_light_retires_the_probe_frame() {
         }
     }
 }
+
+/// The reference front camera's index.
+const FRONT: usize = 0;
+
+/// The reference preset at full resolution and the surround view the
+/// window builds by default (its ground masks are what the window meters).
+fn reference_as_the_window_meters_it() -> (Arc<SimRender>, SurroundView) {
+    use rigview_core::surround::{CanvasSpec, SurroundOptions};
+    let render = render("reference", Res::Full);
+    assert_eq!(render.cameras()[FRONT].name, "front");
+    let view = SurroundView::build(
+        render.rig(),
+        &CanvasSpec::default(),
+        &SurroundOptions::default(),
+    )
+    .unwrap();
+    (render, view)
+}
+
+/// Scale-and-clip on the reference front camera at full resolution, metered
+/// over the view's ground as the window meters it: its `M` curve has one
+/// hump near the current exposure and one at the darkest anchor (more
+/// than a third of the ground saturated; the darkest anchor gains as more
+/// of it saturates), and their heights cross at about 2^9.99 µs. The
+/// highest hump alone jumped there from ŝ ≈ 1.0 to the darkest anchor
+/// (0.93 EV within 0.01 EV of exposure), and in the default mode with
+/// balancing the camera climbed to the jump and fell back, a saw-tooth of
+/// 0.09–0.16 EV. The estimate now moves continuously from one hump to the
+/// other (`Polynomial::argmax_within`): over the scan it still goes from
+/// about "stay" to more than 0.5 EV darker, over about 0.1 EV of exposure
+/// instead of at once, with no step of 0.01 EV moving it by more than
+/// 0.5 EV (0.34 EV measured; 0.95 EV with the highest hump alone).
+#[test]
+fn scale_clip_moves_continuously_where_two_humps_cross() {
+    use rigview_core::exposure::{Estimator, Meter, MeteringConfig};
+    let (render, view) = reference_as_the_window_meters_it();
+    let meter = Meter::new(MeteringConfig::default()).unwrap();
+    let mut est = Estimator::new(EstimatorConfig {
+        simulation: Simulation::ScaleClip,
+        ..Default::default()
+    })
+    .unwrap();
+    let log2_s: Vec<f64> = (0..=40)
+        .map(|k| {
+            let l = 9.8 + 0.01 * f64::from(k);
+            let m = truth::meter_noise_free(
+                &render,
+                FRONT,
+                0.0,
+                l.exp2(),
+                &meter,
+                view.ground_masks().get(FRONT),
+            )
+            .unwrap();
+            est.estimate(&m).unwrap().x_hat.log2()
+        })
+        .collect();
+    let largest = log2_s
+        .windows(2)
+        .map(|w| (w[1] - w[0]).abs())
+        .fold(0.0, f64::max);
+    let (first, last) = (log2_s[0], log2_s[log2_s.len() - 1]);
+    println!(
+        "front, 2^9.80 to 2^10.20 µs: log2 ŝ from {first:+.3} to {last:+.3}, largest step {largest:.3} EV"
+    );
+    assert!(first > -0.2 && last < -0.5, "{log2_s:.3?}");
+    assert!(largest <= 0.5, "{log2_s:.3?}");
+}
+
+/// The default mode (balanced over the rig's overlaps, nonlinear law)
+/// under scale-and-clip on the reference preset at full resolution, in
+/// lock step, metering the ground as the window does: the front camera,
+/// which its neighbours hold brighter than its own law wants, rests where
+/// its estimate moves from the hump near its exposure to the darkest
+/// anchor ([`scale_clip_moves_continuously_where_two_humps_cross`]). With
+/// the highest hump alone it climbed to the jump and fell back, 0.09 EV
+/// from end to end; now its last 100 of 220 exposures lie within 0.06 EV
+/// (0.04 EV measured). It is not yet still: the estimate falls by 0.8 EV
+/// within about 0.1 EV of exposure there, steeper than the balancing's
+/// damping (κ down to 1/16) settles (`docs/exposure-results.md`). (The
+/// left camera is not judged: it moves from one balanced rest to another
+/// late in the run.)
+#[test]
+fn balanced_scale_clip_no_longer_saw_tooths_the_front_camera_at_full_resolution() {
+    let (render, view) = reference_as_the_window_meters_it();
+    let mut settings = ProcessingSettings::default();
+    settings.controller.estimator.simulation = Simulation::ScaleClip;
+    assert!(settings.controller.balancing.is_some());
+    let mut lp = closed_loop(&render, view, settings, &render.rig().neighbours);
+    let mut log2_e = Vec::new();
+    for _ in 0..220 {
+        let step = lp.step().unwrap().unwrap();
+        let output = step.output.expect("the simulated rig gives complete sets");
+        log2_e.push(output.cameras[FRONT].taken.exposure().log2());
+    }
+    let tail = &log2_e[log2_e.len() - 100..];
+    let band = tail.iter().copied().fold(f64::MIN, f64::max)
+        - tail.iter().copied().fold(f64::MAX, f64::min);
+    println!(
+        "front: last 100 exposures within {band:.3} EV, at 2^{:.3}",
+        tail[tail.len() - 1]
+    );
+    assert!(band <= 0.06, "{tail:.3?}");
+}

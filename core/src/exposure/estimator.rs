@@ -625,11 +625,9 @@ impl Estimator {
         let (x_hat, at_bound) = if flat {
             (1.0, None)
         } else {
-            // Maxima within one and a half mean anchor spacings of each
-            // other (in ln x: the anchors are geometric) are one plateau.
+            // Maxima of nearly equal height are blended, near or far.
             let (lo, hi) = poly.range();
-            let reach = 1.5 * (hi / lo).ln() / (anchors.len().max(2) - 1) as f64;
-            let x = poly.argmax_within(self.config.plateau * (m_max - m_min), reach);
+            let x = poly.argmax_within(self.config.plateau * (m_max - m_min));
             let tol = 1e-9 * (hi - lo);
             let bound = if x <= lo + tol {
                 Some(Bound::Lower)

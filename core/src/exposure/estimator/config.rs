@@ -61,9 +61,9 @@ pub struct EstimatorConfig {
     /// Parameters of the metric.
     pub metric: MetricParams,
     /// Maxima of the fit within this fraction of the anchors' spread of
-    /// `M`, and within one and a half anchor spacings of each other, count
-    /// as one plateau, and γ̂ is their weighted mean
-    /// ([`Polynomial::argmax_within`]); 0: the highest alone.
+    /// `M` of the highest are blended, near or far, and γ̂ is their
+    /// weighted mean ([`Polynomial::argmax_within`]), so that it moves
+    /// continuously as their heights cross; 0: the highest alone.
     #[serde(default = "default_plateau")]
     pub plateau: f64,
 }

@@ -82,7 +82,7 @@ impl Polynomial {
     /// Where the polynomial is largest on its range (as an anchor value):
     /// the ends and every interior critical point are compared.
     pub fn argmax(&self) -> f64 {
-        self.argmax_within(0.0, 0.0)
+        self.argmax_within(0.0)
     }
 
     /// The polynomial's local maxima on its range, `[t, p(t)]` in the
@@ -129,20 +129,27 @@ impl Polynomial {
 
     /// The maximiser where the fit cannot tell its highest maxima apart (as
     /// an anchor value, which must be positive when `tolerance > 0`). Each
-    /// local maximum within `reach` of the highest (in `ln x`) and within
-    /// `tolerance` of it in value is weighted by how close it comes in
-    /// value (1 at the top, 0 at `tolerance` below), and the maximiser is
-    /// their weighted mean in `ln x`.
+    /// local maximum within `tolerance` of the highest in value is weighted
+    /// by how close it comes (1 at the top, 0 at `tolerance` below), and the
+    /// maximiser is their weighted mean in `ln x`. `tolerance = 0` gives the
+    /// plain maximiser.
     ///
-    /// Two humps closer than the anchors' spacing are one plateau the fit
-    /// wiggles over: as their heights cross, the plain maximiser jumps from
-    /// one to the other, and a loop that balances the camera against its
-    /// neighbours circles around the jump; here the maximiser moves
-    /// continuously. Humps farther apart than `reach` are distinct optima
-    /// with a valley between them, and the highest is taken alone, as
-    /// [`Polynomial::argmax`] does (a camera settles on one of them, not
-    /// in the valley). `tolerance = 0` gives the plain maximiser.
-    pub fn argmax_within(&self, tolerance: f64, reach: f64) -> f64 {
+    /// As the heights of two humps cross, the plain maximiser jumps from
+    /// one to the other; here the maximiser moves between them continuously
+    /// while their heights are within `tolerance`. Both kinds of hump need
+    /// it:
+    /// - two humps closer than the anchors' spacing are one plateau the fit
+    ///   wiggles over, and the jump made a balanced camera circle;
+    /// - two humps far apart are distinct optima with a valley between them
+    ///   (one near the current exposure, one at the end of the anchors),
+    ///   and where balancing holds a camera past the exposure at which the
+    ///   far one overtakes the near one, a jump of the estimate is a jump
+    ///   of its own law's request that no damping of the loop settles: the
+    ///   camera climbed to the jump and fell back, a saw-tooth
+    ///   (`docs/exposure-results.md`). Outside the band the highest is
+    ///   taken alone, so a camera settles on one of them, not in the
+    ///   valley.
+    pub fn argmax_within(&self, tolerance: f64) -> f64 {
         let at = |t: f64| self.variable.inverse(self.centre + t * self.half_width);
         let maxima = self.maxima();
         let top =
@@ -154,14 +161,14 @@ impl Polynomial {
         if !(tolerance > 0.0 && top_x > 0.0) {
             return top_x;
         }
-        let (sum, weight) = maxima
-            .iter()
-            .map(|m| (at(m[0]).ln(), m[1]))
-            .filter(|(l, _)| (l - top_x.ln()).abs() <= reach)
-            .fold((0.0, 0.0), |(s, w), (l, v)| {
-                let k = (1.0 - (top[1] - v) / tolerance).max(0.0);
-                (s + k * l, w + k)
-            });
+        let (sum, weight) =
+            maxima
+                .iter()
+                .map(|m| (at(m[0]).ln(), m[1]))
+                .fold((0.0, 0.0), |(s, w), (l, v)| {
+                    let k = (1.0 - (top[1] - v) / tolerance).max(0.0);
+                    (s + k * l, w + k)
+                });
         (sum / weight).exp()
     }
 
