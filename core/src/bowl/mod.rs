@@ -42,6 +42,8 @@ mod viewpoint;
 #[cfg(test)]
 mod tests;
 
+use std::sync::Arc;
+
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 
@@ -198,20 +200,51 @@ pub struct BowlView {
     mosaic: Mosaic,
     /// The pixels the vehicle model covers: index and RGBA.
     vehicle: Vec<(u32, [u8; 4])>,
+    /// A user's vehicle model, as loaded (for the next viewpoint).
+    mesh: Option<Arc<Mesh>>,
 }
 
 impl BowlView {
     /// Builds the bowl view of `rig` (poses in the vehicle frame) from
     /// `viewpoint`.
     pub fn build(rig: &Rig, spec: &BowlSpec, viewpoint: &Viewpoint) -> Result<Self> {
-        Self::build_on_grid(rig, spec, viewpoint, (grid::MAP_GRID, MAP_TOLERANCE_PX))
+        Self::build_after(rig, spec, viewpoint, false, None)
     }
 
     /// [`BowlView::build`] for a picture shown while the viewpoint moves:
     /// the maps interpolated where they err by up to half a source pixel
     /// (about twice as fast).
     pub fn build_preview(rig: &Rig, spec: &BowlSpec, viewpoint: &Viewpoint) -> Result<Self> {
-        Self::build_on_grid(rig, spec, viewpoint, (grid::MAP_GRID, 0.5))
+        Self::build_after(rig, spec, viewpoint, true, None)
+    }
+
+    /// [`BowlView::build`] (or [`BowlView::build_preview`]) of the next
+    /// viewpoint after `previous`: a user's vehicle model it loaded for the
+    /// same file and box is used again rather than read again.
+    pub fn build_after(
+        rig: &Rig,
+        spec: &BowlSpec,
+        viewpoint: &Viewpoint,
+        preview: bool,
+        previous: Option<&BowlView>,
+    ) -> Result<Self> {
+        let tolerance = if preview { 0.5 } else { MAP_TOLERANCE_PX };
+        let same_vehicle = |p: &&BowlView| {
+            (
+                &p.spec.vehicle_model,
+                p.spec.vehicle_m,
+                p.spec.vehicle_height_m,
+            ) == (&spec.vehicle_model, spec.vehicle_m, spec.vehicle_height_m)
+        };
+        let mesh = match previous.filter(same_vehicle).and_then(|p| p.mesh.clone()) {
+            Some(m) => Some(m),
+            None => spec
+                .vehicle_model
+                .as_deref()
+                .map(|p| Mesh::load_obj(p, spec.vehicle_m, spec.vehicle_height_m).map(Arc::new))
+                .transpose()?,
+        };
+        Self::build_on_grid(rig, spec, viewpoint, (grid::MAP_GRID, tolerance), mesh)
     }
 
     /// [`BowlView::build`] with the maps interpolated on a grid of `grid`
@@ -222,6 +255,7 @@ impl BowlView {
         spec: &BowlSpec,
         viewpoint: &Viewpoint,
         (grid, tolerance): (usize, f64),
+        mesh: Option<Arc<Mesh>>,
     ) -> Result<Self> {
         spec.validate()?;
         viewpoint.validate()?;
@@ -253,18 +287,14 @@ impl BowlView {
             |_| None,
         )?;
         mosaic.set_regions(Vec::new(), Vec::new());
-        let mesh = spec
-            .vehicle_model
-            .as_deref()
-            .map(|p| Mesh::load_obj(p, spec.vehicle_m, spec.vehicle_height_m))
-            .transpose()?;
-        let vehicle = vehicle_overlay(spec, &camera, mesh.as_ref());
+        let vehicle = vehicle_overlay(spec, &camera, mesh.as_deref());
         Ok(Self {
             spec: spec.clone(),
             viewpoint: *viewpoint,
             camera,
             mosaic,
             vehicle,
+            mesh,
         })
     }
 

@@ -379,6 +379,28 @@ fn a_users_obj_model_is_scaled_onto_the_vehicle_and_drawn() {
     // Beyond the rectangle and its shadow: nothing.
     let (c, r) = cam.project(&Vector3::new(x1 + 1.0, 0.0, 0.0)).unwrap();
     assert!(view.vehicle_at(c as usize, r as usize).is_none());
+    // The next viewpoint uses the model as loaded: not read again (the
+    // file is gone), the same triangles; another box reads it again.
+    let kept = dir.join("kept.obj");
+    std::fs::rename(&path, &kept).unwrap();
+    let spec_kept = BowlSpec {
+        vehicle_model: Some(kept.clone()),
+        ..spec.clone()
+    };
+    let first = BowlView::build(&rig, &spec_kept, &top).unwrap();
+    std::fs::remove_file(&kept).unwrap();
+    let rear = Viewpoint::preset("rear").unwrap();
+    let next = BowlView::build_after(&rig, &spec_kept, &rear, true, Some(&first)).unwrap();
+    let (a, b) = (first.mesh.as_ref().unwrap(), next.mesh.as_ref().unwrap());
+    assert!(std::sync::Arc::ptr_eq(a, b));
+    let taller = BowlSpec {
+        vehicle_height_m: 2.0,
+        ..spec_kept.clone()
+    };
+    let e = BowlView::build_after(&rig, &taller, &rear, true, Some(&first))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("kept.obj"), "{e}");
     // Bad files name themselves.
     let missing = dir.join("none.obj");
     let e = Mesh::load_obj(&missing, spec.vehicle_m, 1.5)
@@ -435,7 +457,7 @@ fn the_bowls_interpolated_maps_stay_near_the_exact_ones() {
         ..BowlSpec::around(&CanvasSpec::around_car_16x12(25.0))
     };
     let v = Viewpoint::preset("behind-left").unwrap();
-    let exact = BowlView::build_on_grid(&rig, &spec, &v, (1, 0.0)).unwrap();
+    let exact = BowlView::build_on_grid(&rig, &spec, &v, (1, 0.0), None).unwrap();
     for (what, view, limit) in [
         ("whole", BowlView::build(&rig, &spec, &v).unwrap(), 0.1),
         (

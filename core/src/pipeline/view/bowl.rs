@@ -205,7 +205,7 @@ impl LiveBowl {
             return;
         }
         let (tx, rx) = mpsc::channel();
-        let (rig, settings) = (self.rig.clone(), self.wanted.clone());
+        let (rig, settings, previous) = (self.rig.clone(), self.wanted.clone(), self.shown.clone());
         let (mut job, blend) = (settings.clone(), self.blend);
         if moving {
             job.spec.size_px = job.spec.size_px.map(|n| (n / 2).max(16));
@@ -213,11 +213,8 @@ impl LiveBowl {
         let spawned = std::thread::Builder::new()
             .name("rigview-bowl".into())
             .spawn(move || {
-                let built = if moving {
-                    BowlView::build_preview(&rig, &job.spec, &job.viewpoint)
-                } else {
-                    BowlView::build(&rig, &job.spec, &job.viewpoint)
-                };
+                let built =
+                    BowlView::build_after(&rig, &job.spec, &job.viewpoint, moving, Some(&previous));
                 if let Ok(view) = &built {
                     view.mosaic().prepare(blend);
                 }
