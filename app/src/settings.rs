@@ -65,6 +65,9 @@ pub struct WindowSettings {
     pub recent: Vec<PathBuf>,
     /// The bowl view turns to the rear view while the vehicle reverses.
     pub rear_when_reversing: bool,
+    /// The window draws the bowl on the GPU where it can (otherwise the
+    /// pipeline composes it on the CPU).
+    pub bowl_on_gpu: bool,
 }
 
 impl Default for WindowSettings {
@@ -78,6 +81,7 @@ impl Default for WindowSettings {
             selected_camera: 0,
             recent: Vec::new(),
             rear_when_reversing: true,
+            bowl_on_gpu: true,
         }
     }
 }

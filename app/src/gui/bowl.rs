@@ -122,13 +122,33 @@ pub(super) fn bar(app: &mut RigviewApp, ui: &mut Ui) {
         {
             app.settings_changed();
         }
+        if ui
+            .checkbox(&mut app.settings.window.bowl_on_gpu, "GPU")
+            .on_hover_text(
+                "Draw the bowl on the GPU (the orbit follows at the display's rate); off: the pipeline composes it on the CPU",
+            )
+            .changed()
+        {
+            app.window_changed();
+        }
         ui.separator();
+        if let Some(why) = app.gpu_bowl.failure() {
+            ui.label(format!("on the CPU: {why}"));
+        } else if let Some(why) = app
+            .latest
+            .as_ref()
+            .filter(|_| app.settings.window.bowl_on_gpu && app.gpu_bowl.available)
+            .and_then(|o| super::bowl_gpu::unsuited(o))
+        {
+            ui.label(format!("on the CPU: {why}"));
+        }
         let building = app
             .latest
             .as_ref()
             .and_then(|o| o.bowl)
             .is_some_and(|(_, b)| b);
-        ui.label(if building {
+        let gpu = app.settings.processing.bowl.gpu_draws;
+        ui.label(if building && !gpu {
             "building the new viewpoint…"
         } else {
             "drag: orbit · scroll: zoom · double-click: back to the preset"

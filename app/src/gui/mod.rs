@@ -19,6 +19,8 @@
 
 pub mod background;
 mod bowl;
+pub mod bowl_gl;
+mod bowl_gpu;
 pub mod closing;
 pub mod controls;
 pub mod messages;
@@ -94,6 +96,7 @@ pub struct RigviewApp {
     closing: Closing,
     cpu: CpuMeter,
     bowl: bowl::BowlState,
+    gpu_bowl: bowl_gpu::GpuBowl,
 }
 
 impl std::fmt::Debug for RigviewApp {
@@ -193,6 +196,7 @@ impl RigviewApp {
             closing: Closing::new(options.quit_after, options.screenshot),
             cpu: CpuMeter::start(),
             bowl: bowl::BowlState::default(),
+            gpu_bowl: bowl_gpu::GpuBowl::default(),
         };
         if let Some(r) = app.record.recorder() {
             let text = format!("recording into {}", r.file().display());
@@ -609,6 +613,9 @@ impl RigviewApp {
         if let Some(c) = self.cpu.cores() {
             summary += &format!("\nCPU use of the whole app: {c:.2} cores");
         }
+        if let Some(g) = self.gpu_bowl.summary() {
+            summary += &format!("\n{g}");
+        }
         if let Some(r) = recorded {
             summary += &format!("\n{r}");
         }
@@ -617,7 +624,8 @@ impl RigviewApp {
 }
 
 impl eframe::App for RigviewApp {
-    fn ui(&mut self, ui: &mut egui::Ui, _frame: &mut eframe::Frame) {
+    fn ui(&mut self, ui: &mut egui::Ui, frame: &mut eframe::Frame) {
+        self.gpu_bowl.available = frame.gl().is_some();
         self.show(ui);
         if self.closing.wants_close() {
             ui.ctx().send_viewport_cmd(egui::ViewportCommand::Close);
@@ -628,6 +636,19 @@ impl eframe::App for RigviewApp {
         let summary = self.finish();
         tracing::info!(target: logging::NOTE, "{summary}");
     }
+}
+
+/// Whether the window draws the bowl on the GPU now: it has a GL context,
+/// the operator wants it, it has not failed, and the latest set suits it.
+fn bowl_gpu_usable(app: &RigviewApp) -> bool {
+    app.gpu_bowl.available
+        && app.settings.window.bowl_on_gpu
+        && app.gpu_bowl.failure().is_none()
+        && app.latest.as_ref().is_some_and(|out| {
+            out.view == Some(rigview_core::pipeline::ViewKind::Bowl)
+                && out.bowl_view.is_some()
+                && bowl_gpu::unsuited(out).is_none()
+        })
 }
 
 /// The colour of camera `k` in plots and overlays.

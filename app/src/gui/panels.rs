@@ -473,14 +473,26 @@ pub(super) fn central(app: &mut RigviewApp, ui: &mut Ui) {
             ViewMode::Bowl => "bowl view",
             ViewMode::Surround => "surround view",
         };
+        // The bowl on the GPU where the window can draw it; the pipeline
+        // then composes no picture of it.
+        let gpu = bowl && super::bowl_gpu_usable(app);
+        if app.settings.processing.bowl.gpu_draws != gpu {
+            app.settings.processing.bowl.gpu_draws = gpu;
+            app.settings_changed();
+        }
         // The output shows the view the pipeline composed: while the
         // chosen one is being built, the other one goes on.
         let shown = app.latest.as_ref().map(|o| o.view);
-        let Some(t) = app
-            .canvas_tex
-            .as_ref()
-            .filter(|_| shown == Some(Some(mode.kind())))
-        else {
+        let picture = if gpu {
+            let [w, h] = app.settings.processing.bowl.spec.size_px;
+            Some((None, [w, h]))
+        } else {
+            app.canvas_tex
+                .as_ref()
+                .filter(|_| shown == Some(Some(mode.kind())))
+                .map(|t| (Some(t.id()), t.size()))
+        };
+        let Some((id, [w, h])) = picture else {
             let msg = match &app.latest {
                 _ if app.is_loading() => format!("building the {what}…"),
                 Some(out) => match &out.compose_error {
@@ -494,9 +506,17 @@ pub(super) fn central(app: &mut RigviewApp, ui: &mut Ui) {
         };
         // The caption is a line of its own above the view, never over
         // its pixels.
+        let renderer = match (bowl, gpu, app.gpu_bowl.times()) {
+            (true, true, Some((upload, draw))) => {
+                format!(" · drawn on the GPU (upload {upload:.1} ms, draw {draw:.1} ms)")
+            }
+            (true, true, None) => " · drawn on the GPU".to_owned(),
+            (true, false, _) => " · composed on the CPU".to_owned(),
+            _ => String::new(),
+        };
         let caption = app.latest.as_ref().map(|out| {
             format!(
-                "set {} · {} · {}",
+                "set {} · {} · {}{renderer}",
                 out.trigger,
                 out.settings.strategy.label(),
                 out.settings.blend.name()
@@ -505,7 +525,6 @@ pub(super) fn central(app: &mut RigviewApp, ui: &mut Ui) {
         let caption_h =
             ui.text_style_height(&egui::TextStyle::Body) + ui.spacing().item_spacing.y;
         let mut avail = ui.available_size() - Vec2::new(0.0, caption_h);
-        let [w, h] = t.size();
         let gap = ui.spacing().item_spacing.y;
         // The bird's-eye view beside the bowl: its own share of the width.
         let beside = app
@@ -519,15 +538,28 @@ pub(super) fn central(app: &mut RigviewApp, ui: &mut Ui) {
             share
         });
         let layout = Layout::fit(avail, [w as f32, h as f32], panorama, gap);
-        let id = t.id();
+        // The bowl as the window draws it: on the GPU, or the pipeline's
+        // picture.
+        let draw_bowl = |app: &RigviewApp, ui: &mut Ui, area: Rect| match (id, &app.latest) {
+            (Some(id), _) => {
+                egui::Image::new(egui::load::SizedTexture::new(id, area.size())).paint_at(ui, area);
+            }
+            (None, Some(out)) => app.gpu_bowl.paint(
+                ui,
+                area,
+                out,
+                app.settings.processing.bowl.viewpoint,
+                app.settings.processing.blend,
+            ),
+            (None, None) => {}
+        };
         ui.vertical_centered(|ui| {
             ui.add(egui::Label::new(caption.unwrap_or_default()).truncate());
             if let (Some((beside_id, [bw, bh])), Some(share)) = (beside, beside_share) {
                 ui.horizontal_top(|ui| {
                     let (area, response) =
                         ui.allocate_exact_size(layout.size, Sense::click_and_drag());
-                    egui::Image::new(egui::load::SizedTexture::new(id, area.size()))
-                        .paint_at(ui, area);
+                    draw_bowl(app, ui, area);
                     let scale = (share / bw as f32).min(avail.y / bh as f32);
                     let size = Vec2::new(bw as f32 * scale, bh as f32 * scale);
                     let (right, _) = ui.allocate_exact_size(size, Sense::hover());
@@ -543,6 +575,14 @@ pub(super) fn central(app: &mut RigviewApp, ui: &mut Ui) {
                 Sense::hover()
             };
             let (area, response) = ui.allocate_exact_size(layout.size, sense);
+            if bowl {
+                draw_bowl(app, ui, area);
+                super::bowl::interact(app, ui, &response);
+                return;
+            }
+            let Some(id) = id else {
+                return;
+            };
             for piece in &layout.pieces {
                 let rect = layout.rect(area, piece);
                 let uv = Rect::from_min_max(
@@ -557,9 +597,6 @@ pub(super) fn central(app: &mut RigviewApp, ui: &mut Ui) {
                 if let Some(out) = &app.latest {
                     draw_matches(ui, area, &layout, out);
                 }
-            }
-            if bowl {
-                super::bowl::interact(app, ui, &response);
             }
         });
     });

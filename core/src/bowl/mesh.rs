@@ -118,6 +118,12 @@ impl Mesh {
         })
     }
 
+    /// The triangles (vehicle frame, metres) and their colours (linear
+    /// RGB, 0–1).
+    pub fn triangles(&self) -> &[([Vector3<f64>; 3], [f64; 3])] {
+        &self.triangles
+    }
+
     /// The number of triangles.
     pub fn len(&self) -> usize {
         self.triangles.len()

@@ -34,7 +34,9 @@
 //! patches (see [`crate::pipeline::View`]), so moving the viewpoint never
 //! changes what the cameras are balanced on.
 
+mod gpu;
 mod mesh;
+mod plan;
 mod surface;
 mod vehicle;
 mod viewpoint;
@@ -49,7 +51,9 @@ use serde::{Deserialize, Serialize};
 
 use rigview_calib::rig::Rig;
 
+pub use gpu::{SurfaceMesh, SurfaceVertex, VehicleTriangles, MAX_GPU_CAMERAS};
 pub use mesh::Mesh;
+pub use plan::GroundPlan;
 pub use vehicle::{VehicleHit, VehicleModel};
 pub use viewpoint::{Viewpoint, VirtualCamera, PRESETS};
 
@@ -202,6 +206,9 @@ pub struct BowlView {
     vehicle: Vec<(u32, [u8; 4])>,
     /// A user's vehicle model, as loaded (for the next viewpoint).
     mesh: Option<Arc<Mesh>>,
+    /// The ground plan the blend distances are measured on (for the next
+    /// viewpoint, and the GPU's mesh).
+    plan: Arc<GroundPlan>,
 }
 
 impl BowlView {
@@ -219,8 +226,9 @@ impl BowlView {
     }
 
     /// [`BowlView::build`] (or [`BowlView::build_preview`]) of the next
-    /// viewpoint after `previous`: a user's vehicle model it loaded for the
-    /// same file and box is used again rather than read again.
+    /// viewpoint after `previous` (of the same rig): a user's vehicle
+    /// model it loaded for the same file and box is used again rather than
+    /// read again, and its ground plan for the same surface.
     pub fn build_after(
         rig: &Rig,
         spec: &BowlSpec,
@@ -244,7 +252,18 @@ impl BowlView {
                 .map(|p| Mesh::load_obj(p, spec.vehicle_m, spec.vehicle_height_m).map(Arc::new))
                 .transpose()?,
         };
-        Self::build_on_grid(rig, spec, viewpoint, (grid::MAP_GRID, tolerance), mesh)
+        let plan = match previous.filter(|p| p.plan.serves(spec)) {
+            Some(p) => p.plan.clone(),
+            None => Arc::new(GroundPlan::build(rig, spec)?),
+        };
+        Self::build_on_grid(
+            rig,
+            spec,
+            viewpoint,
+            (grid::MAP_GRID, tolerance),
+            mesh,
+            plan,
+        )
     }
 
     /// [`BowlView::build`] with the maps interpolated on a grid of `grid`
@@ -256,6 +275,7 @@ impl BowlView {
         viewpoint: &Viewpoint,
         (grid, tolerance): (usize, f64),
         mesh: Option<Arc<Mesh>>,
+        plan: Arc<GroundPlan>,
     ) -> Result<Self> {
         spec.validate()?;
         viewpoint.validate()?;
@@ -265,7 +285,8 @@ impl BowlView {
         let camera = viewpoint.camera(w, h);
         let sides = Side::of_cameras(&cameras.projectors);
         let projectors = &cameras.projectors;
-        let (mut mosaic, _) = Mosaic::build(
+        let on_plan = projectors.len();
+        let (mut mosaic, _) = Mosaic::build_on_surface(
             what,
             (w, h),
             &cameras.sources,
@@ -282,9 +303,9 @@ impl BowlView {
                         }
                     }
                 }
+                found.push((on_plan, plan.position(p.x, p.y)));
             },
-            // A viewpoint need not show every camera.
-            |_| None,
+            plan.distances(),
         )?;
         mosaic.set_regions(Vec::new(), Vec::new());
         let vehicle = vehicle_overlay(spec, &camera, mesh.as_deref());
@@ -295,7 +316,18 @@ impl BowlView {
             mosaic,
             vehicle,
             mesh,
+            plan,
         })
+    }
+
+    /// The ground plan its blend distances are measured on.
+    pub fn plan(&self) -> &Arc<GroundPlan> {
+        &self.plan
+    }
+
+    /// The user's vehicle model it draws, if any.
+    pub fn vehicle_mesh(&self) -> Option<&Arc<Mesh>> {
+        self.mesh.as_ref()
     }
 
     /// The spec.

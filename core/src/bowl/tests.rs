@@ -457,7 +457,8 @@ fn the_bowls_interpolated_maps_stay_near_the_exact_ones() {
         ..BowlSpec::around(&CanvasSpec::around_car_16x12(25.0))
     };
     let v = Viewpoint::preset("behind-left").unwrap();
-    let exact = BowlView::build_on_grid(&rig, &spec, &v, (1, 0.0), None).unwrap();
+    let plan = std::sync::Arc::new(GroundPlan::build(&rig, &spec).unwrap());
+    let exact = BowlView::build_on_grid(&rig, &spec, &v, (1, 0.0), None, plan).unwrap();
     for (what, view, limit) in [
         ("whole", BowlView::build(&rig, &spec, &v).unwrap(), 0.1),
         (
@@ -474,4 +475,162 @@ fn the_bowls_interpolated_maps_stay_near_the_exact_ones() {
         assert!(worst <= limit, "{what}: {worst} px");
         assert!(differ < 1e-3, "{what}: {differ}");
     }
+}
+
+/// The bowl's seams lie where the bird's-eye view's do: in the overlaps
+/// on the flat ground, each camera's blend weight in the bowl's picture is
+/// the bird's-eye view's at the same ground point, from above and from an
+/// oblique viewpoint alike (the distances are measured on the ground plan,
+/// not on the picture, which foreshortens them).
+#[test]
+fn the_bowls_seams_lie_where_the_birds_eye_views_do() {
+    use crate::surround::{BlendMode, SurroundOptions, SurroundView};
+    let rig = reference_rig().unwrap();
+    let canvas = CanvasSpec::around_car_16x12(25.0);
+    let surround = SurroundView::build(&rig, &canvas, &SurroundOptions::default()).unwrap();
+    let (cw, ch) = canvas.size();
+    let spec = BowlSpec {
+        size_px: [480, 300],
+        ..BowlSpec::around(&canvas)
+    };
+    for name in ["top", "behind-left", "front"] {
+        let v = Viewpoint::preset(name).unwrap();
+        let view = BowlView::build(&rig, &spec, &v).unwrap();
+        let camera = *view.camera();
+        let (mut sum, mut n, mut worst) = (0.0f64, 0usize, 0.0f64);
+        for r in 0..300 {
+            for c in 0..480 {
+                let ray = camera.ray(c as f64 + 0.5, r as f64 + 0.5);
+                let Some(p) = spec.intersect(&camera.eye, &ray) else {
+                    continue;
+                };
+                let (cc, rr) = canvas.canvas(p.x, p.y);
+                if p.z > 0.0 || cc < 2.0 || rr < 2.0 || cc > cw as f64 - 3.0 || rr > ch as f64 - 3.0
+                {
+                    continue;
+                }
+                let weights = |k| view.mosaic().weight(k, BlendMode::Linear, c, r);
+                if (0..4).filter(|&k| weights(k) > 0).count() < 2 {
+                    continue;
+                }
+                // The bird's-eye view's weight at the point, bilinear over
+                // its canvas's pixel centres.
+                let (x, y) = (cc - 0.5, rr - 0.5);
+                let (ix, iy) = (x.floor() as usize, y.floor() as usize);
+                let (fx, fy) = (x - ix as f64, y - iy as f64);
+                for k in 0..4 {
+                    let s = |c, r| f64::from(surround.mosaic().weight(k, BlendMode::Linear, c, r));
+                    let expected = (s(ix, iy) * (1.0 - fx) + s(ix + 1, iy) * fx) * (1.0 - fy)
+                        + (s(ix, iy + 1) * (1.0 - fx) + s(ix + 1, iy + 1) * fx) * fy;
+                    let d = (f64::from(weights(k)) - expected).abs();
+                    sum += d;
+                    worst = worst.max(d);
+                    n += 1;
+                }
+            }
+        }
+        let mean = sum / n as f64;
+        eprintln!("{name}: {n} weights in the overlaps, mean difference {mean:.2}/256, worst {worst:.0}/256");
+        assert!(n > 2000, "{name}: {n}");
+        assert!(mean < 3.0, "{name}: {mean}");
+    }
+}
+
+/// The GPU's mesh: every vertex on the surface, with each camera's
+/// projection of it through the calibration, its distance on the ground
+/// plan and how far it lies beyond the camera's side; its triangles face
+/// up and into the bowl, and its rings reach from the vehicle to the rim.
+#[test]
+fn the_gpus_mesh_carries_each_cameras_projection_and_faces_into_the_bowl() {
+    let rig = reference_rig().unwrap();
+    for footprint in [Footprint::RoundedRectangle, Footprint::Round] {
+        let spec = BowlSpec {
+            footprint,
+            ..small()
+        };
+        let plan = GroundPlan::build(&rig, &spec).unwrap();
+        let mesh = plan.mesh().unwrap();
+        let cameras = mosaic::vehicle_cameras(&rig, "test").unwrap();
+        let sides = Side::of_cameras(&cameras.projectors);
+        let (mut nearest, mut farthest, mut outside) = (f64::MAX, 0.0f64, 0usize);
+        for v in &mesh.vertices {
+            let [x, y, z] = v.position.map(f64::from);
+            let d = spec.footprint_distance(x, y);
+            if v.beyond.iter().all(|&b| b < 0.0) && d == 0.0 {
+                // Under the vehicle.
+                continue;
+            }
+            nearest = nearest.min(d);
+            farthest = farthest.max(d);
+            let h = spec.height(x, y).unwrap_or(spec.wall_height_m);
+            assert!((z - h).abs() < 1e-4, "({x}, {y}): z {z} against {h}");
+            for (k, projector) in cameras.projectors.iter().enumerate() {
+                let p = Vector3::new(x, y, z);
+                let [u, w] = v.source[k].map(f64::from);
+                let Some(px) = projector.project_rig(&p) else {
+                    // Beyond the model's field: shown by no fragment.
+                    assert!(v.beyond[k] < 0.0 && u < -1e3);
+                    outside += 1;
+                    continue;
+                };
+                assert!((u - px.x).abs() < 1e-2 && (w - px.y).abs() < 1e-2);
+                let margin = sides[k].margin(&spec.vehicle_m, x, y);
+                assert!((f64::from(v.beyond[k]) - margin).abs() < 1e-4);
+                let d = plan.distance(k, x, y).unwrap();
+                assert!((v.distance[k] - d).abs() < 1e-3 * d.max(1.0));
+            }
+        }
+        // Most of the bowl lies within every camera's model (the rest
+        // behind a fisheye).
+        assert!(
+            outside * 4 < mesh.vertices.len() * cameras.projectors.len(),
+            "{outside}"
+        );
+        assert!(nearest < 1e-9 || footprint == Footprint::Round, "{nearest}");
+        assert!((farthest - spec.radius_m).abs() < 1e-6, "{farthest}");
+        let (mut faces, mut up, mut inward, mut wall) = (0, 0, 0, 0);
+        for t in mesh.indices.chunks_exact(3) {
+            let p = |i: u32| Vector3::from(mesh.vertices[i as usize].position.map(f64::from));
+            let (a, b, c) = (p(t[0]), p(t[1]), p(t[2]));
+            let n = (b - a).cross(&(c - a));
+            if n.norm() < 1e-12 {
+                continue;
+            }
+            faces += 1;
+            up += usize::from(n.z > 0.0);
+            if (a.z - b.z).abs() + (a.z - c.z).abs() > 1e-6 {
+                wall += 1;
+                let [x0, x1, y0, y1] = spec.vehicle_m;
+                let centre = Vector3::new(0.5 * (x0 + x1), 0.5 * (y0 + y1), 0.0);
+                let towards = centre - (a + b + c) / 3.0;
+                inward += usize::from(n.x * towards.x + n.y * towards.y > 0.0);
+            }
+        }
+        assert!(faces > 10_000 && up == faces, "{up} of {faces} face up");
+        assert!(
+            wall > 1000 && inward == wall,
+            "{inward} of {wall} wall faces inward"
+        );
+    }
+}
+
+/// The next viewpoint's build takes the ground plan (and the GPU's mesh)
+/// of the bowl before it; another bowl gets a plan of its own.
+#[test]
+fn the_ground_plan_is_built_once_per_bowl() {
+    let rig = reference_rig().unwrap();
+    let (top, left) = (
+        Viewpoint::preset("top").unwrap(),
+        Viewpoint::preset("left").unwrap(),
+    );
+    let a = BowlView::build(&rig, &small(), &top).unwrap();
+    let b = BowlView::build_after(&rig, &small(), &left, true, Some(&a)).unwrap();
+    assert!(Arc::ptr_eq(a.plan(), b.plan()));
+    let wider = BowlSpec {
+        flat_m: small().flat_m + 0.5,
+        ..small()
+    };
+    let c = BowlView::build_after(&rig, &wider, &left, false, Some(&b)).unwrap();
+    assert!(!Arc::ptr_eq(b.plan(), c.plan()));
+    assert!(c.plan().serves(&wider) && !c.plan().serves(&small()));
 }

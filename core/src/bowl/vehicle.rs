@@ -7,12 +7,12 @@ use nalgebra::Vector3;
 
 /// An axis-aligned box of the model, with its colour (linear RGB, 0–1).
 #[derive(Clone, Copy, Debug)]
-struct Part {
-    min: Vector3<f64>,
-    max: Vector3<f64>,
-    colour: [f64; 3],
+pub(super) struct Part {
+    pub(super) min: Vector3<f64>,
+    pub(super) max: Vector3<f64>,
+    pub(super) colour: [f64; 3],
     /// Shadows are drawn unlit and half transparent.
-    shadow: bool,
+    pub(super) shadow: bool,
 }
 
 /// The vehicle model: boxes and wheels within the vehicle's rectangle.
@@ -27,7 +27,7 @@ pub struct VehicleModel {
 /// file gives none.
 pub(super) const BODY: [f64; 3] = [0.70, 0.74, 0.80];
 const GLASS: [f64; 3] = [0.13, 0.16, 0.20];
-const TYRE: [f64; 3] = [0.08, 0.08, 0.09];
+pub(super) const TYRE: [f64; 3] = [0.08, 0.08, 0.09];
 const SHADOW: [f64; 3] = [0.0, 0.0, 0.0];
 
 /// What a ray sees of the vehicle: the distance along it, and the shaded
@@ -123,6 +123,16 @@ impl VehicleModel {
         }
         let rgb = shade(colour, &n, dir).map(|v| v.round().clamp(0.0, 255.0) as u8);
         Some(VehicleHit { t, rgb, alpha: 255 })
+    }
+
+    /// Its boxes.
+    pub(super) fn parts(&self) -> &[Part] {
+        &self.parts
+    }
+
+    /// Its wheels: centre, radius and half width (axis along y).
+    pub(super) fn wheels(&self) -> &[(Vector3<f64>, f64, f64)] {
+        &self.wheels
     }
 
     /// The model's shadow alone: what a user's model is drawn over.

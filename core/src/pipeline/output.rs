@@ -162,4 +162,14 @@ pub struct Output {
     /// The bowl's viewpoint `canvas` shows (the bowl view only), and
     /// whether another one is being built.
     pub bowl: Option<(crate::bowl::Viewpoint, bool)>,
+    /// The bowl shown (the bowl view only): its spec, viewpoint and ground
+    /// plan, for a renderer of its own.
+    pub bowl_view: Option<Arc<crate::bowl::BowlView>>,
+    /// The set's frames, rig order (the bowl view only: a renderer of its
+    /// own draws them; shared, not copied).
+    pub frames: Vec<crate::source::Frame>,
+    /// Per camera of `frames`, its display gains as the composer applies
+    /// them: the exposure gain (the frame scaled, clipped at white) and
+    /// the seam gain.
+    pub gain_parts: Vec<[f32; 2]>,
 }

@@ -410,6 +410,8 @@ impl Processor {
         let t2 = Instant::now();
         let mut compose_error = None;
         let mut display_gains = Vec::new();
+        let mut gain_parts = Vec::new();
+        let mut shown_frames = Vec::new();
         let mut beside = None;
         let canvas = match (&self.view, self.compose) {
             (Some(view), true) => {
@@ -476,6 +478,26 @@ impl Processor {
                     .display
                     .update(&self.settings.display, &inputs, &ratios);
                 display_gains = gains.iter().map(|g| g.total()).collect();
+                if bowl.is_some() {
+                    // What a GPU needs to show the frames as the composer
+                    // does: the exposure gain (clipped at white) and the
+                    // seam gain, or the whole gain where the frame is shown
+                    // at the exposure it was taken with.
+                    gain_parts = gains
+                        .iter()
+                        .map(|g| {
+                            if (g.exposure - 1.0).abs() > 1e-6 {
+                                [g.exposure, g.seam]
+                            } else {
+                                [1.0, g.total()]
+                            }
+                        })
+                        .collect();
+                    shown_frames = frames.iter().map(|f| (*f).clone()).collect();
+                }
+                // The window draws the bowl itself (on the GPU): no picture
+                // here, but the bird's-eye view beside it if asked for.
+                let skip_picture = bowl.is_some() && self.settings.bowl.gpu_draws;
                 // A frame shown at another exposure than it was taken with
                 // is scaled sample by sample (clipped where its sensor
                 // clips); the composer applies the seam gains.
@@ -499,19 +521,22 @@ impl Processor {
                         }
                     }
                 }
-                let composed = self
-                    .composer
-                    .compose_with_gains(
-                        shown_view,
-                        &shown,
-                        self.settings.blend,
-                        Some(&composer_gains),
-                        &mut canvas,
-                    )
-                    .and_then(|()| match &bowl {
-                        Some(b) => b.paint_vehicle(&mut canvas),
-                        None => Ok(()),
-                    });
+                let composed = if skip_picture {
+                    Ok(())
+                } else {
+                    self.composer
+                        .compose_with_gains(
+                            shown_view,
+                            &shown,
+                            self.settings.blend,
+                            Some(&composer_gains),
+                            &mut canvas,
+                        )
+                        .and_then(|()| match &bowl {
+                            Some(b) => b.paint_vehicle(&mut canvas),
+                            None => Ok(()),
+                        })
+                };
                 // The bird's-eye view beside the bowl, at the same gains.
                 if bowl.is_some() && self.settings.bowl.beside && composed.is_ok() {
                     let (bw, bh) = view.size();
@@ -528,6 +553,7 @@ impl Processor {
                     }
                 }
                 match composed {
+                    Ok(()) if skip_picture => None,
                     Ok(()) => Some(Arc::new(canvas)),
                     Err(e) => {
                         compose_error = Some(e.to_string());
@@ -563,6 +589,13 @@ impl Processor {
                 .as_ref()
                 .and_then(View::bowl)
                 .map(|b| (*b.shown().viewpoint(), b.building())),
+            bowl_view: self
+                .view
+                .as_ref()
+                .and_then(View::bowl)
+                .map(|b| b.shown().clone()),
+            frames: shown_frames,
+            gain_parts,
         };
         Ok((output, commands))
     }

@@ -358,12 +358,18 @@ impl Side {
 
     /// Whether a ground point lies beyond this side of the vehicle.
     pub(crate) fn beyond(self, vehicle: &[f64; 4], x: f64, y: f64) -> bool {
+        self.margin(vehicle, x, y) > 0.0
+    }
+
+    /// How far a ground point lies beyond this side of the vehicle
+    /// (metres; negative short of it): linear in the point.
+    pub(crate) fn margin(self, vehicle: &[f64; 4], x: f64, y: f64) -> f64 {
         let [x0, x1, y0, y1] = *vehicle;
         match self {
-            Side::Front => x > x1,
-            Side::Back => x < x0,
-            Side::Left => y > y1,
-            Side::Right => y < y0,
+            Side::Front => x - x1,
+            Side::Back => x0 - x,
+            Side::Left => y - y1,
+            Side::Right => y0 - y,
         }
     }
 }

@@ -130,45 +130,66 @@ impl Mosaic {
     where
         L: Fn(usize, usize, &mut Vec<(usize, Point2<f64>)>) + Sync,
     {
-        let sizes: Vec<(usize, usize)> = cameras.iter().map(|(_, size)| *size).collect();
-        let (source, count) = grid::map_canvas((w, h), &sizes, &locate, (grid, tolerance));
-        // Per camera, its part of the canvas and the distance of each of
-        // its pixels from its exclusive region (which lies within it, so
-        // the distances there are those over the whole canvas).
-        let regions = std::thread::scope(|scope| {
-            let jobs: Vec<_> = source
-                .iter()
-                .enumerate()
-                .map(|(k, src)| {
-                    let count = &count;
-                    scope.spawn(move || -> Result<Option<Region>> {
-                        let covered = |i: usize| src[i][0] >= 0.0;
-                        let Some(roi) = bounding_box(w, h, covered) else {
-                            return Ok(None);
-                        };
-                        let [c0, r0, rw, rh] = roi;
-                        let mut exclusive = Vec::with_capacity(rw * rh);
-                        for r in r0..r0 + rh {
-                            exclusive.extend((c0..c0 + rw).map(|c| {
-                                let i = r * w + c;
-                                u8::from(!(covered(i) && count[i] == 1)) * 255
-                            }));
-                        }
-                        let distance =
-                            distance_to_zero(&exclusive, rw, rh).map_err(|e| Error::Camera {
-                                view: what,
-                                camera: k,
-                                name: cameras[k].0.clone(),
-                                source: Box::new(e),
-                            })?;
-                        Ok(Some(Region { roi, distance }))
-                    })
-                })
-                .collect();
-            jobs.into_iter()
-                .map(|job| job.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
-                .collect::<Result<Vec<_>>>()
-        })?;
+        let (source, count, regions) =
+            map_with_regions(what, (w, h), cameras, (grid, tolerance), &locate)?;
+        Self::from_maps(what, (w, h), cameras, (source, count), regions, empty)
+    }
+
+    /// [`Mosaic::build`] for a canvas that shows a surface of its own
+    /// (the bowl seen from a viewpoint): the blend distances are measured
+    /// on the surface ([`SurfaceDistances`]), not on the canvas, so that
+    /// the seams stay where they are on the surface whatever the canvas
+    /// shows of it. `locate` pushes, besides the cameras, the pixel's
+    /// position on the surface's raster as camera `cameras.len()` (none:
+    /// the pixel shows no surface).
+    pub(crate) fn build_on_surface<L>(
+        what: &'static str,
+        (w, h): (usize, usize),
+        cameras: &[(String, (usize, usize))],
+        (grid, tolerance): (usize, f64),
+        locate: L,
+        surface: &SurfaceDistances,
+    ) -> Result<(Self, Maps)>
+    where
+        L: Fn(usize, usize, &mut Vec<(usize, Point2<f64>)>) + Sync,
+    {
+        let mut sizes: Vec<(usize, usize)> = cameras.iter().map(|(_, size)| *size).collect();
+        sizes.push(surface.size);
+        let (mut source, mut count) = grid::map_canvas((w, h), &sizes, &locate, (grid, tolerance));
+        let on_surface = source.pop().unwrap_or_default();
+        for (n, at) in count.iter_mut().zip(&on_surface) {
+            if at[0] >= 0.0 {
+                *n = n.saturating_sub(1);
+            }
+        }
+        let regions = source
+            .iter()
+            .enumerate()
+            .map(|(k, src)| {
+                let roi = bounding_box(w, h, |i| src[i][0] >= 0.0)?;
+                let [c0, r0, rw, rh] = roi;
+                let mut distance = Vec::with_capacity(rw * rh);
+                for r in r0..r0 + rh {
+                    distance.extend((c0..c0 + rw).map(|c| {
+                        let [x, y] = on_surface[r * w + c];
+                        surface.distance(k, x, y).unwrap_or(1e6)
+                    }));
+                }
+                Some(Region { roi, distance })
+            })
+            .collect();
+        Self::from_maps(what, (w, h), cameras, (source, count), regions, |_| None)
+    }
+
+    /// The mosaic from the maps, the cameras' regions and distances.
+    fn from_maps(
+        what: &'static str,
+        (w, h): (usize, usize),
+        cameras: &[(String, (usize, usize))],
+        (source, count): (Vec<Vec<[f32; 2]>>, Vec<u8>),
+        regions: Vec<Option<Region>>,
+        empty: impl Fn(usize) -> Option<Error>,
+    ) -> Result<(Self, Maps)> {
         let regions: Vec<Region> = regions
             .into_iter()
             .enumerate()
@@ -395,6 +416,130 @@ impl Mosaic {
     }
 }
 
+/// Each camera's distance from its exclusive region, measured on a raster
+/// of a surface of its own (the bowl's ground plan) rather than on a
+/// canvas: what [`Mosaic::build_on_surface`] weighs with, and what a
+/// renderer that draws the surface as a mesh weighs its vertices with.
+#[derive(Debug)]
+pub struct SurfaceDistances {
+    size: (usize, usize),
+    regions: Vec<Option<Region>>,
+}
+
+impl SurfaceDistances {
+    /// The distances on a `w × h` raster of a surface that `cameras`
+    /// show where `locate` says (as for [`Mosaic::build`]).
+    pub(crate) fn build<L>(
+        what: &'static str,
+        (w, h): (usize, usize),
+        cameras: &[(String, (usize, usize))],
+        (grid, tolerance): (usize, f64),
+        locate: L,
+    ) -> Result<Self>
+    where
+        L: Fn(usize, usize, &mut Vec<(usize, Point2<f64>)>) + Sync,
+    {
+        let (_, _, regions) = map_with_regions(what, (w, h), cameras, (grid, tolerance), &locate)?;
+        Ok(Self {
+            size: (w, h),
+            regions,
+        })
+    }
+
+    /// The raster's width and height.
+    pub fn size(&self) -> (usize, usize) {
+        self.size
+    }
+
+    /// Camera `k`'s distance (raster pixels) from its exclusive region at
+    /// raster position (`x`, `y`) (pixel centres at whole numbers),
+    /// interpolated bilinearly; positions beyond the camera's part of the
+    /// raster take its edge's. `None`: the camera shows none of the
+    /// surface.
+    pub fn distance(&self, k: usize, x: f32, y: f32) -> Option<f32> {
+        let region = self.regions.get(k)?.as_ref()?;
+        let [c0, r0, rw, rh] = region.roi;
+        let fx = (x - c0 as f32).clamp(0.0, (rw - 1) as f32);
+        let fy = (y - r0 as f32).clamp(0.0, (rh - 1) as f32);
+        let (ix, iy) = (fx as usize, fy as usize);
+        let (ax, ay) = (fx - ix as f32, fy - iy as f32);
+        let (jx, jy) = ((ix + 1).min(rw - 1), (iy + 1).min(rh - 1));
+        let d = |c: usize, r: usize| region.distance[r * rw + c];
+        let top = d(ix, iy) * (1.0 - ax) + d(jx, iy) * ax;
+        let bottom = d(ix, jy) * (1.0 - ax) + d(jx, jy) * ax;
+        Some(top * (1.0 - ay) + bottom * ay)
+    }
+}
+
+/// The maps of a canvas ([`grid::map_canvas`]: each camera's source
+/// positions, and how many cameras show each pixel) and each camera's
+/// region on it ([`exclusive_regions`]).
+#[allow(clippy::type_complexity)]
+fn map_with_regions<L>(
+    what: &'static str,
+    (w, h): (usize, usize),
+    cameras: &[(String, (usize, usize))],
+    (grid, tolerance): (usize, f64),
+    locate: &L,
+) -> Result<(Vec<Vec<[f32; 2]>>, Vec<u8>, Vec<Option<Region>>)>
+where
+    L: Fn(usize, usize, &mut Vec<(usize, Point2<f64>)>) + Sync,
+{
+    let sizes: Vec<(usize, usize)> = cameras.iter().map(|(_, size)| *size).collect();
+    let (source, count) = grid::map_canvas((w, h), &sizes, locate, (grid, tolerance));
+    let regions = exclusive_regions(what, (w, h), cameras, &source, &count)?;
+    Ok((source, count, regions))
+}
+
+/// Per camera of a canvas's maps (`source`, `count`: how many cameras show
+/// each pixel), its part of the canvas and the distance of each of its
+/// pixels from its exclusive region (`None`: it shows nothing).
+fn exclusive_regions(
+    what: &'static str,
+    (w, h): (usize, usize),
+    cameras: &[(String, (usize, usize))],
+    source: &[Vec<[f32; 2]>],
+    count: &[u8],
+) -> Result<Vec<Option<Region>>> {
+    // Per camera, its part of the canvas and the distance of each of
+    // its pixels from its exclusive region (which lies within it, so
+    // the distances there are those over the whole canvas).
+    std::thread::scope(|scope| {
+        let jobs: Vec<_> = source
+            .iter()
+            .enumerate()
+            .map(|(k, src)| {
+                let count = &count;
+                scope.spawn(move || -> Result<Option<Region>> {
+                    let covered = |i: usize| src[i][0] >= 0.0;
+                    let Some(roi) = bounding_box(w, h, covered) else {
+                        return Ok(None);
+                    };
+                    let [c0, r0, rw, rh] = roi;
+                    let mut exclusive = Vec::with_capacity(rw * rh);
+                    for r in r0..r0 + rh {
+                        exclusive.extend((c0..c0 + rw).map(|c| {
+                            let i = r * w + c;
+                            u8::from(!(covered(i) && count[i] == 1)) * 255
+                        }));
+                    }
+                    let distance =
+                        distance_to_zero(&exclusive, rw, rh).map_err(|e| Error::Camera {
+                            view: what,
+                            camera: k,
+                            name: cameras[k].0.clone(),
+                            source: Box::new(e),
+                        })?;
+                    Ok(Some(Region { roi, distance }))
+                })
+            })
+            .collect();
+        jobs.into_iter()
+            .map(|job| job.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
+            .collect::<Result<Vec<_>>>()
+    })
+}
+
 /// Buffers of [`blend_weights`], reused from pixel to pixel.
 #[derive(Debug, Default)]
 struct BlendScratch {
@@ -409,6 +554,7 @@ struct BlendScratch {
 
 /// A camera's part of the canvas (column, row, width, height) and, per
 /// pixel of it, the distance from the camera's exclusive region.
+#[derive(Debug)]
 struct Region {
     roi: [usize; 4],
     distance: Vec<f32>,

@@ -31,6 +31,11 @@ pub struct BowlSettings {
     /// Compose the bird's-eye view too, to show beside the bowl (as
     /// production surround views do).
     pub beside: bool,
+    /// The window draws the bowl itself (on the GPU): the pipeline
+    /// composes no picture of it. Not a file setting: the window sets it
+    /// while its renderer works.
+    #[serde(skip)]
+    pub gpu_draws: bool,
 }
 
 impl BowlSettings {
@@ -128,12 +133,19 @@ impl LiveBowl {
 
     /// Asks for the bowl as `settings` say, composed in `blend`: built
     /// (with its plan for `blend`) in the background, after the one under
-    /// way if there is one.
+    /// way if there is one. While the window draws the bowl itself
+    /// ([`BowlSettings::gpu_draws`]), a new viewpoint builds nothing (the
+    /// window's renderer takes it as a matrix); a new bowl still does (the
+    /// renderer needs its ground plan).
     pub fn set_wanted(&mut self, settings: &BowlSettings, blend: BlendMode) {
-        if !same_bowl(settings, &self.wanted) {
+        let mut settings = settings.clone();
+        if settings.gpu_draws {
+            settings.viewpoint = self.wanted.viewpoint;
+        }
+        if !same_bowl(&settings, &self.wanted) {
             self.asked = Some(Instant::now());
         }
-        self.wanted = settings.clone();
+        self.wanted = settings;
         self.blend = blend;
         self.start();
     }

@@ -77,6 +77,7 @@ fn a_moving_viewpoint_is_previewed_at_half_size_then_built_whole() {
         },
         viewpoint: Viewpoint::preset("top").unwrap(),
         beside: false,
+        gpu_draws: false,
     };
     let mut bowl =
         LiveBowl::new(&rig, &CanvasSpec::default(), &settings, BlendMode::Linear).unwrap();
@@ -124,4 +125,35 @@ fn a_moving_viewpoint_is_previewed_at_half_size_then_built_whole() {
     assert_eq!(bowl.built(), &turned);
     let problem = bowl.problem().unwrap_or_default();
     assert!(problem.contains("bowl.steepness"), "{problem}");
+    // While the window draws the bowl on the GPU, a new viewpoint builds
+    // nothing (the GPU takes it as a matrix), a new bowl does (the GPU
+    // needs its ground plan); once the GPU stops, the viewpoint it showed
+    // is built.
+    let on_gpu = BowlSettings {
+        gpu_draws: true,
+        viewpoint: turned.viewpoint.orbited(40.0, 0.0, 1.0),
+        ..turned.clone()
+    };
+    bowl.set_wanted(&on_gpu, BlendMode::Linear);
+    assert!(!bowl.building());
+    let wider = BowlSettings {
+        spec: BowlSpec {
+            flat_m: turned.spec.flat_m + 0.5,
+            ..turned.spec.clone()
+        },
+        ..on_gpu.clone()
+    };
+    bowl.set_wanted(&wider, BlendMode::Linear);
+    assert!(bowl.building());
+    bowl.settle();
+    assert_eq!(bowl.built().spec, wider.spec);
+    assert_eq!(bowl.built().viewpoint, turned.viewpoint);
+    let off = BowlSettings {
+        gpu_draws: false,
+        ..wider.clone()
+    };
+    bowl.set_wanted(&off, BlendMode::Linear);
+    assert!(bowl.building());
+    bowl.settle();
+    assert_eq!(bowl.built().viewpoint, off.viewpoint);
 }
