@@ -33,6 +33,36 @@ pub enum ViewMode {
     Bowl,
 }
 
+/// What draws the bowl in the window.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum BowlRenderer {
+    /// The GPU where the window's OpenGL is a GPU's; the CPU where it is a
+    /// software renderer (Mesa's llvmpipe draws the bowl more slowly than
+    /// the pipeline composes it).
+    #[default]
+    Auto,
+    /// The GPU (or the GL's software renderer): a new viewpoint at once.
+    Gpu,
+    /// The pipeline, on the CPU: a new viewpoint is rebuilt in the
+    /// background.
+    Cpu,
+}
+
+impl BowlRenderer {
+    /// Every choice, for the window's menu.
+    pub const ALL: [Self; 3] = [Self::Auto, Self::Gpu, Self::Cpu];
+
+    /// Its name in the window.
+    pub fn label(self) -> &'static str {
+        match self {
+            Self::Auto => "auto",
+            Self::Gpu => "GPU",
+            Self::Cpu => "CPU",
+        }
+    }
+}
+
 impl ViewMode {
     /// The view the pipeline composes for this choice.
     pub fn kind(self) -> rigview_core::pipeline::ViewKind {
@@ -65,9 +95,8 @@ pub struct WindowSettings {
     pub recent: Vec<PathBuf>,
     /// The bowl view turns to the rear view while the vehicle reverses.
     pub rear_when_reversing: bool,
-    /// The window draws the bowl on the GPU where it can (otherwise the
-    /// pipeline composes it on the CPU).
-    pub bowl_on_gpu: bool,
+    /// What draws the bowl in the window.
+    pub bowl_renderer: BowlRenderer,
 }
 
 impl Default for WindowSettings {
@@ -81,7 +110,7 @@ impl Default for WindowSettings {
             selected_camera: 0,
             recent: Vec::new(),
             rear_when_reversing: true,
-            bowl_on_gpu: true,
+            bowl_renderer: BowlRenderer::Auto,
         }
     }
 }

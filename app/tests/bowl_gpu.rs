@@ -6,75 +6,14 @@
 //! in each blend mode and with the display's seam gains.
 //! Away from edges (where a camera's coverage, the vehicle or the rim
 //! begins) the two differ by at most 2 grey levels on the mean.
-#![allow(unsafe_code, clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use std::path::Path;
 
-use eframe::glow;
-use khronos_egl as egl;
 use rigview::commands::surround;
-use rigview::gui::bowl_gl::{BowlGl, Shot, TextureFrame};
+use rigview::gui::bowl_gl::{headless_context, BowlGl, Shot, TextureFrame};
 use rigview_core::bowl::{BowlSpec, BowlView, SurfaceMesh, VehicleTriangles, Viewpoint};
 use rigview_core::surround::{BlendMode, Canvas, CanvasSpec, Composer};
-
-const PLATFORM_SURFACELESS_MESA: egl::Enum = 0x31DD;
-
-/// An OpenGL 3.3 core context on Mesa's surfaceless EGL platform, current
-/// on this thread.
-fn headless_gl() -> glow::Context {
-    // SAFETY: loads the system's libEGL and calls it as its API says; the
-    // context stays current (and alive) for the test's thread.
-    unsafe {
-        let egl = egl::DynamicInstance::<egl::EGL1_5>::load_required()
-            .expect("libEGL.so.1 (scripts/setup installs libegl1 and libegl-mesa0)");
-        let display = egl
-            .get_platform_display(
-                PLATFORM_SURFACELESS_MESA,
-                egl::DEFAULT_DISPLAY,
-                &[egl::ATTRIB_NONE],
-            )
-            .expect("Mesa's surfaceless EGL platform");
-        egl.initialize(display).expect("EGL initialises");
-        egl.bind_api(egl::OPENGL_API).expect("desktop OpenGL");
-        let config = egl
-            .choose_first_config(
-                display,
-                &[
-                    egl::SURFACE_TYPE,
-                    egl::PBUFFER_BIT,
-                    egl::RENDERABLE_TYPE,
-                    egl::OPENGL_BIT,
-                    egl::NONE,
-                ],
-            )
-            .expect("an EGL config")
-            .expect("an OpenGL config");
-        let context = egl
-            .create_context(
-                display,
-                config,
-                None,
-                &[
-                    egl::CONTEXT_MAJOR_VERSION,
-                    3,
-                    egl::CONTEXT_MINOR_VERSION,
-                    3,
-                    egl::CONTEXT_OPENGL_PROFILE_MASK,
-                    egl::CONTEXT_OPENGL_CORE_PROFILE_BIT,
-                    egl::NONE,
-                ],
-            )
-            .expect("an OpenGL 3.3 core context");
-        egl.make_current(display, None, None, Some(context))
-            .expect("a surfaceless context made current");
-        let gl = glow::Context::from_loader_function(|name| {
-            egl.get_proc_address(name)
-                .map_or(std::ptr::null(), |f| f as *const std::ffi::c_void)
-        });
-        std::mem::forget(egl);
-        gl
-    }
-}
 
 fn data() -> std::path::PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/data/surround-nz")
@@ -135,7 +74,7 @@ fn the_gpus_bowl_agrees_with_the_cpus_away_from_edges() {
         size_px: [1280, 800],
         ..BowlSpec::around(&CanvasSpec::around_car_16x12(25.0))
     };
-    let gl = headless_gl();
+    let gl = headless_context().unwrap();
     let mut renderer = BowlGl::new(&gl).unwrap();
     let textures: Vec<TextureFrame<'_>> = images
         .iter()

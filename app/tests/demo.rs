@@ -109,6 +109,60 @@ fn the_default_command_opens_the_window_on_the_simulated_rig() {
     assert!(text.contains("format: rigview-settings"), "{text}");
 }
 
+/// The bowl view in the real window, drawn on the GPU through the glow
+/// paint callback (Mesa's software GL under Xvfb): the window says how many
+/// pictures it drew, and its screenshot shows the bowl.
+#[test]
+fn the_window_draws_the_bowl_on_the_gpu() {
+    let x = Xvfb::start();
+    let dir = tempfile::tempdir().unwrap();
+    let settings = dir.path().join("settings.yaml");
+    std::fs::write(&settings, "window:\n  bowl_renderer: gpu\n").unwrap();
+    let shot = dir.path().join("bowl.png");
+    let out = Command::new(env!("CARGO_BIN_EXE_rigview"))
+        .args(["run", "--view", "bowl", "--viewpoint", "behind-left"])
+        .args(["--screenshot-after", "7", "--screenshot"])
+        .arg(&shot)
+        .arg("--settings")
+        .arg(&settings)
+        .env("DISPLAY", &x.display)
+        .env_remove("WAYLAND_DISPLAY")
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    let pictures = stderr
+        .split_once("bowl on the GPU: ")
+        .and_then(|(_, rest)| rest.split(' ').next())
+        .and_then(|n| n.parse::<u64>().ok())
+        .unwrap_or(0);
+    assert!(pictures >= 3, "{stderr}");
+    // The view (the middle of the window's upper half) shows a picture,
+    // not a blank or a single colour.
+    let image = image::open(&shot).unwrap().to_luma8();
+    let (w, h) = image.dimensions();
+    let mut levels = [0u32; 256];
+    for y in h / 8..h / 2 {
+        for x in w / 4..3 * w / 4 {
+            levels[usize::from(image.get_pixel(x, y).0[0])] += 1;
+        }
+    }
+    let used = levels.iter().filter(|&&n| n > 50).count();
+    assert!(used > 40, "{used} grey levels in the view");
+    // Auto (the default) on a software GL: the CPU composes the bowl.
+    std::fs::write(&settings, "window:\n  bowl_renderer: auto\n").unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_rigview"))
+        .args(["run", "--view", "bowl", "--quit-after", "4", "--settings"])
+        .arg(&settings)
+        .env("DISPLAY", &x.display)
+        .env_remove("WAYLAND_DISPLAY")
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(!stderr.contains("bowl on the GPU"), "{stderr}");
+}
+
 #[test]
 fn without_a_display_the_window_says_what_to_run_instead() {
     let out = Command::new(env!("CARGO_BIN_EXE_rigview"))

@@ -71,6 +71,7 @@ fn app_on(
             settings: Some(dir.join("settings.yaml")),
             quit_after: None,
             screenshot: None,
+            window_size: None,
             pipeline: PipelineOptions {
                 lockstep: true,
                 ..Default::default()

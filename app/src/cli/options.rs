@@ -36,6 +36,9 @@ pub struct ViewArgs {
     /// Seconds before the screenshot.
     #[arg(long, value_name = "S", default_value_t = 8.0, global = true)]
     pub screenshot_after: f64,
+    /// The window's size in points, WIDTHxHEIGHT [default: 1600x1000].
+    #[arg(long, value_name = "WxH", global = true)]
+    pub window_size: Option<String>,
 }
 
 impl ViewArgs {
@@ -60,6 +63,27 @@ impl ViewArgs {
         let after = Duration::try_from_secs_f64(self.screenshot_after)
             .context("--screenshot-after: expected a number of seconds ≥ 0")?;
         Ok(Some((p.clone(), after)))
+    }
+
+    /// `--window-size` as width and height, points.
+    pub fn window_size(&self) -> Result<Option<[f32; 2]>> {
+        let Some(text) = &self.window_size else {
+            return Ok(None);
+        };
+        let parsed = text.split_once(['x', '×']).and_then(|(w, h)| {
+            let (w, h) = (w.trim().parse::<f32>().ok()?, h.trim().parse::<f32>().ok()?);
+            (w.is_finite()
+                && h.is_finite()
+                && (320.0..=16384.0).contains(&w)
+                && (240.0..=16384.0).contains(&h))
+            .then_some([w, h])
+        });
+        match parsed {
+            Some(size) => Ok(Some(size)),
+            None => anyhow::bail!(
+                "--window-size: expected WIDTHxHEIGHT in points (320x240 to 16384x16384), e.g. 1600x1000; got {text:?}"
+            ),
+        }
     }
 
     /// `--quit-after` as a duration.
@@ -98,6 +122,7 @@ impl ViewArgs {
             settings: self.settings.clone(),
             quit_after: self.quit_after()?,
             screenshot: self.screenshot()?,
+            window_size: self.window_size()?,
             pipeline: PipelineOptions::default(),
             log: LogBuffer::global().clone(),
             record,
@@ -271,4 +296,33 @@ pub fn parse_pixel_format(s: &str) -> std::result::Result<PixelFormat, String> {
             let names: Vec<_> = PixelFormat::ALL.iter().map(|f| f.genicam_name()).collect();
             format!("unknown pixel format \"{s}\" (known: {})", names.join(", "))
         })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_window_size_is_read_or_refused_with_what_was_expected() {
+        let args = |s: &str| ViewArgs {
+            window_size: Some(s.into()),
+            ..ViewArgs::default()
+        };
+        assert_eq!(
+            args("2017x1277").window_size().unwrap(),
+            Some([2017.0, 1277.0])
+        );
+        assert_eq!(
+            args("1600×1000").window_size().unwrap(),
+            Some([1600.0, 1000.0])
+        );
+        assert_eq!(ViewArgs::default().window_size().unwrap(), None);
+        for bad in ["12by3", "100x100", "1600x", "nanxnan", "1e9x800"] {
+            let e = args(bad).window_size().unwrap_err().to_string();
+            assert!(
+                e.contains("--window-size") && e.contains("WIDTHxHEIGHT") && e.contains(bad),
+                "{e}"
+            );
+        }
+    }
 }

@@ -14,6 +14,7 @@ use egui::{Response, Ui};
 use rigview_core::bowl::{Footprint, Viewpoint, PRESETS};
 
 use super::RigviewApp;
+use crate::settings::BowlRenderer;
 
 /// How long a change of viewpoint takes.
 const ANIMATION: Duration = Duration::from_millis(700);
@@ -122,13 +123,24 @@ pub(super) fn bar(app: &mut RigviewApp, ui: &mut Ui) {
         {
             app.settings_changed();
         }
-        if ui
-            .checkbox(&mut app.settings.window.bowl_on_gpu, "GPU")
-            .on_hover_text(
-                "Draw the bowl on the GPU (the orbit follows at the display's rate); off: the pipeline composes it on the CPU",
-            )
-            .changed()
-        {
+        let gl = app
+            .gpu_bowl
+            .gl_renderer
+            .clone()
+            .unwrap_or_else(|| "no OpenGL".into());
+        let before = app.settings.window.bowl_renderer;
+        egui::ComboBox::from_label("drawn by")
+            .selected_text(before.label())
+            .show_ui(ui, |ui| {
+                for r in BowlRenderer::ALL {
+                    ui.selectable_value(&mut app.settings.window.bowl_renderer, r, r.label());
+                }
+            })
+            .response
+            .on_hover_text(format!(
+                "GPU: a new viewpoint at once; CPU: the pipeline composes the bowl and rebuilds it for a new viewpoint; auto: the GPU unless the OpenGL is a software renderer (this window's: {gl})"
+            ));
+        if app.settings.window.bowl_renderer != before {
             app.window_changed();
         }
         ui.separator();
@@ -137,7 +149,7 @@ pub(super) fn bar(app: &mut RigviewApp, ui: &mut Ui) {
         } else if let Some(why) = app
             .latest
             .as_ref()
-            .filter(|_| app.settings.window.bowl_on_gpu && app.gpu_bowl.available)
+            .filter(|_| super::bowl_gpu_chosen(app) && app.gpu_bowl.available)
             .and_then(|o| super::bowl_gpu::unsuited(o))
         {
             ui.label(format!("on the CPU: {why}"));

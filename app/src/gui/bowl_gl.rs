@@ -14,6 +14,7 @@
 #![allow(unsafe_code)]
 
 use eframe::glow::{self, HasContext};
+use khronos_egl as egl;
 use rigview_core::bowl::{SurfaceMesh, VehicleTriangles, VirtualCamera, MAX_GPU_CAMERAS};
 use rigview_core::surround::BlendMode;
 
@@ -571,6 +572,12 @@ impl BowlGl {
         }
     }
 
+    /// Waits until the GPU has done what it was asked.
+    pub fn finish(&self, gl: &glow::Context) {
+        // SAFETY: a plain GL call on the current context.
+        unsafe { gl.finish() }
+    }
+
     /// The last drawing as RGB rows from the top.
     pub fn read_rgb(&self, gl: &glow::Context) -> Option<(usize, usize, Vec<u8>)> {
         let (fbo, _, _, (w, h)) = self.target?;
@@ -705,4 +712,73 @@ pub fn view_projection(camera: &VirtualCamera, (w, h): (usize, usize)) -> [f32; 
 
 fn bytes_of_f32(v: &[f32]) -> Vec<u8> {
     v.iter().flat_map(|f| f.to_ne_bytes()).collect()
+}
+
+/// EGL's platform of no display (Mesa's).
+const PLATFORM_SURFACELESS_MESA: egl::Enum = 0x31DD;
+
+/// An OpenGL 3.3 core context with no display or window (Mesa's
+/// surfaceless EGL platform: its software renderer here, a GPU's driver
+/// where there is one), current on the calling thread for as long as the
+/// thread lives: for tests and benchmarks of the renderer.
+pub fn headless_context() -> Result<glow::Context, String> {
+    let fail =
+        |what: &str, e: &dyn std::fmt::Display| format!("a headless OpenGL context: {what}: {e}");
+    // SAFETY: loads the system's libEGL and calls it as its API says; the
+    // instance is leaked so that the context's functions stay loaded.
+    unsafe {
+        let egl = egl::DynamicInstance::<egl::EGL1_5>::load_required().map_err(|e| {
+            fail(
+                "libEGL.so.1 (scripts/setup installs libegl1 and libegl-mesa0)",
+                &e,
+            )
+        })?;
+        let egl: &'static _ = Box::leak(Box::new(egl));
+        let display = egl
+            .get_platform_display(
+                PLATFORM_SURFACELESS_MESA,
+                egl::DEFAULT_DISPLAY,
+                &[egl::ATTRIB_NONE],
+            )
+            .map_err(|e| fail("Mesa's surfaceless EGL platform", &e))?;
+        egl.initialize(display)
+            .map_err(|e| fail("EGL's initialisation", &e))?;
+        egl.bind_api(egl::OPENGL_API)
+            .map_err(|e| fail("desktop OpenGL", &e))?;
+        let config = egl
+            .choose_first_config(
+                display,
+                &[
+                    egl::SURFACE_TYPE,
+                    egl::PBUFFER_BIT,
+                    egl::RENDERABLE_TYPE,
+                    egl::OPENGL_BIT,
+                    egl::NONE,
+                ],
+            )
+            .map_err(|e| fail("an EGL configuration", &e))?
+            .ok_or_else(|| fail("an EGL configuration", &"none for OpenGL"))?;
+        let context = egl
+            .create_context(
+                display,
+                config,
+                None,
+                &[
+                    egl::CONTEXT_MAJOR_VERSION,
+                    3,
+                    egl::CONTEXT_MINOR_VERSION,
+                    3,
+                    egl::CONTEXT_OPENGL_PROFILE_MASK,
+                    egl::CONTEXT_OPENGL_CORE_PROFILE_BIT,
+                    egl::NONE,
+                ],
+            )
+            .map_err(|e| fail("an OpenGL 3.3 core context", &e))?;
+        egl.make_current(display, None, None, Some(context))
+            .map_err(|e| fail("making it current", &e))?;
+        Ok(glow::Context::from_loader_function(|name| {
+            egl.get_proc_address(name)
+                .map_or(std::ptr::null(), |f| f as *const std::ffi::c_void)
+        }))
+    }
 }

@@ -27,8 +27,13 @@ use super::bowl_gl::{BowlGl, Shot, TextureFrame};
 pub(super) struct GpuBowl {
     /// The window has a glow context (eframe's glow back end).
     pub available: bool,
+    /// The GL's renderer (`GL_RENDERER`), asked once.
+    pub gl_renderer: Option<String>,
     shared: Arc<Mutex<Shared>>,
 }
+
+/// What a picture shows: the set, viewpoint, size, blend and gains.
+type PictureKey = (u64, Viewpoint, (usize, usize), BlendMode, Vec<[f32; 2]>);
 
 /// What the paint callback keeps between frames.
 #[derive(Debug, Default)]
@@ -44,9 +49,21 @@ struct Shared {
     /// UI thread).
     upload_ms: f32,
     draw_ms: f32,
+    /// What the last picture showed: the set, viewpoint, size, blend and
+    /// gains (the same again is only copied into the window).
+    last: Option<PictureKey>,
     /// Every picture drawn: when, and its upload (of a new set; 0 for the
     /// same set again) and draw times, ms (for the run's summary).
     drawn: Vec<(Instant, f32, f32)>,
+}
+
+/// Whether `GL_RENDERER` names a software rasteriser (Mesa's llvmpipe,
+/// softpipe or swrast, or Microsoft's WARP).
+pub(super) fn is_software(renderer: &str) -> bool {
+    let r = renderer.to_ascii_lowercase();
+    ["llvmpipe", "softpipe", "swrast", "software", "warp"]
+        .iter()
+        .any(|s| r.contains(s))
 }
 
 /// Why `out`'s bowl cannot go to the GPU, if it cannot.
@@ -182,9 +199,16 @@ impl Shared {
             upload_ms = t.elapsed().as_secs_f32() * 1e3;
             self.upload_ms = upload_ms;
         }
-        let t = Instant::now();
         let px = info.viewport_in_pixels();
         let size = (px.width_px.max(1) as usize, px.height_px.max(1) as usize);
+        let rect = [px.left_px, px.from_bottom_px, px.width_px, px.height_px];
+        let key = (out.trigger, viewpoint, size, mode, out.gain_parts.clone());
+        if self.last.as_ref() == Some(&key) {
+            // Nothing changed (the window repaints for another reason).
+            renderer.blit(gl, None, rect);
+            return Ok(());
+        }
+        let t = Instant::now();
         renderer.draw(
             gl,
             &Shot {
@@ -194,15 +218,37 @@ impl Shared {
                 mode,
             },
         )?;
-        renderer.blit(
-            gl,
-            None,
-            [px.left_px, px.from_bottom_px, px.width_px, px.height_px],
-        );
+        renderer.blit(gl, None, rect);
+        self.last = Some(key);
         self.draw_ms = t.elapsed().as_secs_f32() * 1e3;
         if self.drawn.len() < 100_000 {
             self.drawn.push((Instant::now(), upload_ms, self.draw_ms));
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn software_renderers_are_told_from_gpus() {
+        for software in [
+            "llvmpipe (LLVM 15.0.6, 256 bits)",
+            "softpipe",
+            "Mesa X11 swrast",
+            "Microsoft Basic Render Driver (WARP)",
+        ] {
+            assert!(is_software(software), "{software}");
+        }
+        for gpu in [
+            "NVIDIA GeForce RTX 3060/PCIe/SSE2",
+            "Mesa Intel(R) UHD Graphics 620 (KBL GT2)",
+            "AMD Radeon RX 6600 (radeonsi, navi23, LLVM 15.0.6, DRM 3.49)",
+            "NVIDIA Tegra Orin (nvgpu)/integrated",
+        ] {
+            assert!(!is_software(gpu), "{gpu}");
+        }
     }
 }

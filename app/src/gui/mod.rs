@@ -49,7 +49,7 @@ use crate::logging::{self, LogBuffer};
 use crate::report::CpuMeter;
 use crate::session::{self, Session, SourceSpec};
 use crate::session::{RecordSpec, ReplayControl, ReplaySpec};
-use crate::settings::{Settings, SettingsStore};
+use crate::settings::{BowlRenderer, Settings, SettingsStore};
 
 /// Puts a composed view into its texture (made on first use).
 fn upload(
@@ -119,6 +119,8 @@ pub struct AppOptions {
     pub quit_after: Option<Duration>,
     /// Save a screenshot to this PNG after this long, then close.
     pub screenshot: Option<(PathBuf, Duration)>,
+    /// The window's size, points (`None`: 1600 × 1000).
+    pub window_size: Option<[f32; 2]>,
     /// Pipeline options (lock step for repeatable tests).
     pub pipeline: PipelineOptions,
     /// The events the Messages panel shows (those from the app's start on):
@@ -625,7 +627,16 @@ impl RigviewApp {
 
 impl eframe::App for RigviewApp {
     fn ui(&mut self, ui: &mut egui::Ui, frame: &mut eframe::Frame) {
-        self.gpu_bowl.available = frame.gl().is_some();
+        if let Some(gl) = frame.gl() {
+            self.gpu_bowl.available = true;
+            if self.gpu_bowl.gl_renderer.is_none() {
+                use eframe::glow::HasContext;
+                // SAFETY: a query of the window's current context.
+                #[allow(unsafe_code)]
+                let name = unsafe { gl.get_parameter_string(eframe::glow::RENDERER) };
+                self.gpu_bowl.gl_renderer = Some(name);
+            }
+        }
         self.show(ui);
         if self.closing.wants_close() {
             ui.ctx().send_viewport_cmd(egui::ViewportCommand::Close);
@@ -642,13 +653,27 @@ impl eframe::App for RigviewApp {
 /// the operator wants it, it has not failed, and the latest set suits it.
 fn bowl_gpu_usable(app: &RigviewApp) -> bool {
     app.gpu_bowl.available
-        && app.settings.window.bowl_on_gpu
+        && bowl_gpu_chosen(app)
         && app.gpu_bowl.failure().is_none()
         && app.latest.as_ref().is_some_and(|out| {
             out.view == Some(rigview_core::pipeline::ViewKind::Bowl)
                 && out.bowl_view.is_some()
                 && bowl_gpu::unsuited(out).is_none()
         })
+}
+
+/// Whether the operator's choice of renderer puts the bowl on the GPU
+/// (auto: where the GL is not a software renderer).
+fn bowl_gpu_chosen(app: &RigviewApp) -> bool {
+    match app.settings.window.bowl_renderer {
+        BowlRenderer::Gpu => true,
+        BowlRenderer::Cpu => false,
+        BowlRenderer::Auto => app
+            .gpu_bowl
+            .gl_renderer
+            .as_deref()
+            .is_some_and(|r| !bowl_gpu::is_software(r)),
+    }
 }
 
 /// The colour of camera `k` in plots and overlays.
@@ -676,7 +701,7 @@ pub fn run(options: AppOptions) -> Result<()> {
     let native = eframe::NativeOptions {
         viewport: egui::ViewportBuilder::default()
             .with_title("rigview")
-            .with_inner_size([1600.0, 1000.0]),
+            .with_inner_size(options.window_size.unwrap_or([1600.0, 1000.0])),
         renderer: eframe::Renderer::Glow,
         ..Default::default()
     };
