@@ -45,15 +45,7 @@ fn bowl_gpu(c: &mut Criterion) {
     let mut renderer = BowlGl::new(&gl).unwrap();
     let mesh: &SurfaceMesh = view.plan().mesh().unwrap();
     renderer.set_geometry(&gl, mesh, &VehicleTriangles::of(&spec, None));
-    let textures: Vec<TextureFrame<'_>> = images
-        .iter()
-        .map(|im| TextureFrame {
-            width: im.width() as usize,
-            height: im.height() as usize,
-            channels: 3,
-            data: im.as_raw(),
-        })
-        .collect();
+    let textures: Vec<TextureFrame<'_>> = images.iter().map(TextureFrame::rgb).collect();
     renderer.upload(&gl, &textures).unwrap();
     let shot = Shot {
         camera: viewpoint.camera(w, h),

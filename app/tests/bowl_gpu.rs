@@ -76,15 +76,7 @@ fn the_gpus_bowl_agrees_with_the_cpus_away_from_edges() {
     };
     let gl = headless_context().unwrap();
     let mut renderer = BowlGl::new(&gl).unwrap();
-    let textures: Vec<TextureFrame<'_>> = images
-        .iter()
-        .map(|im| TextureFrame {
-            width: im.width() as usize,
-            height: im.height() as usize,
-            channels: 3,
-            data: im.as_raw(),
-        })
-        .collect();
+    let textures: Vec<TextureFrame<'_>> = images.iter().map(TextureFrame::rgb).collect();
     renderer.upload(&gl, &textures).unwrap();
     let [w, h] = spec.size_px;
     let mut geometry = None;

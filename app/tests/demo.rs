@@ -28,6 +28,15 @@ fn set_lines(stdout: &str) -> Vec<&str> {
         .collect()
 }
 
+/// Arguments: `words`, then `paths`.
+fn os(words: &[&str], paths: &[&std::path::Path]) -> Vec<std::ffi::OsString> {
+    words
+        .iter()
+        .map(std::ffi::OsString::from)
+        .chain(paths.iter().map(|p| p.as_os_str().to_owned()))
+        .collect()
+}
+
 /// An X server of its own (Xvfb, which the set-up installs), stopped when
 /// dropped.
 struct Xvfb {
@@ -70,6 +79,23 @@ impl Xvfb {
     }
 }
 
+impl Xvfb {
+    /// Runs `rigview` with `args` on this display (and no Wayland's), and
+    /// returns whether it succeeded and its stderr.
+    fn run(&self, args: &[std::ffi::OsString]) -> (bool, String) {
+        let out = Command::new(env!("CARGO_BIN_EXE_rigview"))
+            .args(args)
+            .env("DISPLAY", &self.display)
+            .env_remove("WAYLAND_DISPLAY")
+            .output()
+            .unwrap();
+        (
+            out.status.success(),
+            String::from_utf8_lossy(&out.stderr).into_owned(),
+        )
+    }
+}
+
 impl Drop for Xvfb {
     fn drop(&mut self) {
         let _ = self.child.kill();
@@ -82,15 +108,8 @@ fn the_default_command_opens_the_window_on_the_simulated_rig() {
     let x = Xvfb::start();
     let dir = tempfile::tempdir().unwrap();
     let settings = dir.path().join("settings.yaml");
-    let out = Command::new(env!("CARGO_BIN_EXE_rigview"))
-        .args(["--quit-after", "8", "--settings"])
-        .arg(&settings)
-        .env("DISPLAY", &x.display)
-        .env_remove("WAYLAND_DISPLAY")
-        .output()
-        .unwrap();
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "{stderr}");
+    let (ok, stderr) = x.run(&os(&["--quit-after", "8", "--settings"], &[&settings]));
+    assert!(ok, "{stderr}");
     assert!(
         stderr.contains("source: simulated rig \"reference\" (4 × 1288×964"),
         "{stderr}"
@@ -119,18 +138,15 @@ fn the_window_draws_the_bowl_on_the_gpu() {
     let settings = dir.path().join("settings.yaml");
     std::fs::write(&settings, "window:\n  bowl_renderer: gpu\n").unwrap();
     let shot = dir.path().join("bowl.png");
-    let out = Command::new(env!("CARGO_BIN_EXE_rigview"))
-        .args(["run", "--view", "bowl", "--viewpoint", "behind-left"])
-        .args(["--screenshot-after", "7", "--screenshot"])
-        .arg(&shot)
-        .arg("--settings")
-        .arg(&settings)
-        .env("DISPLAY", &x.display)
-        .env_remove("WAYLAND_DISPLAY")
-        .output()
-        .unwrap();
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "{stderr}");
+    let words = ["run", "--view", "bowl", "--viewpoint", "behind-left"];
+    let args = [
+        os(&words, &[]),
+        os(&["--screenshot-after", "7", "--screenshot"], &[&shot]),
+        os(&["--settings"], &[&settings]),
+    ]
+    .concat();
+    let (ok, stderr) = x.run(&args);
+    assert!(ok, "{stderr}");
     let pictures = stderr
         .split_once("bowl on the GPU: ")
         .and_then(|(_, rest)| rest.split(' ').next())
@@ -151,15 +167,10 @@ fn the_window_draws_the_bowl_on_the_gpu() {
     assert!(used > 40, "{used} grey levels in the view");
     // Auto (the default) on a software GL: the CPU composes the bowl.
     std::fs::write(&settings, "window:\n  bowl_renderer: auto\n").unwrap();
-    let out = Command::new(env!("CARGO_BIN_EXE_rigview"))
-        .args(["run", "--view", "bowl", "--quit-after", "4", "--settings"])
-        .arg(&settings)
-        .env("DISPLAY", &x.display)
-        .env_remove("WAYLAND_DISPLAY")
-        .output()
-        .unwrap();
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "{stderr}");
+    let words = ["run", "--view", "bowl", "--quit-after", "4", "--settings"];
+    let args = os(&words, &[&settings]);
+    let (ok, stderr) = x.run(&args);
+    assert!(ok, "{stderr}");
     assert!(!stderr.contains("bowl on the GPU"), "{stderr}");
 }
 

@@ -165,6 +165,18 @@ pub struct TextureFrame<'a> {
     pub data: &'a [u8],
 }
 
+impl<'a> TextureFrame<'a> {
+    /// An RGB image's pixels.
+    pub fn rgb(image: &'a image::RgbImage) -> Self {
+        Self {
+            width: image.width() as usize,
+            height: image.height() as usize,
+            channels: 3,
+            data: image.as_raw(),
+        }
+    }
+}
+
 /// Each camera's gains for the display: the exposure gain (applied first,
 /// clipped at white, as the CPU scales a frame shown at another exposure)
 /// and the seam gain.
