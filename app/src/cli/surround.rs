@@ -60,8 +60,9 @@ pub struct SurroundArgs {
     /// behind-right, left or right.
     #[arg(long, value_name = "NAME", default_value = "behind-left")]
     pub viewpoint: String,
-    /// A Wavefront OBJ file of the vehicle for the bowl (y up, front along
-    /// −z; scaled onto the vehicle's box) instead of the built-in model.
+    /// A vehicle model for the bowl instead of the built-in one: glTF 2.0
+    /// (`.gltf` with its `.bin`, or `.glb`; front along +z) or Wavefront
+    /// OBJ (front along −z); y up, scaled onto the vehicle's box.
     #[arg(long, value_name = "FILE")]
     pub vehicle_model: Option<PathBuf>,
     /// The bowl picture's width and height, pixels.

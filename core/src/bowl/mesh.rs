@@ -1,12 +1,17 @@
-//! A user's vehicle model: a Wavefront OBJ file (`tobj`), its triangles
-//! scaled onto the vehicle's box and rasterised into the bowl's picture
-//! with a depth buffer, lit as the built-in model is.
+//! A user's vehicle model: a Wavefront OBJ file (`tobj`) or a glTF 2.0
+//! file (`gltf`: `.gltf` with its `.bin` beside it, or `.glb`), its
+//! triangles scaled onto the vehicle's box and rasterised into the bowl's
+//! picture with a depth buffer, lit as the built-in model is.
 //!
-//! Axes of the file: OBJ's convention, y up; the vehicle's front along −z
-//! and its right along +x (OpenGL's camera looking at the vehicle from
-//! behind). The model's bounding box is scaled onto the vehicle's
-//! rectangle and height, each axis on its own, so that it covers the
-//! blind area whatever its proportions.
+//! Axes of the files:
+//! - OBJ: y up; the vehicle's front along −z and its right along +x
+//!   (OpenGL's camera looking at the vehicle from behind).
+//! - glTF: its specification's, y up, the asset's front along +z and its
+//!   right along −x; the default scene's node transforms apply.
+//!
+//! The model's bounding box is scaled onto the vehicle's rectangle and
+//! height, each axis on its own, so that it covers the blind area
+//! whatever its proportions.
 
 use std::path::Path;
 
@@ -20,13 +25,40 @@ use crate::error::{Error, Result};
 /// a fraction of a second; more is a scan, not a vehicle model).
 const MAX_TRIANGLES: usize = 2_000_000;
 
+/// A triangle (vehicle frame) and its colour (linear RGB, 0–1).
+type Triangle = ([Vector3<f64>; 3], [f64; 3]);
+
 /// A triangle mesh in the vehicle frame with a colour per triangle.
 #[derive(Clone, Debug)]
 pub struct Mesh {
-    triangles: Vec<([Vector3<f64>; 3], [f64; 3])>,
+    triangles: Vec<Triangle>,
 }
 
 impl Mesh {
+    /// Loads the model at `path`: glTF for `.gltf` and `.glb`, OBJ
+    /// otherwise ([`Mesh::load_obj`], [`Mesh::load_gltf`]).
+    pub fn load(path: &Path, rect: [f64; 4], height_m: f64) -> Result<Self> {
+        let ext = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase);
+        match ext.as_deref() {
+            Some("gltf" | "glb") => Self::load_gltf(path, rect, height_m),
+            _ => Self::load_obj(path, rect, height_m),
+        }
+    }
+
+    /// Loads the glTF 2.0 file at `path` (`.gltf` with its buffers in
+    /// files beside it, or `.glb`): the triangles of its default scene
+    /// (or its first), placed by their nodes' transforms, in their
+    /// materials' base colours; then scales it onto `rect` and `height_m`
+    /// as [`Mesh::load_obj`] does.
+    pub fn load_gltf(path: &Path, rect: [f64; 4], height_m: f64) -> Result<Self> {
+        let what = format!("vehicle model {}", path.display());
+        let raw = read_gltf(path, &what)?;
+        Self::placed(what, raw, rect, height_m)
+    }
+
     /// Loads the OBJ file at `path` (its materials' diffuse colours where
     /// it has them) and scales it onto `rect` (`[x_min, x_max, y_min,
     /// y_max]`, metres) and `height_m`.
@@ -81,6 +113,12 @@ impl Mesh {
                 raw.push(([a, b, c], colour));
             }
         }
+        Self::placed(what, raw, rect, height_m)
+    }
+
+    /// Triangles in the vehicle frame's axes, scaled onto `rect` and
+    /// `height_m`.
+    fn placed(what: String, raw: Vec<Triangle>, rect: [f64; 4], height_m: f64) -> Result<Self> {
         if raw.is_empty() || raw.len() > MAX_TRIANGLES {
             return Err(Error::invalid(
                 what,
@@ -204,4 +242,140 @@ impl Mesh {
         }
         out
     }
+}
+
+/// The triangles of the glTF file at `path`, in the vehicle frame's axes
+/// (unscaled), each in its material's base colour.
+fn read_gltf(path: &Path, what: &str) -> Result<Vec<Triangle>> {
+    let invalid = |field: String, expected: &str, found: &dyn std::fmt::Display| {
+        Error::invalid(what.to_owned(), field, expected.to_owned(), found)
+    };
+    let bytes = std::fs::read(path).map_err(|e| {
+        invalid(
+            "the file".into(),
+            "a readable glTF file (.gltf or .glb)",
+            &e,
+        )
+    })?;
+    let gltf = gltf::Gltf::from_slice(&bytes).map_err(|e| {
+        invalid(
+            "its contents".into(),
+            "glTF 2.0 (JSON .gltf or binary .glb)",
+            &e,
+        )
+    })?;
+    let dir = path.parent().unwrap_or_else(|| Path::new("."));
+    let mut buffers = Vec::new();
+    for b in gltf.buffers() {
+        let field = format!("buffer {}", b.index());
+        let data = match b.source() {
+            gltf::buffer::Source::Bin => gltf.blob.clone().ok_or_else(|| {
+                invalid(
+                    field.clone(),
+                    "the .glb's binary chunk",
+                    &"a file without one",
+                )
+            })?,
+            gltf::buffer::Source::Uri(uri) if uri.starts_with("data:") => {
+                return Err(invalid(
+                    field,
+                    "a .bin file beside it, or a .glb (embedded base64 buffers are not read)",
+                    &"a data: URI",
+                ));
+            }
+            gltf::buffer::Source::Uri(uri) => {
+                let file = dir.join(uri);
+                std::fs::read(&file).map_err(|e| {
+                    invalid(
+                        field.clone(),
+                        "its file, readable",
+                        &format_args!("{}: {e}", file.display()),
+                    )
+                })?
+            }
+        };
+        if data.len() < b.length() {
+            return Err(invalid(
+                field,
+                &format!("{} bytes", b.length()),
+                &format_args!("{} bytes", data.len()),
+            ));
+        }
+        buffers.push(data);
+    }
+    let scene = gltf
+        .default_scene()
+        .or_else(|| gltf.scenes().next())
+        .ok_or_else(|| invalid("its scenes".into(), "at least one", &0))?;
+    let mut raw = Vec::new();
+    let mut stack: Vec<(gltf::Node<'_>, nalgebra::Matrix4<f64>)> = scene
+        .nodes()
+        .map(|n| (n, nalgebra::Matrix4::identity()))
+        .collect();
+    while let Some((node, parent)) = stack.pop() {
+        let local = node.transform().matrix();
+        let m = parent * nalgebra::Matrix4::from_fn(|r, c| f64::from(local[c][r]));
+        if let Some(mesh) = node.mesh() {
+            for prim in mesh.primitives() {
+                let field = || format!("mesh {}'s primitive {}", mesh.index(), prim.index());
+                if prim.mode() != gltf::mesh::Mode::Triangles {
+                    return Err(invalid(
+                        field(),
+                        "triangles",
+                        &format_args!("{:?}", prim.mode()),
+                    ));
+                }
+                let reader = prim.reader(|b| buffers.get(b.index()).map(Vec::as_slice));
+                let positions: Vec<[f32; 3]> = reader
+                    .read_positions()
+                    .ok_or_else(|| invalid(field(), "vertex positions", &"none"))?
+                    .collect();
+                let indices: Vec<u32> = match reader.read_indices() {
+                    Some(i) => i.into_u32().collect(),
+                    None => (0..positions.len() as u32).collect(),
+                };
+                let material = prim.material();
+                let colour = match material.index() {
+                    Some(_) => {
+                        let [r, g, b, _] = material.pbr_metallic_roughness().base_color_factor();
+                        [r, g, b].map(f64::from)
+                    }
+                    None => BODY,
+                };
+                let vertex = |i: u32| -> Option<Vector3<f64>> {
+                    let p = positions.get(i as usize)?;
+                    let q = m * nalgebra::Vector4::new(
+                        f64::from(p[0]),
+                        f64::from(p[1]),
+                        f64::from(p[2]),
+                        1.0,
+                    );
+                    // glTF (x left of the asset, y up, z its front) to the
+                    // vehicle frame (x forward, y left, z up).
+                    Some(Vector3::new(q.z, q.x, q.y))
+                };
+                for tri in indices.chunks_exact(3) {
+                    let (Some(a), Some(b), Some(c)) =
+                        (vertex(tri[0]), vertex(tri[1]), vertex(tri[2]))
+                    else {
+                        return Err(invalid(
+                            field(),
+                            "vertex indices within its vertices",
+                            &format_args!("{tri:?}"),
+                        ));
+                    };
+                    raw.push(([a, b, c], colour));
+                    if raw.len() > MAX_TRIANGLES {
+                        return Err(invalid(
+                            "its faces".into(),
+                            &format!("1 to {MAX_TRIANGLES} triangles"),
+                            &format_args!("more than {MAX_TRIANGLES}"),
+                        ));
+                    }
+                }
+            }
+        }
+        stack.extend(node.children().map(|c| (c, m)));
+    }
+    Ok(raw)
 }

@@ -94,8 +94,9 @@ pub struct BowlSpec {
     pub vehicle_m: [f64; 4],
     /// The vehicle model's height, metres.
     pub vehicle_height_m: f64,
-    /// A Wavefront OBJ file of the vehicle to show instead of the built-in
-    /// model (y up, front along −z; scaled onto the vehicle's box).
+    /// A vehicle model to show instead of the built-in one: glTF 2.0
+    /// (`.gltf`, `.glb`; front along +z) or Wavefront OBJ (front along
+    /// −z); y up, scaled onto the vehicle's box ([`Mesh::load`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub vehicle_model: Option<std::path::PathBuf>,
     /// The picture's width and height, pixels.
@@ -249,7 +250,7 @@ impl BowlView {
             None => spec
                 .vehicle_model
                 .as_deref()
-                .map(|p| Mesh::load_obj(p, spec.vehicle_m, spec.vehicle_height_m).map(Arc::new))
+                .map(|p| Mesh::load(p, spec.vehicle_m, spec.vehicle_height_m).map(Arc::new))
                 .transpose()?,
         };
         let plan = match previous.filter(|p| p.plan.serves(spec)) {

@@ -634,3 +634,151 @@ fn the_ground_plan_is_built_once_per_bowl() {
     assert!(!Arc::ptr_eq(b.plan(), c.plan()));
     assert!(c.plan().serves(&wider) && !c.plan().serves(&small()));
 }
+
+/// A glTF wedge: a box whose top rises towards the asset's front (+z) and
+/// its left (+x), under a parent node turned half round (about y) and a
+/// child node moved sideways; as `.gltf` with `.bin` and as `.glb`.
+fn gltf_wedge(dir: &std::path::Path) -> (std::path::PathBuf, std::path::PathBuf) {
+    let mut positions = Vec::new();
+    for (x, z) in [(-1.0f32, -1.0f32), (1.0, -1.0), (-1.0, 1.0), (1.0, 1.0)] {
+        let top = 1.0 + if z > 0.0 { 1.0 } else { 0.0 } + if x > 0.0 { 0.5 } else { 0.0 };
+        positions.push([x, 0.0, z]);
+        positions.push([x, top, z]);
+    }
+    // Corners: 2k bottom, 2k + 1 top, for (x, z) in the order above.
+    let quads: [[u16; 4]; 6] = [
+        [0, 2, 6, 4],
+        [1, 5, 7, 3],
+        [0, 1, 3, 2],
+        [4, 6, 7, 5],
+        [0, 4, 5, 1],
+        [2, 3, 7, 6],
+    ];
+    let indices: Vec<u16> = quads
+        .iter()
+        .flat_map(|q| [q[0], q[1], q[2], q[0], q[2], q[3]])
+        .collect();
+    let mut bin: Vec<u8> = positions
+        .iter()
+        .flatten()
+        .flat_map(|v| v.to_le_bytes())
+        .collect();
+    bin.extend(indices.iter().flat_map(|i| i.to_le_bytes()));
+    let json = |buffer: &str| {
+        format!(
+            r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[0]}}],
+"nodes":[{{"rotation":[0,1,0,0],"children":[1]}},{{"mesh":0,"translation":[5,0,0]}}],
+"meshes":[{{"primitives":[{{"attributes":{{"POSITION":0}},"indices":1,"material":0}}]}}],
+"materials":[{{"pbrMetallicRoughness":{{"baseColorFactor":[0.9,0.1,0.1,1.0]}}}}],
+"buffers":[{{{buffer}"byteLength":{}}}],
+"bufferViews":[{{"buffer":0,"byteOffset":0,"byteLength":96}},{{"buffer":0,"byteOffset":96,"byteLength":72}}],
+"accessors":[{{"bufferView":0,"componentType":5126,"count":8,"type":"VEC3","min":[-1,0,-1],"max":[1,2.5,1]}},
+{{"bufferView":1,"componentType":5123,"count":36,"type":"SCALAR"}}]}}"#,
+            bin.len()
+        )
+    };
+    let gltf = dir.join("wedge.gltf");
+    std::fs::write(&gltf, json(r#""uri":"wedge.bin","#)).unwrap();
+    std::fs::write(dir.join("wedge.bin"), &bin).unwrap();
+    let mut text = json("").into_bytes();
+    while text.len() % 4 != 0 {
+        text.push(b' ');
+    }
+    let mut glb = Vec::new();
+    glb.extend_from_slice(b"glTF");
+    glb.extend_from_slice(&2u32.to_le_bytes());
+    glb.extend_from_slice(&((12 + 8 + text.len() + 8 + bin.len()) as u32).to_le_bytes());
+    glb.extend_from_slice(&(text.len() as u32).to_le_bytes());
+    glb.extend_from_slice(b"JSON");
+    glb.extend_from_slice(&text);
+    glb.extend_from_slice(&(bin.len() as u32).to_le_bytes());
+    glb.extend_from_slice(b"BIN\0");
+    glb.extend_from_slice(&bin);
+    let glb_path = dir.join("wedge.glb");
+    std::fs::write(&glb_path, glb).unwrap();
+    (gltf, glb_path)
+}
+
+/// A user's glTF model: its nodes' transforms apply, its axes (y up, the
+/// front along +z, the left along +x) turn into the vehicle's, it is
+/// scaled onto the vehicle's box in its material's colour; a `.glb` gives
+/// the same; bad files name the file and what was expected.
+#[test]
+fn a_users_gltf_model_is_placed_by_its_nodes_and_axes() {
+    let dir = std::env::temp_dir().join(format!("rigview-gltf-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (gltf, glb) = gltf_wedge(&dir);
+    let spec = small();
+    let [x0, x1, y0, y1] = spec.vehicle_m;
+    let h = spec.vehicle_height_m;
+    let a = Mesh::load(&gltf, spec.vehicle_m, h).unwrap();
+    let b = Mesh::load(&glb, spec.vehicle_m, h).unwrap();
+    assert_eq!(a.len(), 12);
+    assert_eq!(a.triangles(), b.triangles());
+    assert!(a
+        .triangles()
+        .iter()
+        .all(|(_, c)| (c[0] - 0.9).abs() < 1e-6 && c[1] < 0.2));
+    // The wedge's top rises to the asset's front left; the parent node
+    // turned it half round, so it rises to the vehicle's back right.
+    let top_at = |x: f64, y: f64| {
+        a.triangles()
+            .iter()
+            .flat_map(|(t, _)| t.iter())
+            .filter(|p| (p.x - x).abs() < 1e-9 && (p.y - y).abs() < 1e-9)
+            .map(|p| p.z)
+            .fold(f64::MIN, f64::max)
+    };
+    assert!(
+        (top_at(x0, y0) - h).abs() < 1e-9,
+        "back right {}",
+        top_at(x0, y0)
+    );
+    assert!(
+        (top_at(x1, y1) - h / 2.5).abs() < 1e-9,
+        "front left {}",
+        top_at(x1, y1)
+    );
+    assert!(
+        (top_at(x1, y0) - 1.5 * h / 2.5).abs() < 1e-9,
+        "front right {}",
+        top_at(x1, y0)
+    );
+    // The bowl draws it, as it draws an OBJ model.
+    let rig = reference_rig().unwrap();
+    let with = BowlSpec {
+        vehicle_model: Some(glb.clone()),
+        ..spec.clone()
+    };
+    let view = BowlView::build(&rig, &with, &Viewpoint::preset("top").unwrap()).unwrap();
+    let (c, r) = view.camera().project(&Vector3::new(0.0, 0.0, h)).unwrap();
+    let at = view.vehicle_at(c as usize, r as usize).unwrap();
+    assert!(at[3] == 255 && at[0] > 150 && at[1] < 100, "{at:?}");
+    // Bad files.
+    let e = |p: &std::path::Path| Mesh::load(p, spec.vehicle_m, h).unwrap_err().to_string();
+    std::fs::remove_file(dir.join("wedge.bin")).unwrap();
+    let msg = e(&gltf);
+    assert!(
+        msg.contains("wedge.gltf") && msg.contains("buffer 0") && msg.contains("wedge.bin"),
+        "{msg}"
+    );
+    let text = std::fs::read_to_string(&gltf).unwrap();
+    std::fs::write(
+        &gltf,
+        text.replace("wedge.bin", "data:application/octet-stream;base64,AAAA"),
+    )
+    .unwrap();
+    let msg = e(&gltf);
+    assert!(
+        msg.contains("buffer 0") && msg.contains("data: URI"),
+        "{msg}"
+    );
+    let junk = dir.join("junk.glb");
+    std::fs::write(&junk, "not a model").unwrap();
+    let msg = e(&junk);
+    assert!(
+        msg.contains("junk.glb") && msg.contains("glTF 2.0"),
+        "{msg}"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
