@@ -1,8 +1,9 @@
 //! The messages of a recording: their ROS 2 `.msg` texts (the schemas, in
 //! `ros2msg` encoding) and their CDR encoding.
 //!
-//! `sensor_msgs/msg/Image`, `sensor_msgs/msg/CameraInfo` and their
-//! dependencies are the ROS 2 texts verbatim (`record/msg/`); rigview's own
+//! `sensor_msgs/msg/Image`, `sensor_msgs/msg/CameraInfo`,
+//! `tf2_msgs/msg/TFMessage` and their dependencies are the ROS 2 texts
+//! verbatim (`record/msg/`); rigview's own
 //! `rigview_msgs/msg/FrameMeta` and `rigview_msgs/msg/SetTelemetry` are
 //! defined there too. A schema is the message's text followed, for each
 //! type it uses, by a line of 80 `=`, `MSG: pkg/Type` and that type's text,
@@ -29,8 +30,21 @@ pub const FRAME_META_MSG: &str = include_str!("../msg/rigview_msgs_FrameMeta.msg
 /// `rigview_msgs/msg/SetTelemetry`.
 pub const SET_TELEMETRY_MSG: &str = include_str!("../msg/rigview_msgs_SetTelemetry.msg");
 
+/// `tf2_msgs/msg/TFMessage`.
+pub const TF_MESSAGE_MSG: &str = include_str!("../msg/tf2_msgs_TFMessage.msg");
+/// `geometry_msgs/msg/TransformStamped`.
+pub const TRANSFORM_STAMPED_MSG: &str = include_str!("../msg/geometry_msgs_TransformStamped.msg");
+/// `geometry_msgs/msg/Transform`.
+pub const TRANSFORM_MSG: &str = include_str!("../msg/geometry_msgs_Transform.msg");
+/// `geometry_msgs/msg/Vector3`.
+pub const VECTOR3_MSG: &str = include_str!("../msg/geometry_msgs_Vector3.msg");
+/// `geometry_msgs/msg/Quaternion`.
+pub const QUATERNION_MSG: &str = include_str!("../msg/geometry_msgs_Quaternion.msg");
+
 /// The schema names.
 pub const IMAGE: &str = "sensor_msgs/msg/Image";
+/// See [`IMAGE`].
+pub const TF_MESSAGE: &str = "tf2_msgs/msg/TFMessage";
 /// See [`IMAGE`].
 pub const CAMERA_INFO: &str = "sensor_msgs/msg/CameraInfo";
 /// See [`IMAGE`].
@@ -75,6 +89,19 @@ pub fn schema_text(name: &str) -> Option<String> {
         }
         FRAME_META => FRAME_META_MSG,
         SET_TELEMETRY => SET_TELEMETRY_MSG,
+        TF_MESSAGE => {
+            return Some(with_dependencies(
+                TF_MESSAGE_MSG,
+                &[
+                    ("geometry_msgs/TransformStamped", TRANSFORM_STAMPED_MSG),
+                    ("geometry_msgs/Transform", TRANSFORM_MSG),
+                    ("geometry_msgs/Quaternion", QUATERNION_MSG),
+                    ("geometry_msgs/Vector3", VECTOR3_MSG),
+                    header[0],
+                    header[1],
+                ],
+            ))
+        }
         _ => return None,
     };
     Some(with_dependencies(text, &header))
@@ -120,6 +147,97 @@ fn read_header(r: &mut CdrReader<'_>) -> Result<(u64, String), CdrError> {
     let frame_id = r.string("header.frame_id")?;
     let ns = u64::try_from(sec).unwrap_or(0) * 1_000_000_000 + u64::from(nanosec);
     Ok((ns, frame_id))
+}
+
+/// The frame id of the vehicle (REP 105's `base_link`): the parent of the
+/// cameras' frames in `/tf_static` for a rig in the vehicle frame.
+pub const VEHICLE_FRAME: &str = "base_link";
+
+/// One transform of a `tf2_msgs/msg/TFMessage`: the pose of frame `child`
+/// in frame `parent` (`p_parent = R·p_child + t`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct TransformMsg {
+    /// `header.frame_id`.
+    pub parent: String,
+    /// `child_frame_id`.
+    pub child: String,
+    /// The translation, metres.
+    pub translation: [f64; 3],
+    /// The rotation as a quaternion (x, y, z, w).
+    pub rotation: [f64; 4],
+}
+
+/// The static transforms of a rig: for each posed camera, its optical
+/// frame in the vehicle frame ([`VEHICLE_FRAME`]) for a vehicle-frame rig,
+/// or in the reference camera's optical frame for a rig relative to a
+/// camera (the reference camera itself has no transform then).
+pub fn rig_transforms(rig: &rigview_calib::rig::Rig) -> Vec<TransformMsg> {
+    let parent = match &rig.frame {
+        rigview_calib::rig::Frame::Vehicle => VEHICLE_FRAME.to_owned(),
+        rigview_calib::rig::Frame::Camera(name) => optical_frame(name),
+    };
+    rig.cameras
+        .iter()
+        .filter_map(|c| {
+            let pose = c.pose.as_ref()?;
+            let child = optical_frame(&c.name);
+            if child == parent {
+                return None;
+            }
+            let t = pose.translation();
+            let q = pose.quaternion();
+            Some(TransformMsg {
+                parent: parent.clone(),
+                child,
+                translation: [t.x, t.y, t.z],
+                rotation: [q.i, q.j, q.k, q.w],
+            })
+        })
+        .collect()
+}
+
+/// `tf2_msgs/msg/TFMessage` of `transforms`, stamped `stamp_ns`.
+pub fn encode_tf_message(stamp_ns: u64, transforms: &[TransformMsg]) -> Vec<u8> {
+    let mut w = CdrWriter::with_capacity(64 + 128 * transforms.len());
+    w.u32(transforms.len() as u32);
+    for t in transforms {
+        header(&mut w, stamp_ns, &t.parent);
+        w.string(&t.child);
+        for v in t.translation.iter().chain(&t.rotation) {
+            w.f64(*v);
+        }
+    }
+    w.finish()
+}
+
+/// Reads a `tf2_msgs/msg/TFMessage`.
+pub fn decode_tf_message(buf: &[u8]) -> Result<Vec<TransformMsg>, CdrError> {
+    let mut r = CdrReader::new(buf)?;
+    let n = r.u32("transforms")?;
+    let mut out = Vec::new();
+    for _ in 0..n {
+        let (_, parent) = read_header(&mut r)?;
+        let child = r.string("child_frame_id")?;
+        let mut v = [0.0; 7];
+        for (x, field) in v.iter_mut().zip([
+            "transform.translation.x",
+            "transform.translation.y",
+            "transform.translation.z",
+            "transform.rotation.x",
+            "transform.rotation.y",
+            "transform.rotation.z",
+            "transform.rotation.w",
+        ]) {
+            *x = r.f64(field)?;
+        }
+        out.push(TransformMsg {
+            parent,
+            child,
+            translation: [v[0], v[1], v[2]],
+            rotation: [v[3], v[4], v[5], v[6]],
+        });
+    }
+    Ok(out)
 }
 
 /// The frame id of a camera's messages.
@@ -536,6 +654,47 @@ mod tests {
         let info = schema_text(CAMERA_INFO).unwrap();
         assert!(info.contains("MSG: sensor_msgs/RegionOfInterest\n"));
         assert!(schema_text("std_msgs/msg/String").is_none());
+    }
+
+    #[test]
+    fn a_rig_relative_to_a_camera_hangs_its_cameras_from_that_camera() {
+        use rigview_calib::pose::Pose;
+        use rigview_calib::rig::{Frame, Rig};
+        let intrinsics = rigview_calib::Intrinsics {
+            width: 640,
+            height: 480,
+            fx: 400.0,
+            fy: 400.0,
+            cx: 320.0,
+            cy: 240.0,
+            distortion: Distortion::Fisheye([0.0; 4]),
+        };
+        let mut left = Camera::new("left", intrinsics);
+        left.pose = Some(Pose::identity());
+        let mut right = Camera::new("right", intrinsics);
+        let t = nalgebra::Vector3::new(0.12, 0.0, 0.0);
+        right.pose = Some(Pose::new(nalgebra::Matrix3::identity(), t).unwrap());
+        let rig = Rig::new(
+            Frame::Camera("left".into()),
+            vec![left, right],
+            vec![(0, 1)],
+        )
+        .unwrap();
+        let tf = rig_transforms(&rig);
+        assert_eq!(tf.len(), 1);
+        assert_eq!(
+            (tf[0].parent.as_str(), tf[0].child.as_str()),
+            ("left_optical", "right_optical")
+        );
+        assert_eq!(
+            tf[0].translation.map(f64::to_bits),
+            [0.12, 0.0, 0.0].map(f64::to_bits)
+        );
+        assert_eq!(
+            tf[0].rotation.map(f64::to_bits),
+            [0.0, 0.0, 0.0, 1.0].map(f64::to_bits)
+        );
+        assert_eq!(decode_tf_message(&encode_tf_message(7, &tf)).unwrap(), tf);
     }
 
     #[test]

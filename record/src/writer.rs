@@ -8,7 +8,11 @@
 //!   the source's clock offset) and the rig as the attachment `rig.yaml`;
 //! - per set, in one chunk: per camera `/rig/<camera>/frame_meta` then
 //!   `/rig/<camera>/image_raw`, about once a second `/rig/<camera>/camera_info`,
-//!   and last `/rig/telemetry`, which closes the set;
+//!   and last `/rig/telemetry`, which closes the set; with the first set of
+//!   a calibrated rig, `/tf_static` (`tf2_msgs/msg/TFMessage`, transient
+//!   local): each posed camera's optical frame `<camera>_optical` in
+//!   `base_link` (a rig in the vehicle frame) or in the first camera's
+//!   optical frame (a rig relative to a camera);
 //! - at the end a metadata record `rigview.end` (sets, drops, why it
 //!   stopped) and the summary with its indexes.
 //!
@@ -106,6 +110,13 @@ pub fn topic(camera: &str, stream: &str) -> String {
 /// last), which `ros2 bag play` needs on every channel.
 const QOS: &str = "- history: 3\n  depth: 0\n  reliability: 1\n  durability: 2\n  deadline:\n    sec: 2147483647\n    nsec: 4294967295\n  lifespan:\n    sec: 2147483647\n    nsec: 4294967295\n  liveliness: 1\n  liveliness_lease_duration:\n    sec: 2147483647\n    nsec: 4294967295\n  avoid_ros_namespace_conventions: false\n";
 
+/// `/tf_static`'s QoS as ROS 2 offers it: reliable, transient local
+/// (a late subscriber of a replay still gets the rig), keep last 1.
+const TF_STATIC_QOS: &str = "- history: 1\n  depth: 1\n  reliability: 1\n  durability: 1\n  deadline:\n    sec: 2147483647\n    nsec: 4294967295\n  lifespan:\n    sec: 2147483647\n    nsec: 4294967295\n  liveliness: 1\n  liveliness_lease_duration:\n    sec: 2147483647\n    nsec: 4294967295\n  avoid_ros_namespace_conventions: false\n";
+
+/// The topic of the rig's static transforms.
+pub const TF_STATIC_TOPIC: &str = "/tf_static";
+
 #[derive(Debug)]
 struct CameraChannels {
     image: u16,
@@ -120,6 +131,9 @@ pub struct SetWriter<W: Write + Seek> {
     mcap: mcap::Writer<W>,
     channels: Vec<CameraChannels>,
     telemetry: u16,
+    /// `/tf_static` (a calibrated rig only), until its message is written
+    /// with the first set.
+    tf_static: Option<u16>,
     names: Vec<String>,
     rig: Option<Rig>,
     offset_ns: u64,
@@ -176,6 +190,10 @@ impl<W: Write + Seek> SetWriter<W> {
         let info = schema(msgs::CAMERA_INFO)?;
         let meta = schema(msgs::FRAME_META)?;
         let telemetry = schema(msgs::SET_TELEMETRY)?;
+        let tf = match setup.rig {
+            Some(_) => Some(schema(msgs::TF_MESSAGE)?),
+            None => None,
+        };
         let qos = BTreeMap::from([("offered_qos_profiles".to_owned(), QOS.to_owned())]);
         let mut channels = Vec::new();
         for c in &setup.cameras {
@@ -193,6 +211,17 @@ impl<W: Write + Seek> SetWriter<W> {
         let telemetry = mcap
             .add_channel(telemetry, TELEMETRY_TOPIC, "cdr", &qos)
             .map_err(e)?;
+        let tf_static = match tf {
+            Some(tf) => {
+                let qos =
+                    BTreeMap::from([("offered_qos_profiles".to_owned(), TF_STATIC_QOS.to_owned())]);
+                Some(
+                    mcap.add_channel(tf, TF_STATIC_TOPIC, "cdr", &qos)
+                        .map_err(e)?,
+                )
+            }
+            None => None,
+        };
         let now = unix_now_ns();
         let cameras_yaml = serde_norway::to_string(&setup.cameras)
             .map_err(|err| RecordError::format(file, format!("the cameras as YAML: {err}")))?;
@@ -240,6 +269,7 @@ impl<W: Write + Seek> SetWriter<W> {
             mcap,
             channels,
             telemetry,
+            tf_static,
             names: setup.cameras.iter().map(|c| c.name.clone()).collect(),
             rig: setup.rig.clone(),
             offset_ns: setup.time_offset_ns,
@@ -326,6 +356,15 @@ impl<W: Write + Seek> SetWriter<W> {
         let info_due = self
             .last_info_ns
             .is_none_or(|t| time.saturating_sub(t) >= 1_000_000_000 || time < t);
+        if let (Some(channel), Some(rig)) = (self.tf_static.take(), &self.rig) {
+            let transforms = msgs::rig_transforms(rig);
+            self.message(
+                channel,
+                0,
+                time,
+                &msgs::encode_tf_message(time, &transforms),
+            )?;
+        }
         if info_due {
             if let Some(rig) = self.rig.take() {
                 let written = self.camera_infos(&rig, time);

@@ -43,6 +43,19 @@ struct Image {
     data: Vec<u8>,
 }
 
+#[derive(Debug, Deserialize)]
+struct TransformStamped {
+    header: Header,
+    child_frame_id: String,
+    translation: [f64; 3],
+    rotation: [f64; 4],
+}
+
+#[derive(Debug, Deserialize)]
+struct TfMessage {
+    transforms: Vec<TransformStamped>,
+}
+
 fn round_trip(format: PixelFormat, scale: f64, compression: Compression) {
     let sim = Sim::new(format, scale);
     let setup = sim.setup();
@@ -102,7 +115,8 @@ fn round_trip(format: PixelFormat, scale: f64, compression: Compression) {
         SETS + 1,
         "a chunk per set, and the first for the schemas and channels"
     );
-    let mut images = 0;
+    let (mut images, mut tf) = (0, 0);
+    let rig = sim.rig();
     for m in mcap::MessageStream::new(&bytes).unwrap() {
         let m = m.unwrap();
         assert_eq!(m.log_time, m.publish_time);
@@ -147,8 +161,37 @@ fn round_trip(format: PixelFormat, scale: f64, compression: Compression) {
             assert!(img.data[..] == frame.data[..]);
             images += 1;
         }
+        if schema.name == msgs::TF_MESSAGE {
+            // The rig's cameras in the vehicle frame, decoded by the `cdr`
+            // crate: transient local, so that a late subscriber of a
+            // replay still gets them.
+            assert_eq!(m.channel.topic, "/tf_static");
+            let qos = &m.channel.metadata["offered_qos_profiles"];
+            assert!(qos.contains("durability: 1"), "{qos}");
+            assert_eq!(m.log_time, sets[0].timestamp_ns + setup.time_offset_ns);
+            let msg: TfMessage = cdr::deserialize(&m.data).unwrap();
+            assert_eq!(msg.transforms.len(), rig.cameras.len());
+            for (t, cam) in msg.transforms.iter().zip(&rig.cameras) {
+                let pose = cam.pose.as_ref().unwrap();
+                assert_eq!(t.header.frame_id, "base_link");
+                assert_eq!(t.child_frame_id, format!("{}_optical", cam.name));
+                let q = nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(
+                    t.rotation[3],
+                    t.rotation[0],
+                    t.rotation[1],
+                    t.rotation[2],
+                ));
+                // A point of the camera frame lands where the rig's pose
+                // puts it.
+                let p = nalgebra::Vector3::new(0.3, -0.2, 1.0);
+                let via_tf = q * p + nalgebra::Vector3::from(t.translation);
+                assert!((via_tf - pose.to_rig(&p)).norm() < 1e-9, "{}", cam.name);
+            }
+            tf += 1;
+        }
     }
     assert_eq!(images, SETS as usize * sim.cameras.len(), "{what}");
+    assert_eq!(tf, 1, "{what}: one /tf_static message");
 }
 
 #[test]
@@ -251,4 +294,25 @@ fn schemas_are_the_ros2_texts() {
         "MSG: sensor_msgs/RegionOfInterest\n{}",
         read("sensor_msgs/msg/RegionOfInterest.msg")
     )));
+    let tf = msgs::schema_text(msgs::TF_MESSAGE).unwrap();
+    assert!(tf.starts_with(&read("tf2_msgs/msg/TFMessage.msg")));
+    for (name, file) in [
+        (
+            "geometry_msgs/TransformStamped",
+            "geometry_msgs/msg/TransformStamped.msg",
+        ),
+        ("geometry_msgs/Transform", "geometry_msgs/msg/Transform.msg"),
+        (
+            "geometry_msgs/Quaternion",
+            "geometry_msgs/msg/Quaternion.msg",
+        ),
+        ("geometry_msgs/Vector3", "geometry_msgs/msg/Vector3.msg"),
+        ("std_msgs/Header", "std_msgs/msg/Header.msg"),
+        ("builtin_interfaces/Time", "builtin_interfaces/msg/Time.msg"),
+    ] {
+        assert!(
+            tf.contains(&format!("{sep}MSG: {name}\n{}", read(file))),
+            "{name}"
+        );
+    }
 }
