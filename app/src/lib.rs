@@ -29,5 +29,6 @@ pub mod gui;
 pub mod live;
 pub mod logging;
 pub mod report;
+pub mod serve;
 pub mod session;
 pub mod settings;

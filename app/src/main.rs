@@ -32,6 +32,7 @@ fn run() -> Result<()> {
             &ProcessingArgs::default(),
             SourceSpec::Sim(SimSpec::default()),
             None,
+            None,
         ),
         Some(Command::Run(args)) => cli::run::run(args, &cli.view),
         Some(Command::Demo(args)) => cli::demo::run(args, out),

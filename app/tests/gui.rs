@@ -72,6 +72,7 @@ fn app_on(
             quit_after: None,
             screenshot: None,
             window_size: None,
+            serve: None,
             pipeline: PipelineOptions {
                 lockstep: true,
                 ..Default::default()
@@ -585,6 +586,7 @@ fn a_recording_opened_in_the_window_pauses_steps_and_seeks() {
         out: dir.path().join("live"),
         every: 1000,
         record: Some(RecordSpec::new(file.clone())),
+        serve: None,
     };
     headless::run(
         &run,

@@ -52,6 +52,7 @@ fn a_replayed_recording_measures_what_the_run_measured() {
         out: dir.path().join("live"),
         every: 1000,
         record: Some(RecordSpec::new(file.clone())),
+        serve: None,
     };
     let summary = headless::run(&live, &settings, &log, false).unwrap();
     assert!(summary.contains("40 sets"), "{summary}");
@@ -67,6 +68,7 @@ fn a_replayed_recording_measures_what_the_run_measured() {
         out: dir.path().join("replay"),
         every: 1000,
         record: None,
+        serve: None,
     };
     headless::run(&replay, &settings, &log, false).unwrap();
     let (h1, live_rows) = csv(&dir.path().join("live/telemetry.csv"));
@@ -150,6 +152,7 @@ fn a_replayed_recording_measures_what_the_run_measured() {
         out: dir.path().join("bad"),
         every: 1000,
         record: None,
+        serve: None,
     };
     let e = format!(
         "{:#}",

@@ -30,6 +30,8 @@ pub const FRAME_META_MSG: &str = include_str!("../msg/rigview_msgs_FrameMeta.msg
 /// `rigview_msgs/msg/SetTelemetry`.
 pub const SET_TELEMETRY_MSG: &str = include_str!("../msg/rigview_msgs_SetTelemetry.msg");
 
+/// `sensor_msgs/msg/CompressedImage` (its fields as ROS 2 defines them).
+pub const COMPRESSED_IMAGE_MSG: &str = include_str!("../msg/sensor_msgs_CompressedImage.msg");
 /// `tf2_msgs/msg/TFMessage`.
 pub const TF_MESSAGE_MSG: &str = include_str!("../msg/tf2_msgs_TFMessage.msg");
 /// `geometry_msgs/msg/TransformStamped`.
@@ -45,6 +47,8 @@ pub const QUATERNION_MSG: &str = include_str!("../msg/geometry_msgs_Quaternion.m
 pub const IMAGE: &str = "sensor_msgs/msg/Image";
 /// See [`IMAGE`].
 pub const TF_MESSAGE: &str = "tf2_msgs/msg/TFMessage";
+/// See [`IMAGE`].
+pub const COMPRESSED_IMAGE: &str = "sensor_msgs/msg/CompressedImage";
 /// See [`IMAGE`].
 pub const CAMERA_INFO: &str = "sensor_msgs/msg/CameraInfo";
 /// See [`IMAGE`].
@@ -89,6 +93,7 @@ pub fn schema_text(name: &str) -> Option<String> {
         }
         FRAME_META => FRAME_META_MSG,
         SET_TELEMETRY => SET_TELEMETRY_MSG,
+        COMPRESSED_IMAGE => COMPRESSED_IMAGE_MSG,
         TF_MESSAGE => {
             return Some(with_dependencies(
                 TF_MESSAGE_MSG,
@@ -194,6 +199,30 @@ pub fn rig_transforms(rig: &rigview_calib::rig::Rig) -> Vec<TransformMsg> {
             })
         })
         .collect()
+}
+
+/// `sensor_msgs/msg/CompressedImage` of `data` in `format` ("jpeg",
+/// "png").
+pub fn encode_compressed_image(
+    stamp_ns: u64,
+    frame_id: &str,
+    format: &str,
+    data: &[u8],
+) -> Vec<u8> {
+    let mut w = CdrWriter::with_capacity(64 + data.len());
+    header(&mut w, stamp_ns, frame_id);
+    w.string(format);
+    w.bytes(data);
+    w.finish()
+}
+
+/// Reads a `sensor_msgs/msg/CompressedImage`: the header's frame id, the
+/// format and the data.
+pub fn decode_compressed_image(buf: &[u8]) -> Result<(String, String, &[u8]), CdrError> {
+    let mut r = CdrReader::new(buf)?;
+    let (_, frame_id) = read_header(&mut r)?;
+    let format = r.string("format")?;
+    Ok((frame_id, format, r.bytes("data")?))
 }
 
 /// `tf2_msgs/msg/TFMessage` of `transforms`, stamped `stamp_ns`.

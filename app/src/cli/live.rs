@@ -112,6 +112,9 @@ pub struct LiveArgs {
     /// How the recording is written.
     #[command(flatten)]
     pub recording: RecordingArgs,
+    /// The live remote view.
+    #[command(flatten)]
+    pub serve: super::options::ServeArgs,
 }
 
 impl LiveArgs {
@@ -189,7 +192,13 @@ pub fn run(args: &LiveArgs, view: &ViewArgs, out: &mut dyn Write) -> Result<()> 
         headless(args, &settings.processing, LogBuffer::global(), out)
     } else {
         let record = args.record.clone().map(|f| args.recording.spec(f));
-        view.window(&args.processing, SourceSpec::Live(args.spec()?), record)
+        let serve = args.serve.options()?;
+        view.window(
+            &args.processing,
+            SourceSpec::Live(args.spec()?),
+            record,
+            serve,
+        )
     }
 }
 
@@ -208,6 +217,7 @@ pub fn headless(
         settings,
         log,
         record.as_ref(),
+        args.serve.options()?.as_ref(),
         out,
     )
 }

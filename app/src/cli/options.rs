@@ -101,6 +101,7 @@ impl ViewArgs {
         overrides: &ProcessingArgs,
         source: SourceSpec,
         record: Option<RecordSpec>,
+        serve: Option<crate::serve::ServeOptions>,
     ) -> Result<()> {
         let mut store = SettingsStore::new(self.settings.clone());
         let (mut settings, err) = store.load();
@@ -123,10 +124,75 @@ impl ViewArgs {
             quit_after: self.quit_after()?,
             screenshot: self.screenshot()?,
             window_size: self.window_size()?,
+            serve,
             pipeline: PipelineOptions::default(),
             log: LogBuffer::global().clone(),
             record,
         })
+    }
+}
+
+/// The live remote view (`--serve`).
+#[derive(Clone, Debug, Default, Args)]
+pub struct ServeArgs {
+    /// Serve a live remote view for Foxglove (WebSocket) on [ADDR:]PORT:
+    /// a port alone, or `--serve` with nothing, listens on loopback
+    /// (127.0.0.1:8765 by default); another address must be given
+    /// explicitly, and the stream is unauthenticated (docs/remote-view.md).
+    #[arg(long, value_name = "[ADDR:]PORT", num_args = 0..=1, default_missing_value = crate::serve::DEFAULT_ADDR)]
+    pub serve: Option<String>,
+    /// Pictures a second the remote view sends, at most.
+    #[arg(long, value_name = "HZ", default_value_t = 10.0)]
+    pub serve_rate: f64,
+    /// The remote view's camera pictures at 1/N of the cameras' size.
+    #[arg(long, value_name = "N", default_value_t = 2)]
+    pub serve_shrink: usize,
+    /// If the remote view's address cannot be bound, go on without it
+    /// (otherwise rigview stops before starting).
+    #[arg(long)]
+    pub serve_optional: bool,
+}
+
+impl ServeArgs {
+    /// The remote view's options (`None`: not asked for, or not bound
+    /// and `--serve-optional`): the address is checked here, before the
+    /// session starts.
+    pub fn options(&self) -> Result<Option<crate::serve::ServeOptions>> {
+        let Some(text) = &self.serve else {
+            return Ok(None);
+        };
+        let addr = crate::serve::parse_addr(text).map_err(anyhow::Error::msg)?;
+        if !(self.serve_rate.is_finite() && (0.1..=100.0).contains(&self.serve_rate)) {
+            anyhow::bail!(
+                "--serve-rate: expected 0.1 to 100 pictures a second; got {}",
+                self.serve_rate
+            );
+        }
+        if !(1..=16).contains(&self.serve_shrink) {
+            anyhow::bail!(
+                "--serve-shrink: expected 1 to 16; got {}",
+                self.serve_shrink
+            );
+        }
+        if !addr.ip().is_loopback() {
+            tracing::warn!(
+                "the remote view listens on {addr}, beyond this machine: anyone who reaches it sees the cameras (the stream is unauthenticated)"
+            );
+        }
+        if let Err(e) = std::net::TcpListener::bind(addr) {
+            let e = anyhow::anyhow!("--serve {addr}: cannot listen there: {e}");
+            if self.serve_optional {
+                tracing::warn!("{e:#}; going on without the remote view (--serve-optional)");
+                return Ok(None);
+            }
+            return Err(e.context("(add --serve-optional to go on without the remote view)"));
+        }
+        Ok(Some(crate::serve::ServeOptions {
+            addr,
+            rate_hz: self.serve_rate,
+            shrink: self.serve_shrink,
+            ..crate::serve::ServeOptions::default()
+        }))
     }
 }
 

@@ -69,6 +69,9 @@ pub struct RunArgs {
     /// How the recording is written.
     #[command(flatten)]
     pub recording: super::options::RecordingArgs,
+    /// The live remote view.
+    #[command(flatten)]
+    pub serve: super::options::ServeArgs,
     /// Frame sets to run (headless) [default: 100].
     #[arg(long, value_name = "N")]
     pub frames: Option<u64>,
@@ -176,6 +179,7 @@ pub fn run(args: &RunArgs, view: &ViewArgs) -> Result<()> {
             out,
             every: args.every,
             record: args.record.clone().map(|f| args.recording.spec(f)),
+            serve: args.serve.options()?,
         };
         let settings = view.settings(&args.processing);
         let summary = headless::run(&run, &settings.processing, LogBuffer::global(), true)?;
@@ -193,7 +197,8 @@ pub fn run(args: &RunArgs, view: &ViewArgs) -> Result<()> {
                  a replay in the window can be paused, stepped and sought"
             );
         }
-        view.window(&args.processing, source, record)
+        let serve = args.serve.options()?;
+        view.window(&args.processing, source, record, serve)
     }
 }
 

@@ -109,6 +109,7 @@ pub fn run(
     settings: &ProcessingSettings,
     log: &LogBuffer,
     record: Option<&crate::session::RecordSpec>,
+    serve: Option<&crate::serve::ServeOptions>,
     out: &mut dyn Write,
 ) -> Result<()> {
     writeln!(
@@ -127,11 +128,18 @@ pub fn run(
         record,
     )?;
     let recorder = session.recorder();
+    if let Some(options) = serve {
+        session.serve(options)?;
+    }
     writeln!(
         out,
         "{}; calibration: {}",
         session.source_name, session.calibration
     )?;
+    if let Some(s) = &session.serving {
+        writeln!(out, "remote view on ws://{}", s.addr())?;
+    }
+    let serving = session.serving.take();
     for e in log.read(&mut seen) {
         writeln!(out, "  {}", e.line())?;
     }
@@ -167,6 +175,9 @@ pub fn run(
             write!(out, "{block}")?;
             if let Some(r) = &recorder {
                 writeln!(out, "  {}", crate::session::describe(r.file(), &r.stats()))?;
+            }
+            if let Some(s) = &serving {
+                writeln!(out, "  {}", s.status_line())?;
             }
             next_print += Duration::from_secs(1);
         }

@@ -28,6 +28,8 @@ pub struct HeadlessRun {
     pub every: u64,
     /// Record every processed set.
     pub record: Option<crate::session::RecordSpec>,
+    /// Serve the live remote view.
+    pub serve: Option<crate::serve::ServeOptions>,
 }
 
 fn write_canvas(c: &Canvas, path: &Path) -> Result<()> {
@@ -82,6 +84,12 @@ pub fn run(
         Arc::new(|| {}),
         run.record.as_ref(),
     )?;
+    if let Some(options) = &run.serve {
+        session.serve(options)?;
+        if let Some(s) = &session.serving {
+            tracing::info!(target: crate::logging::NOTE, "remote view on ws://{} (Foxglove: Open connection, Foxglove WebSocket)", s.addr());
+        }
+    }
     let bar = if progress {
         indicatif::ProgressBar::new(frames)
     } else {
@@ -114,6 +122,9 @@ pub fn run(
         }
         bar.set_position(done);
         status_log.forward(&session.pipeline.status());
+        if let Some(s) = &session.serving {
+            bar.set_message(s.status_line());
+        }
         if let Some(e) = log.read(&mut seen).last() {
             bar.set_message(e.line());
         }
@@ -186,6 +197,15 @@ pub fn run(
     }
     if let Some(c) = cpu.cores() {
         summary += &format!("\nCPU use: {c:.2} cores");
+    }
+    if let Some(s) = &session.serving {
+        let (server, published) = s.stats();
+        summary += &format!(
+            "\n{}; {} sets published, {} messages sent",
+            s.status_line(),
+            published.published,
+            server.sent
+        );
     }
     if let Some(r) = recorded {
         summary += &format!("\n{r}");

@@ -97,6 +97,9 @@ pub struct RigviewApp {
     cpu: CpuMeter,
     bowl: bowl::BowlState,
     gpu_bowl: bowl_gpu::GpuBowl,
+    /// The remote view's options, for each session (a replay opened in
+    /// the window serves too).
+    serve: Option<crate::serve::ServeOptions>,
 }
 
 impl std::fmt::Debug for RigviewApp {
@@ -121,6 +124,8 @@ pub struct AppOptions {
     pub screenshot: Option<(PathBuf, Duration)>,
     /// The window's size, points (`None`: 1600 × 1000).
     pub window_size: Option<[f32; 2]>,
+    /// Serve the live remote view (`--serve`).
+    pub serve: Option<crate::serve::ServeOptions>,
     /// Pipeline options (lock step for repeatable tests).
     pub pipeline: PipelineOptions,
     /// The events the Messages panel shows (those from the app's start on):
@@ -161,13 +166,21 @@ impl RigviewApp {
             }
             other => other,
         };
-        let session = match started {
+        let mut session = match started {
             Ok(s) => Some(s),
             Err(e) => {
                 tracing::error!("cannot start the source: {e:#}");
                 None
             }
         };
+        if let (Some(s), Some(serve)) = (session.as_mut(), &options.serve) {
+            match s.serve(serve) {
+                Ok(()) => {
+                    tracing::info!(target: logging::NOTE, "remote view on ws://{}", serve.addr);
+                }
+                Err(e) => tracing::error!("{e:#}"),
+            }
+        }
         let record = RecordButton::new(session.as_ref().and_then(Session::recorder));
         let n = session.as_ref().map_or(0, |s| s.pipeline.cameras().len());
         let start_level = settings.processing.controller.fixed_exposure;
@@ -199,6 +212,7 @@ impl RigviewApp {
             cpu: CpuMeter::start(),
             bowl: bowl::BowlState::default(),
             gpu_bowl: bowl_gpu::GpuBowl::default(),
+            serve: options.serve.clone(),
         };
         if let Some(r) = app.record.recorder() {
             let text = format!("recording into {}", r.file().display());
@@ -321,7 +335,12 @@ impl RigviewApp {
             self.notify.clone(),
         );
         let n = match started {
-            Ok(s) => {
+            Ok(mut s) => {
+                if let Some(serve) = &self.serve {
+                    if let Err(e) = s.serve(serve) {
+                        self.note(format!("{e:#}"), true);
+                    }
+                }
                 let n = s.pipeline.cameras().len();
                 self.calibration = s.calibration.clone();
                 self.note(format!("replaying {}", path.display()), false);

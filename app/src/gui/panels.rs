@@ -195,6 +195,10 @@ pub(super) fn status_bar(app: &mut RigviewApp, ui: &mut Ui) {
                 ui.separator();
                 ui.colored_label(Color32::from_rgb(240, 180, 60), "source ended");
             }
+            if let Some(serving) = &s.serving {
+                ui.separator();
+                ui.label(serving.status_line());
+            }
             if let Some(r) = app.recorder() {
                 let stats = r.stats();
                 ui.separator();

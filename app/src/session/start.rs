@@ -34,9 +34,24 @@ pub struct Session {
     /// The calibration in use (`None`: none), from which another view is
     /// built.
     pub rig: Option<Rig>,
+    /// The live remote view, while it serves (`--serve`).
+    pub serving: Option<crate::serve::Serving>,
 }
 
 impl Session {
+    /// Starts serving the live remote view of this session.
+    pub fn serve(&mut self, options: &crate::serve::ServeOptions) -> Result<()> {
+        let serving = crate::serve::Serving::start(
+            options,
+            self.pipeline.watch(),
+            &self.record_setup.cameras,
+            self.rig.as_ref(),
+        )
+        .map_err(|e| anyhow::anyhow!("the remote view (--serve): {e}"))?;
+        self.serving = Some(serving);
+        Ok(())
+    }
+
     /// The cameras' names, in rig order.
     pub fn camera_names(&self) -> Vec<String> {
         self.pipeline
@@ -117,5 +132,6 @@ pub fn start_session<S: FrameSource + 'static>(
         calibration: origin.calibration,
         camera_auto,
         rig: origin.rig.cloned(),
+        serving: None,
     })
 }

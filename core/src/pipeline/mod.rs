@@ -59,7 +59,7 @@ pub use queue::{DropOldest, QueueStats};
 pub use settings::{Control, MeterRoi, PanoramaSettings, ProcessingSettings, Strategy, ViewKind};
 pub use sink::{Processed, SetSink};
 pub use telemetry::{CameraRow, PairMatchRow, StageTimes, Telemetry, TelemetryRow, MATCH_COLUMNS};
-pub use threads::{Notify, Pipeline, PipelineOptions, PipelineStatus};
+pub use threads::{Notify, OutputWatch, Pipeline, PipelineOptions, PipelineStatus};
 pub use view::{
     BowlSettings, LiveBowl, LivePanorama, PairMatchReport, PanoramaReport, SharedDetector, View,
 };

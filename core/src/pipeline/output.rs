@@ -165,8 +165,8 @@ pub struct Output {
     /// The bowl shown (the bowl view only): its spec, viewpoint and ground
     /// plan, for a renderer of its own.
     pub bowl_view: Option<Arc<crate::bowl::BowlView>>,
-    /// The set's frames, rig order (the bowl view only: a renderer of its
-    /// own draws them; shared, not copied).
+    /// The set's frames, rig order (shared, not copied): for a renderer or
+    /// a remote view of their own.
     pub frames: Vec<crate::source::Frame>,
     /// Per camera of `frames`, its display gains as the composer applies
     /// them: the exposure gain (the frame scaled, clipped at white) and

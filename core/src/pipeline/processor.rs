@@ -493,7 +493,6 @@ impl Processor {
                             }
                         })
                         .collect();
-                    shown_frames = frames.iter().map(|f| (*f).clone()).collect();
                 }
                 // The window draws the bowl itself (on the GPU): no picture
                 // here, but the bird's-eye view beside it if asked for.
@@ -563,6 +562,9 @@ impl Processor {
             }
             _ => None,
         };
+        // The frames go along (shared, not copied), for a renderer or a
+        // remote view of their own.
+        shown_frames.extend(frames.iter().map(|f| (*f).clone()));
         let t3 = Instant::now();
         times.meter_ms = ms(t1 - t0);
         times.control_ms = ms(t2 - t1);

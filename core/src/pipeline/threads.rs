@@ -116,9 +116,45 @@ enum CaptureMsg {
     Done,
 }
 
+/// The newest output for a consumer beside the window or the headless
+/// loop (a remote view): each processed set replaces the one before, and
+/// taking it leaves the pipeline's own outputs alone.
+#[derive(Debug, Default)]
+pub struct OutputWatch {
+    latest: Mutex<Option<Arc<Output>>>,
+    ready: std::sync::Condvar,
+}
+
+impl OutputWatch {
+    fn put(&self, output: &Arc<Output>) {
+        *lock(&self.latest) = Some(output.clone());
+        self.ready.notify_all();
+    }
+
+    /// The newest output of a set after trigger `after` (`None`: any),
+    /// waiting up to `timeout` for one.
+    pub fn newer(&self, after: Option<u64>, timeout: Duration) -> Option<Arc<Output>> {
+        let fresh = |o: &Option<Arc<Output>>| {
+            o.as_ref()
+                .filter(|o| after.is_none_or(|t| o.trigger > t))
+                .cloned()
+        };
+        let guard = lock(&self.latest);
+        if let Some(o) = fresh(&guard) {
+            return Some(o);
+        }
+        let (guard, _) = self
+            .ready
+            .wait_timeout_while(guard, timeout, |o| fresh(o).is_none())
+            .unwrap_or_else(PoisonError::into_inner);
+        fresh(&guard)
+    }
+}
+
 #[derive(Debug)]
 struct Shared {
     stop: AtomicBool,
+    watches: Mutex<Vec<Arc<OutputWatch>>>,
     telemetry: Mutex<Telemetry>,
     status: Mutex<PipelineStatus>,
     t0_ns: Mutex<Option<u64>>,
@@ -178,6 +214,7 @@ impl Pipeline {
         let names = cameras.iter().map(|c| c.name.clone()).collect();
         let shared = Arc::new(Shared {
             stop: AtomicBool::new(false),
+            watches: Mutex::new(Vec::new()),
             telemetry: Mutex::new(Telemetry::new(names, &processor.pairs(), options.history)),
             status: Mutex::new(PipelineStatus {
                 health: source.health(),
@@ -252,6 +289,13 @@ impl Pipeline {
         self.control
             .send(control)
             .map_err(|_| Error::PipelineStopped)
+    }
+
+    /// A watch of the newest output, beside the pipeline's own outputs.
+    pub fn watch(&self) -> Arc<OutputWatch> {
+        let w = Arc::new(OutputWatch::default());
+        lock(&self.shared.watches).push(w.clone());
+        w
     }
 
     /// The newest output not yet taken (older ones are skipped).
@@ -536,7 +580,11 @@ impl ProcessingLoop<'_> {
                     s.processed += 1;
                     s.set_rate_hz = rate;
                 }
-                self.output.push(Arc::new(output));
+                let output = Arc::new(output);
+                for w in lock(&self.shared.watches).iter() {
+                    w.put(&output);
+                }
+                self.output.push(output);
                 (self.notify)();
             }
             Err(e) => self.error(format!("frame set {}: {e}", set.trigger)),
