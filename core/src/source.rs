@@ -68,6 +68,26 @@ pub struct Frame {
     pub data: Arc<[u8]>,
 }
 
+impl FrameMeta {
+    /// A complete frame's metadata with no time, id or exposure of note
+    /// (for stills, tests and benchmarks; an exposure of 1 ms at 0 dB).
+    pub fn still(camera: usize, format: PixelFormat, width: usize, height: usize) -> Self {
+        Self {
+            camera,
+            format,
+            width,
+            height,
+            taken: ExposureSetting {
+                shutter_us: 1000.0,
+                gain_db: 0.0,
+            },
+            timestamp_ns: 0,
+            frame_id: 0,
+            status: FrameStatus::Complete,
+        }
+    }
+}
+
 impl Frame {
     /// A frame whose `data` is checked against the size and format in
     /// `meta`.

@@ -17,7 +17,7 @@ use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Through
 use rigview_core::exposure::ExposureSetting;
 use rigview_core::image::PixelFormat;
 use rigview_core::sim::{FillRequest, SimConfig, SimRender};
-use rigview_core::source::{CameraInfo, Frame, FrameMeta, FrameSet, FrameStatus};
+use rigview_core::source::{CameraInfo, Frame, FrameMeta, FrameSet};
 use rigview_record::msgs;
 use rigview_record::{Compression, IndexedRecording, RecordingSetup, SetStream, SetWriter};
 
@@ -211,19 +211,7 @@ fn bench_seek(c: &mut Criterion) {
         .collect();
     let frames: Vec<Frame> = (0..4)
         .map(|i| {
-            let meta = FrameMeta {
-                camera: i,
-                format: PixelFormat::Mono8,
-                width: 128,
-                height: 96,
-                taken: ExposureSetting {
-                    shutter_us: 1000.0,
-                    gain_db: 0.0,
-                },
-                timestamp_ns: 0,
-                frame_id: 0,
-                status: FrameStatus::Complete,
-            };
+            let meta = FrameMeta::still(i, PixelFormat::Mono8, 128, 96);
             Frame::new(meta, Arc::from(vec![i as u8; 128 * 96])).unwrap()
         })
         .collect();

@@ -11,7 +11,7 @@
 //! | `/rig/<camera>/image_raw/compressed` | `sensor_msgs/msg/CompressedImage` (JPEG, scaled) | at the serving rate |
 //! | `/rig/<camera>/camera_info` | `sensor_msgs/msg/CameraInfo` (scaled to the image) | once a second, and to each new subscriber |
 //! | `/rig/<camera>/exposure` | JSON: shutter, gain, γ̂, M, mean, saturation, probe, command | at the serving rate |
-//! | `/rig/view/compressed` | `sensor_msgs/msg/CompressedImage` (JPEG): the composed view | at the serving rate |
+//! | `/rig/view/compressed` | `sensor_msgs/msg/CompressedImage` (JPEG, scaled as the cameras): the composed view | at the serving rate |
 //! | `/tf_static` | `tf2_msgs/msg/TFMessage`: each camera's optical frame in `base_link` | to each new subscriber |
 //! | `/rig/telemetry` | JSON: r_ij, stage times, the server's own counts | at the serving rate |
 
@@ -337,6 +337,7 @@ impl Publisher {
                     channels: canvas.channels,
                     data: canvas.data.clone(),
                 };
+                let small = preview::shrink_picture(&small, n);
                 match preview::jpeg(&small, self.options.quality) {
                     Ok(jpeg) => {
                         let m =

@@ -76,6 +76,9 @@ pub fn shrink(frame: &Frame, n: usize) -> Result<Small, String> {
     } else {
         1
     };
+    if !deep && bayer.is_none() {
+        return Ok(boxes_8bit(&data[..expected], w, h, channels, n));
+    }
     let mut out = Vec::with_capacity(sw * sh * channels);
     for by in 0..sh {
         for bx in 0..sw {
@@ -119,8 +122,75 @@ pub fn shrink(frame: &Frame, n: usize) -> Result<Small, String> {
     })
 }
 
-/// `small` as a JPEG of `quality` (1–100).
+/// 8-bit rows (`channels` interleaved) averaged over `n × n` boxes.
+fn boxes_8bit(data: &[u8], w: usize, h: usize, channels: usize, n: usize) -> Small {
+    let (sw, sh) = (w / n, h / n);
+    let stride = w * channels;
+    let k = (n * n) as u32;
+    let mut out = Vec::with_capacity(sw * sh * channels);
+    for by in 0..sh {
+        let rows: Vec<&[u8]> = (0..n)
+            .map(|dy| &data[(by * n + dy) * stride..(by * n + dy + 1) * stride])
+            .collect();
+        for bx in 0..sw {
+            let at = bx * n * channels;
+            for c in 0..channels {
+                let mut s = 0u32;
+                for row in &rows {
+                    for v in row[at + c..at + n * channels].iter().step_by(channels) {
+                        s += u32::from(*v);
+                    }
+                }
+                out.push(((s + k / 2) / k) as u8);
+            }
+        }
+    }
+    Small {
+        width: sw,
+        height: sh,
+        channels,
+        data: out,
+    }
+}
+
+/// A composed view (8-bit grey or RGB rows) averaged over `n × n` boxes.
+pub fn shrink_picture(picture: &Small, n: usize) -> Small {
+    let n = n.max(1);
+    if n == 1 || picture.width < n || picture.height < n {
+        return picture.clone();
+    }
+    boxes_8bit(
+        &picture.data,
+        picture.width,
+        picture.height,
+        picture.channels,
+        n,
+    )
+}
+
+/// `small` as a JPEG of `quality` (1–100), with the `jpeg-encoder` crate
+/// (its AVX2 paths where the CPU has them: three times the `image` crate's
+/// encoder here, `BENCHMARKS.md`).
 pub fn jpeg(small: &Small, quality: u8) -> Result<Vec<u8>, String> {
+    let mut out = Vec::with_capacity(small.data.len() / 8);
+    let colour = if small.channels == 3 {
+        jpeg_encoder::ColorType::Rgb
+    } else {
+        jpeg_encoder::ColorType::Luma
+    };
+    let (w, h) = (
+        u16::try_from(small.width).map_err(|_| format!("a JPEG {} wide", small.width))?,
+        u16::try_from(small.height).map_err(|_| format!("a JPEG {} high", small.height))?,
+    );
+    jpeg_encoder::Encoder::new(&mut out, quality.clamp(1, 100))
+        .encode(&small.data, w, h, colour)
+        .map_err(|e| format!("JPEG encoding: {e}"))?;
+    Ok(out)
+}
+
+/// `small` as a JPEG of `quality` with the `image` crate's encoder (the
+/// peer in the benchmark).
+pub fn jpeg_with_image(small: &Small, quality: u8) -> Result<Vec<u8>, String> {
     let mut out = Vec::new();
     let colour = if small.channels == 3 {
         image::ExtendedColorType::Rgb8
@@ -131,4 +201,50 @@ pub fn jpeg(small: &Small, quality: u8) -> Result<Vec<u8>, String> {
         .encode(&small.data, small.width as u32, small.height as u32, colour)
         .map_err(|e| format!("JPEG encoding: {e}"))?;
     Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rigview_core::source::FrameMeta;
+    use std::sync::Arc;
+
+    fn frame(format: PixelFormat, w: usize, h: usize, data: Vec<u8>) -> Frame {
+        Frame::new(FrameMeta::still(0, format, w, h), Arc::from(data)).unwrap()
+    }
+
+    /// Boxes average exactly: grey, RGB, 16-bit and a Bayer mosaic's cells
+    /// (red, the mean of the greens, blue), and a mosaic at full size is
+    /// refused.
+    #[test]
+    fn boxes_average_each_format() {
+        let grey = frame(PixelFormat::Mono8, 4, 2, vec![0, 2, 10, 20, 4, 6, 30, 40]);
+        assert_eq!(shrink(&grey, 2).unwrap().data, vec![3, 25]);
+        let rgb = frame(
+            PixelFormat::Rgb8,
+            2,
+            2,
+            vec![10, 0, 100, 20, 0, 100, 30, 0, 100, 40, 255, 100],
+        );
+        let s = shrink(&rgb, 2).unwrap();
+        assert_eq!((s.width, s.height, s.channels), (1, 1, 3));
+        assert_eq!(s.data, vec![25, 64, 100]);
+        let deep: Vec<u8> = [0x1000u16, 0x2000, 0x3000, 0x4000]
+            .iter()
+            .flat_map(|v| v.to_le_bytes())
+            .collect();
+        let m16 = frame(PixelFormat::Mono16, 2, 2, deep);
+        assert_eq!(shrink(&m16, 2).unwrap().data, vec![0x28]);
+        // RGGB: R 200, G 100 and 50, B 10.
+        let bayer = frame(PixelFormat::BayerRg8, 2, 2, vec![200, 100, 50, 10]);
+        let s = shrink(&bayer, 2).unwrap();
+        assert_eq!(s.data, vec![200, 75, 10]);
+        let e = shrink(&bayer, 1).unwrap_err();
+        assert!(e.contains("half size"), "{e}");
+        // A JPEG of it decodes to its size.
+        let small = shrink(&frame(PixelFormat::Mono8, 64, 32, vec![128; 64 * 32]), 2).unwrap();
+        let j = jpeg(&small, 80).unwrap();
+        let d = image::load_from_memory(&j).unwrap();
+        assert_eq!((d.width(), d.height()), (32, 16));
+    }
 }
