@@ -85,6 +85,34 @@ fn a_foxglove_client_gets_the_cameras_the_view_and_the_transforms() {
             .as_u64()
             .unwrap()
     };
+    // Every topic the Foxglove layout in assets/ opens is one the server
+    // advertises.
+    let layout: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/foxglove-layout.json"),
+        )
+        .unwrap(),
+    )
+    .unwrap();
+    let mut used = Vec::new();
+    for panel in layout["configById"].as_object().unwrap().values() {
+        for key in ["imageTopic", "calibrationTopic"] {
+            if let Some(t) = panel["imageMode"][key].as_str() {
+                used.push(t.to_owned());
+            }
+        }
+        for p in panel["paths"].as_array().into_iter().flatten() {
+            let path = p["value"].as_str().unwrap();
+            used.push(path.split('.').next().unwrap().to_owned());
+        }
+        for t in panel["topics"].as_object().into_iter().flat_map(|o| o.keys()) {
+            used.push(t.clone());
+        }
+    }
+    assert!(used.len() > 10, "{used:?}");
+    for topic in &used {
+        id(topic);
+    }
     let wanted = [
         (1, "/rig/front/image_raw/compressed"),
         (2, "/rig/front/camera_info"),
@@ -110,6 +138,10 @@ fn a_foxglove_client_gets_the_cameras_the_view_and_the_transforms() {
         }
     }
     assert_eq!(got.len(), wanted.len(), "got {:?}", got.keys());
+    // The client's log (docs/remote-view.md shows one).
+    for (sub, topic) in wanted {
+        eprintln!("client: {topic}: first message {} bytes", got[&sub].len());
+    }
     // The front camera: 1288×964 rendered at half scale (644×482), served
     // at half that.
     let (frame_id, format, jpeg) = msgs::decode_compressed_image(&got[&1]).unwrap();
@@ -131,6 +163,18 @@ fn a_foxglove_client_gets_the_cameras_the_view_and_the_transforms() {
     let rig = rigview_core::sim::reference_rig().unwrap();
     let tf = msgs::decode_tf_message(&got[&5]).unwrap();
     assert_eq!(tf, msgs::rig_transforms(&rig));
+    eprintln!(
+        "client: front picture {}×{} JPEG; camera_info {}×{} {}; view {}×{}; {} transforms from {}",
+        picture.width(),
+        picture.height(),
+        info.width,
+        info.height,
+        info.distortion_model,
+        view.width(),
+        view.height(),
+        tf.len(),
+        tf[0].parent
+    );
     drop(ws);
     let out = child.wait_with_output().unwrap();
     assert!(out.status.success());
