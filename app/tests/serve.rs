@@ -105,7 +105,11 @@ fn a_foxglove_client_gets_the_cameras_the_view_and_the_transforms() {
             let path = p["value"].as_str().unwrap();
             used.push(path.split('.').next().unwrap().to_owned());
         }
-        for t in panel["topics"].as_object().into_iter().flat_map(|o| o.keys()) {
+        for t in panel["topics"]
+            .as_object()
+            .into_iter()
+            .flat_map(|o| o.keys())
+        {
             used.push(t.clone());
         }
     }
@@ -119,6 +123,7 @@ fn a_foxglove_client_gets_the_cameras_the_view_and_the_transforms() {
         (3, "/rig/front/exposure"),
         (4, "/rig/view/compressed"),
         (5, "/tf_static"),
+        (6, "/rig/telemetry"),
     ];
     let subs: Vec<_> = wanted
         .iter()
@@ -159,6 +164,22 @@ fn a_foxglove_client_gets_the_cameras_the_view_and_the_transforms() {
     let (_, _, view) = msgs::decode_compressed_image(&got[&4]).unwrap();
     let view = image::load_from_memory(view).unwrap();
     assert!(view.width() > 100 && view.height() > 100);
+    let telemetry: serde_json::Value = serde_json::from_slice(&got[&6]).unwrap();
+    assert_eq!(
+        telemetry["pairs"].as_array().unwrap().len(),
+        4,
+        "{telemetry}"
+    );
+    let streams = telemetry["streams"].as_array().unwrap();
+    assert_eq!(streams.len(), 4, "{telemetry}");
+    assert!(
+        streams.iter().all(|s| s["state"] == "Streaming"),
+        "{telemetry}"
+    );
+    assert!(
+        telemetry["times_ms"]["meter"].as_f64().unwrap() > 0.0,
+        "{telemetry}"
+    );
     // The transforms are the simulated rig's poses.
     let rig = rigview_core::sim::reference_rig().unwrap();
     let tf = msgs::decode_tf_message(&got[&5]).unwrap();
@@ -180,4 +201,54 @@ fn a_foxglove_client_gets_the_cameras_the_view_and_the_transforms() {
     assert!(out.status.success());
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(stdout.contains(&format!("remote view {addr}")), "{stdout}");
+}
+
+/// A port in use stops the run before it starts, saying where and what
+/// to add; with `--serve-optional` the run goes on without the remote
+/// view.
+#[test]
+fn a_port_in_use_stops_the_run_unless_the_view_is_optional() {
+    let taken = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let port = taken.local_addr().unwrap().port().to_string();
+    let dir = tempfile::tempdir().unwrap();
+    let run = |extra: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_rigview"))
+            .args([
+                "run",
+                "--headless",
+                "--frames",
+                "3",
+                "--scale",
+                "0.25",
+                "--serve",
+                &port,
+            ])
+            .args(extra)
+            .arg("--out")
+            .arg(dir.path())
+            .arg("--settings")
+            .arg(dir.path().join("settings.yaml"))
+            .output()
+            .unwrap()
+    };
+    let out = run(&[]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        stderr.contains(&format!("--serve 127.0.0.1:{port}"))
+            && stderr.contains("--serve-optional"),
+        "{stderr}"
+    );
+    assert!(
+        !dir.path().join("telemetry.csv").exists(),
+        "it stopped before starting"
+    );
+    let out = run(&["--serve-optional"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("going on without the remote view"),
+        "{stderr}"
+    );
+    assert!(dir.path().join("telemetry.csv").exists());
 }

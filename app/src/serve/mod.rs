@@ -102,7 +102,7 @@ const TF_ID: u32 = 1001;
 const TELEMETRY_ID: u32 = 1002;
 
 const EXPOSURE_SCHEMA: &str = r#"{"type":"object","title":"rigview exposure state","properties":{"shutter_us":{"type":"number"},"gain_db":{"type":"number"},"exposure_log2":{"type":"number"},"gamma_hat":{"type":["number","null"]},"m":{"type":["number","null"]},"mean":{"type":"number"},"saturated":{"type":"number"},"probe_frame":{"type":"boolean"},"command_shutter_us":{"type":["number","null"]},"command_gain_db":{"type":["number","null"]}}}"#;
-const TELEMETRY_SCHEMA: &str = r#"{"type":"object","title":"rigview set telemetry","properties":{"trigger":{"type":"integer"},"times_ms":{"type":"object"},"pairs":{"type":"array","items":{"type":"object","properties":{"pair":{"type":"string"},"log2_r":{"type":["number","null"]}}}},"clients":{"type":"integer"},"sent":{"type":"integer"},"dropped_for_clients":{"type":"integer"}}}"#;
+const TELEMETRY_SCHEMA: &str = r#"{"type":"object","title":"rigview set telemetry","properties":{"trigger":{"type":"integer"},"times_ms":{"type":"object"},"pairs":{"type":"array","items":{"type":"object","properties":{"pair":{"type":"string"},"log2_r":{"type":["number","null"]}}}},"clients":{"type":"integer"},"sent":{"type":"integer"},"dropped_for_clients":{"type":"integer"},"processed":{"type":["integer","null"]},"incomplete":{"type":["integer","null"]},"dropped_before_processing":{"type":["integer","null"]},"set_rate_hz":{"type":["number","null"]},"streams":{"type":["array","null"],"items":{"type":"object","properties":{"camera":{"type":"string"},"state":{"type":"string"},"fps":{"type":"number"},"failed":{"type":"integer"},"missing_packets":{"type":"integer"}}}}}}"#;
 
 fn cdr_channel(id: u32, topic: String, schema: &str, latched: bool) -> Channel {
     Channel {
@@ -274,14 +274,19 @@ impl Publisher {
             if info_due {
                 last_info = Some(Instant::now());
             }
-            self.publish(&out, info_due);
+            self.publish(&out, watch.status().as_ref(), info_due);
             let mut s = self.stats.lock().unwrap_or_else(PoisonError::into_inner);
             s.published += 1;
             s.encode_ms = t.elapsed().as_secs_f64() * 1e3;
         }
     }
 
-    fn publish(&self, out: &Output, info_due: bool) {
+    fn publish(
+        &self,
+        out: &Output,
+        status: Option<&rigview_core::pipeline::PipelineStatus>,
+        info_due: bool,
+    ) {
         let now = rigview_record::writer::unix_now_ns();
         let n = self.options.shrink.max(1);
         for (k, frame) in out.frames.iter().enumerate() {
@@ -369,6 +374,23 @@ impl Publisher {
                 "clients": s.clients,
                 "sent": s.sent,
                 "dropped_for_clients": s.dropped,
+                "processed": status.map(|st| st.processed),
+                "incomplete": status.map(|st| st.incomplete),
+                "dropped_before_processing": status.map(|st| st.capture_queue.dropped),
+                "set_rate_hz": status.map(|st| st.set_rate_hz),
+                "streams": status.map(|st| {
+                    st.health
+                        .iter()
+                        .zip(&self.names)
+                        .map(|(h, name)| serde_json::json!({
+                            "camera": name,
+                            "state": format!("{:?}", h.state),
+                            "fps": h.fps,
+                            "failed": h.failed,
+                            "missing_packets": h.missing_packets,
+                        }))
+                        .collect::<Vec<_>>()
+                }),
             });
             self.server
                 .publish(TELEMETRY_ID, now, t.to_string().as_bytes());
@@ -388,4 +410,48 @@ fn scaled_camera(cam: &rigview_calib::Camera, n: usize) -> rigview_calib::Camera
     k.cx = (k.cx + 0.5) * s - 0.5;
     k.cy = (k.cy + 0.5) * s - 0.5;
     c
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn serve_takes_a_port_or_an_address_and_says_what_it_expected() {
+        assert_eq!(
+            parse_addr("9000").unwrap(),
+            SocketAddr::from(([127, 0, 0, 1], 9000))
+        );
+        assert_eq!(
+            parse_addr("0.0.0.0:8765").unwrap(),
+            SocketAddr::from(([0, 0, 0, 0], 8765))
+        );
+        assert_eq!(
+            parse_addr(DEFAULT_ADDR).unwrap(),
+            ServeOptions::default().addr
+        );
+        let e = parse_addr("vehicle").unwrap_err();
+        assert!(e.contains("[ADDR:]PORT") && e.contains("vehicle"), "{e}");
+    }
+
+    /// A camera's calibration follows its pictures: half the focal length,
+    /// and the principal point where the same pixel centre lands.
+    #[test]
+    fn a_shrunk_camera_keeps_its_pixel_centres() {
+        let k = rigview_calib::Intrinsics {
+            width: 1288,
+            height: 964,
+            fx: 400.0,
+            fy: 402.0,
+            cx: 643.5,
+            cy: 481.5,
+            distortion: rigview_calib::Distortion::Fisheye([0.0; 4]),
+        };
+        let c = scaled_camera(&rigview_calib::Camera::new("front", k), 2);
+        let s = c.intrinsics;
+        assert_eq!((s.width, s.height), (644, 482));
+        assert!((s.fx - 200.0).abs() < 1e-12 && (s.fy - 201.0).abs() < 1e-12);
+        // The image centre stays the image centre.
+        assert!((s.cx - 321.5).abs() < 1e-12 && (s.cy - 240.5).abs() < 1e-12);
+    }
 }

@@ -123,12 +123,21 @@ enum CaptureMsg {
 pub struct OutputWatch {
     latest: Mutex<Option<Arc<Output>>>,
     ready: std::sync::Condvar,
+    /// The pipeline's status when the newest output was made.
+    status: Mutex<Option<PipelineStatus>>,
 }
 
 impl OutputWatch {
-    fn put(&self, output: &Arc<Output>) {
+    fn put(&self, output: &Arc<Output>, status: &PipelineStatus) {
+        *lock(&self.status) = Some(status.clone());
         *lock(&self.latest) = Some(output.clone());
         self.ready.notify_all();
+    }
+
+    /// The pipeline's status (streams, counts, drops before processing)
+    /// when the newest output was made.
+    pub fn status(&self) -> Option<PipelineStatus> {
+        lock(&self.status).clone()
     }
 
     /// The newest output of a set after trigger `after` (`None`: any),
@@ -581,9 +590,15 @@ impl ProcessingLoop<'_> {
                     s.set_rate_hz = rate;
                 }
                 let output = Arc::new(output);
-                for w in lock(&self.shared.watches).iter() {
-                    w.put(&output);
+                let watches = lock(&self.shared.watches);
+                if !watches.is_empty() {
+                    let mut status = lock(&self.shared.status).clone();
+                    status.capture_queue = self.captured.stats();
+                    for w in watches.iter() {
+                        w.put(&output, &status);
+                    }
                 }
+                drop(watches);
                 self.output.push(output);
                 (self.notify)();
             }
