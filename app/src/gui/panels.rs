@@ -480,8 +480,12 @@ pub(super) fn central(app: &mut RigviewApp, ui: &mut Ui) {
         // The bowl on the GPU where the window can draw it; the pipeline
         // then composes no picture of it.
         let gpu = bowl && super::bowl_gpu_usable(app);
-        if app.settings.processing.bowl.gpu_draws != gpu {
-            app.settings.processing.bowl.gpu_draws = gpu;
+        // (Unless the remote view serves it: then the pipeline composes it
+        // still, for the remote view.)
+        let serving = app.session.as_ref().is_some_and(|s| s.serving.is_some());
+        let gpu_draws = gpu && !serving;
+        if app.settings.processing.bowl.gpu_draws != gpu_draws {
+            app.settings.processing.bowl.gpu_draws = gpu_draws;
             app.settings_changed();
         }
         // The output shows the view the pipeline composed: while the
