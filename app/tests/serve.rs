@@ -161,6 +161,17 @@ fn a_foxglove_client_gets_the_cameras_the_view_and_the_transforms() {
     assert_eq!(info.distortion_model, "equidistant");
     let state: serde_json::Value = serde_json::from_slice(&got[&3]).unwrap();
     assert!(state["shutter_us"].as_f64().unwrap() > 0.0, "{state}");
+    for key in [
+        "gain_db",
+        "gamma_hat",
+        "m",
+        "mean",
+        "saturated",
+        "probe_frame",
+        "last_probe",
+    ] {
+        assert!(state.get(key).is_some(), "{key} missing: {state}");
+    }
     let (_, _, view) = msgs::decode_compressed_image(&got[&4]).unwrap();
     let view = image::load_from_memory(view).unwrap();
     assert!(view.width() > 100 && view.height() > 100);
