@@ -6,6 +6,7 @@
 
 use std::sync::Arc;
 
+pub mod rigs;
 pub mod strip;
 
 use rigview_core::exposure::{

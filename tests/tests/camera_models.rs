@@ -18,6 +18,7 @@ use rigview_core::panorama::{CylinderSpec, MatchOptions, Panorama, PanoramaOptio
 use rigview_core::sim::{reference_rig, SimConfig, SimRender};
 use rigview_core::source::Frame;
 use rigview_core::surround::{CanvasSpec, Composer, SurroundOptions, SurroundView};
+use rigview_tests::rigs::off;
 
 /// The reference rig's poses with every camera's lens replaced by
 /// `distortion` at focal length `f` (pixels of the full-size image).
@@ -257,22 +258,6 @@ fn a_rig_of_woodscape_files_gives_the_surround_view_of_the_same_rig_file() {
         assert!(wa.data == wb.data, "camera {}: the views differ", c.name);
     }
     let _ = std::fs::remove_dir_all(&dir);
-}
-
-/// Camera `k`'s rotation relative to camera 0's.
-fn relative(rig: &Rig, k: usize) -> Rotation3<f64> {
-    let r = |c: usize| {
-        Rotation3::from_matrix_unchecked(*rig.cameras[c].pose.unwrap().rotation_matrix())
-    };
-    r(0).inverse() * r(k)
-}
-
-/// How far camera `k` of `rig` is turned from `truth`'s, relative to
-/// camera 0, degrees.
-fn off(rig: &Rig, truth: &Rig, k: usize) -> f64 {
-    (relative(rig, k) * relative(truth, k).inverse())
-        .angle()
-        .to_degrees()
 }
 
 /// The panorama's matching and refinement on every model, as on the

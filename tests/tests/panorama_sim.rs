@@ -37,6 +37,7 @@ use rigview_core::panorama::{
     CylinderSpec, Detector, MatchOptions, PairMatches, Panorama, PanoramaOptions,
 };
 use rigview_core::sim::{SimConfig, SimRender};
+use rigview_tests::rigs::off;
 
 fn render() -> SimRender {
     let config = SimConfig {
@@ -180,14 +181,6 @@ fn matched_patches_give_the_exposure_ratio() {
     }
 }
 
-/// The rotation of camera `k` relative to camera 0.
-fn relative(rig: &Rig, k: usize) -> Rotation3<f64> {
-    let r = |c: usize| {
-        Rotation3::from_matrix_unchecked(*rig.cameras[c].pose.unwrap().rotation_matrix())
-    };
-    r(0).inverse() * r(k)
-}
-
 /// `truth` with each camera turned by 1° to 2° about a random axis
 /// (seeded).
 fn perturbed(truth: &Rig, seed: u64) -> Rig {
@@ -205,14 +198,6 @@ fn perturbed(truth: &Rig, seed: u64) -> Rig {
         cam.pose = Some(Pose::new(turn * pose.rotation_matrix(), *pose.translation()).unwrap());
     }
     out
-}
-
-/// How far camera `k` of `rig` is turned from the truth, relative to
-/// camera 0, degrees.
-fn off(rig: &Rig, truth: &Rig, k: usize) -> f64 {
-    (relative(rig, k) * relative(truth, k).inverse())
-        .angle()
-        .to_degrees()
 }
 
 /// Refines the perturbed rig from one frame set: the refined rig, with
