@@ -95,9 +95,12 @@ fn serve(c: &mut Criterion) {
                 .len();
         }
         bytes
-            + preview::jpeg(&preview::shrink_picture(view, 2), 80)
-                .unwrap()
-                .len()
+            + preview::jpeg(
+                &preview::shrink_picture(&view.data, (view.width, view.height), view.channels, 2),
+                80,
+            )
+            .unwrap()
+            .len()
     };
     eprintln!(
         "serve: a Mono8 set publishes {} KB, an RGB8 set {} KB",

@@ -337,13 +337,12 @@ impl Publisher {
         }
         if self.server.wanted(VIEW_ID) {
             if let Some(canvas) = &out.canvas {
-                let small = preview::Small {
-                    width: canvas.width,
-                    height: canvas.height,
-                    channels: canvas.channels,
-                    data: canvas.data.clone(),
-                };
-                let small = preview::shrink_picture(&small, n);
+                let small = preview::shrink_picture(
+                    &canvas.data,
+                    (canvas.width, canvas.height),
+                    canvas.channels,
+                    n,
+                );
                 match preview::jpeg(&small, self.options.quality) {
                     Ok(jpeg) => {
                         let m =

@@ -153,19 +153,19 @@ fn boxes_8bit(data: &[u8], w: usize, h: usize, channels: usize, n: usize) -> Sma
     }
 }
 
-/// A composed view (8-bit grey or RGB rows) averaged over `n × n` boxes.
-pub fn shrink_picture(picture: &Small, n: usize) -> Small {
+/// A composed view (`w × h` 8-bit rows of `channels` interleaved: grey
+/// or RGB) averaged over `n × n` boxes.
+pub fn shrink_picture(data: &[u8], (w, h): (usize, usize), channels: usize, n: usize) -> Small {
     let n = n.max(1);
-    if n == 1 || picture.width < n || picture.height < n {
-        return picture.clone();
+    if n == 1 || w < n || h < n {
+        return Small {
+            width: w,
+            height: h,
+            channels,
+            data: data.to_vec(),
+        };
     }
-    boxes_8bit(
-        &picture.data,
-        picture.width,
-        picture.height,
-        picture.channels,
-        n,
-    )
+    boxes_8bit(data, w, h, channels, n)
 }
 
 /// `small` as a JPEG of `quality` (1–100), with the `jpeg-encoder` crate

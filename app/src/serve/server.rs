@@ -70,7 +70,7 @@ pub struct ServerStats {
 struct ClientState {
     /// Channel id → subscription id.
     subscriptions: Mutex<HashMap<u32, u32>>,
-    queue: Mutex<VecDeque<Arc<Vec<u8>>>>,
+    queue: Mutex<VecDeque<Vec<u8>>>,
     closed: AtomicBool,
 }
 
@@ -113,7 +113,7 @@ impl Inner {
             q.pop_front();
             self.dropped.fetch_add(1, Ordering::Relaxed);
         }
-        q.push_back(Arc::new(message));
+        q.push_back(message);
     }
 }
 
@@ -297,10 +297,9 @@ fn client_loop(
         .map_err(|e| e.to_string())?;
     while !inner.stop.load(Ordering::Relaxed) {
         // Everything queued, then what the client says.
-        let pending: Vec<Arc<Vec<u8>>> = lock(&client.queue).drain(..).collect();
+        let pending: Vec<Vec<u8>> = lock(&client.queue).drain(..).collect();
         for m in pending {
-            ws.write(Message::binary(m.as_slice().to_vec()))
-                .map_err(|e| e.to_string())?;
+            ws.write(Message::binary(m)).map_err(|e| e.to_string())?;
             inner.sent.fetch_add(1, Ordering::Relaxed);
         }
         ws.flush().map_err(|e| e.to_string())?;
