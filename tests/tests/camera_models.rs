@@ -9,16 +9,16 @@
 
 mod surround_common;
 
-use nalgebra::{Point2, Rotation3, Vector3};
+use nalgebra::{Point2, Vector3};
 use rigview_calib::formats::{self, Format};
 use rigview_calib::model::ocam::Ocam;
-use rigview_calib::{report, Distortion, Pose, Rig};
+use rigview_calib::{report, Distortion, Rig};
 use rigview_core::image::{FrameView, PixelFormat};
 use rigview_core::panorama::{CylinderSpec, MatchOptions, Panorama, PanoramaOptions};
 use rigview_core::sim::{reference_rig, SimConfig, SimRender};
 use rigview_core::source::Frame;
 use rigview_core::surround::{CanvasSpec, Composer, SurroundOptions, SurroundView};
-use rigview_tests::rigs::off;
+use rigview_tests::rigs::{off, refine_by_default, turn_camera};
 
 /// The reference rig's poses with every camera's lens replaced by
 /// `distortion` at focal length `f` (pixels of the full-size image).
@@ -268,7 +268,7 @@ fn a_rig_of_woodscape_files_gives_the_surround_view_of_the_same_rig_file() {
 /// three different axes.
 #[test]
 fn every_models_panorama_matches_and_refines() {
-    use rigview_core::panorama::{matching_spec, refine_in_rounds, RoundsOptions};
+    use rigview_core::panorama::matching_spec;
     let config = SimConfig {
         scale: 1.0,
         ..SimConfig::preset("overcast").unwrap()
@@ -324,23 +324,9 @@ fn every_models_panorama_matches_and_refines() {
         }
         let mut turned = truth.clone();
         for (k, axis) in (1..4).zip(turns) {
-            let turn = Rotation3::from_axis_angle(
-                &nalgebra::Unit::new_normalize(axis),
-                1.5f64.to_radians(),
-            );
-            let pose = turned.cameras[k].pose.unwrap();
-            turned.cameras[k].pose =
-                Some(Pose::new(turn * pose.rotation_matrix(), *pose.translation()).unwrap());
+            turn_camera(&mut turned, k, &axis, 1.5);
         }
-        let rounds = refine_in_rounds(
-            &turned,
-            &CylinderSpec::default(),
-            &PanoramaOptions::default(),
-            &frames,
-            &rigview_tests::harris_subpixel,
-            &RoundsOptions::default(),
-        )
-        .unwrap();
+        let rounds = refine_by_default(&turned, &frames).unwrap();
         for k in 1..4 {
             let left = off(&rounds.rig, &truth, k);
             println!("{name} camera {k}: turned 1.5°, {left:.3}° after the refinement");

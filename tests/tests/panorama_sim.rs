@@ -37,7 +37,7 @@ use rigview_core::panorama::{
     CylinderSpec, Detector, MatchOptions, PairMatches, Panorama, PanoramaOptions,
 };
 use rigview_core::sim::{SimConfig, SimRender};
-use rigview_tests::rigs::off;
+use rigview_tests::rigs::{off, refine_by_default, turn_camera};
 
 fn render() -> SimRender {
     let config = SimConfig {
@@ -187,15 +187,13 @@ fn perturbed(truth: &Rig, seed: u64) -> Rig {
     use rand::{Rng, SeedableRng};
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
     let mut out = truth.clone();
-    for cam in &mut out.cameras {
-        let axis = nalgebra::Unit::new_normalize(Vector3::new(
+    for k in 0..out.cameras.len() {
+        let axis = Vector3::new(
             rng.gen_range(-1.0..1.0),
             rng.gen_range(-1.0..1.0),
             rng.gen_range(-1.0..1.0),
-        ));
-        let turn = Rotation3::from_axis_angle(&axis, rng.gen_range(1.0f64..2.0).to_radians());
-        let pose = cam.pose.unwrap();
-        cam.pose = Some(Pose::new(turn * pose.rotation_matrix(), *pose.translation()).unwrap());
+        );
+        turn_camera(&mut out, k, &axis, rng.gen_range(1.0f64..2.0));
     }
     out
 }
@@ -301,7 +299,6 @@ fn refinement_in_rounds_recovers_the_cameras() {
 /// at `shutter_us`: per seed, its largest camera error (degrees), the
 /// pairs' errors checked.
 fn rounds_from_seeds(r: &SimRender, shutter_us: f64) -> Vec<(u64, f64)> {
-    use rigview_core::panorama::{refine_in_rounds, RoundsOptions};
     let truth = r.rig().clone();
     let buffers = stills(r, &[shutter_us; 4]);
     let seeds: Vec<u64> = (1..=12).collect();
@@ -317,15 +314,7 @@ fn rounds_from_seeds(r: &SimRender, shutter_us: f64) -> Vec<(u64, f64)> {
                         .iter()
                         .map(|&seed| {
                             let start = perturbed(truth, seed);
-                            let out = refine_in_rounds(
-                                &start,
-                                &CylinderSpec::default(),
-                                &PanoramaOptions::default(),
-                                &frames,
-                                &rigview_tests::harris_subpixel,
-                                &RoundsOptions::default(),
-                            )
-                            .unwrap();
+                            let out = refine_by_default(&start, &frames).unwrap();
                             assert_eq!(out.rounds.len(), 4, "seed {seed}: {:?}", out.stopped);
                             for &(i, j, before, after) in &out.errors {
                                 let (b, a) = (before.unwrap(), after.unwrap());
