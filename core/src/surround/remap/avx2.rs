@@ -1,4 +1,4 @@
-//! The AVX2 kernels: gathers and `vpmaddwd`, 4 RGB, 8 mono or 8 Bayer
+//! The AVX2 kernels: loads or gathers and `vpmaddwd`, 4 RGB, 8 mono or 8 Bayer
 //! pixels of one camera a step (see the module documentation of
 //! [`super`]).
 
@@ -91,9 +91,9 @@ macro_rules! steps {
     };
 }
 
-/// The AVX2 kernel: per camera, the taps of 4 RGB pixels (two gathers
-/// of each pixel's top and bottom 8 bytes), 8 mono pixels (two gathers
-/// of 4 bytes) or 8 Bayer pixels (four gathers of 4 bytes, one per row
+/// The AVX2 kernel: per camera, the taps of 4 RGB pixels (each pixel's
+/// top and bottom 8 bytes, loaded one by one), 8 mono pixels (4 bytes
+/// each, loaded one by one) or 8 Bayer pixels (four gathers of 4 bytes, one per row
 /// of the neighbourhood) at a time; each neighbour pair (left, right)
 /// meets its weight pair in one `vpmaddwd`; the cameras' sums are
 /// scaled by their gains (`GAIN`), added, rounded and packed. The ends
@@ -439,29 +439,27 @@ mod ops {
         weights: &[u64; RGB],
         k: &Consts,
     ) -> (__m256i, __m256i) {
-        let i = _mm_setr_epi32(
-            index[0] as i32,
-            index[1] as i32,
-            index[2] as i32,
-            index[3] as i32,
-        );
-        let o = _mm_add_epi32(i, _mm_slli_epi32::<1>(i));
-        let rows = _mm_set1_epi64x(i64::from(3 * width as i32 - 2) << 32);
-        // Pixels 0 and 2 in one gather, 1 and 3 in the other: then
-        // each 128-bit lane's weight pairs are one in-lane shuffle of
-        // the weights (pixel 0's and 1's in lane 0, 2's and 3's in
-        // lane 1).
-        let o02 = _mm_add_epi32(_mm_shuffle_epi32::<0b10_10_00_00>(o), rows);
-        let o13 = _mm_add_epi32(_mm_shuffle_epi32::<0b11_11_01_01>(o), rows);
-        let base = bytes.as_ptr().cast::<i64>();
-        // SAFETY: each offset is `3·index` or `3·(index + width) − 2`,
-        // whose 8 bytes lie in `bytes` (the contract).
-        let (g02, g13) = unsafe {
-            (
-                _mm256_i32gather_epi64::<1>(base, o02),
-                _mm256_i32gather_epi64::<1>(base, o13),
-            )
+        // Each pixel's top 8 bytes at `3·index` and its bottom 8 bytes at
+        // `3·(index + width) − 2`, loaded one by one: on the machine
+        // measured (BENCHMARKS.md) eight plain loads and their inserts
+        // take fewer cycles than two 4-lane gathers. Pixels 0 and 2 in one vector, 1
+        // and 3 in the other: then each 128-bit lane's weight pairs are
+        // one in-lane shuffle of the weights (pixel 0's and 1's in lane
+        // 0, 2's and 3's in lane 1).
+        let below = 3 * width - 2;
+        let base = bytes.as_ptr();
+        let load = |p: usize, off: usize| {
+            // SAFETY: `3·index` and `3·(index + width) − 2` are offsets
+            // whose 8 bytes lie in `bytes` (the contract).
+            unsafe {
+                base.add(3 * index[p] as usize + off)
+                    .cast::<i64>()
+                    .read_unaligned()
+            }
         };
+        let pair = |p: usize| _mm_set_epi64x(load(p, below), load(p, 0));
+        let g02 = _mm256_set_m128i(pair(2), pair(0));
+        let g13 = _mm256_set_m128i(pair(3), pair(1));
         let w = _mm256_setr_epi64x(
             weights[0] as i64,
             weights[1] as i64,
@@ -567,17 +565,30 @@ mod ops {
         weights: &[u64; MONO],
         k: &Consts,
     ) -> __m256i {
-        let i = indices(index);
-        let below = _mm256_add_epi32(i, _mm256_set1_epi32(width as i32 - 2));
-        let base = bytes.as_ptr().cast::<i32>();
-        // SAFETY: each offset is `index` or `index + width − 2`, whose
-        // 4 bytes lie in `bytes` (the contract).
-        let (top, bottom) = unsafe {
-            (
-                _mm256_i32gather_epi32::<1>(base, i),
-                _mm256_i32gather_epi32::<1>(base, below),
+        // Loaded one by one rather than gathered, as in [`rgb`].
+        let base = bytes.as_ptr();
+        let load = |p: usize, off: usize| {
+            // SAFETY: each offset is `index` or `index + width − 2`, whose
+            // 4 bytes lie in `bytes` (the contract).
+            unsafe {
+                base.add(index[p] as usize + off)
+                    .cast::<i32>()
+                    .read_unaligned()
+            }
+        };
+        let row = |off: usize| {
+            _mm256_setr_epi32(
+                load(0, off),
+                load(1, off),
+                load(2, off),
+                load(3, off),
+                load(4, off),
+                load(5, off),
+                load(6, off),
+                load(7, off),
             )
         };
+        let (top, bottom) = (row(0), row(width - 2));
         let (even, odd) = weight_pairs(weights);
         _mm256_add_epi32(
             _mm256_madd_epi16(_mm256_shuffle_epi8(top, k.mono_top), even),

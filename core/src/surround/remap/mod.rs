@@ -28,8 +28,11 @@
 //! # The kernels
 //!
 //! With AVX2 (x86-64, detected at run time) a step is 4 RGB or 8 mono pixels
-//! of one camera (8 Bayer pixels: see below): two gathers fetch each
-//! pixel's top and bottom bytes, a
+//! of one camera (8 Bayer pixels: see below): each pixel's top and bottom
+//! bytes are loaded one by one into two vectors (plain loads: on the
+//! machine measured they beat `vpgather` by a quarter to a third, see
+//! BENCHMARKS.md; the Bayer kernel, which reads four rows, keeps its
+//! gathers, which measured faster there), a
 //! byte shuffle pairs each left neighbour with its right one, and one
 //! `vpmaddwd` per row applies the weight pairs; the cameras' sums are
 //! added, rounded and packed. The source lines a run will read are
