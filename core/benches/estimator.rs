@@ -16,6 +16,12 @@
 //!   (`cvtColor RGB2GRAY` for RGB8) → `resize INTER_AREA` to 322×241 → the
 //!   same composition.
 //!
+//! - `meter_1288x964`: metering alone, one 1288×964 frame to 322×241
+//!   (Mono8, RGB8 and BayerRG8): rigview's `Meter::meter` against OpenCV's
+//!   `resize INTER_AREA` (after `cvtColor` to grey for the colour frames)
+//!   on one thread, and against a plain pass that reads every byte of the
+//!   frame once (a sum of its 64-bit words): the memory's limit.
+//!
 //! The OpenCV peer runs once with OpenCV's default thread pool and once with
 //! `cv::setNumThreads(1)` (rigview is single-threaded per camera).
 //! Results: `BENCHMARKS.md` at the workspace root.
@@ -350,5 +356,98 @@ fn meter_and_estimate_1288x964(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, estimate_320x240, meter_and_estimate_1288x964);
+/// The sum of `data`'s 64-bit words: a pass that reads every byte once.
+fn read_pass(data: &[u8]) -> u64 {
+    let (words, rest) = data.as_chunks::<8>();
+    let mut acc = [0u64; 4];
+    let (quads, tail) = words.as_chunks::<4>();
+    for q in quads {
+        for (a, w) in acc.iter_mut().zip(q) {
+            *a = a.wrapping_add(u64::from_le_bytes(*w));
+        }
+    }
+    let mut sum = acc.iter().fold(0u64, |s, &a| s.wrapping_add(a));
+    for w in tail {
+        sum = sum.wrapping_add(u64::from_le_bytes(*w));
+    }
+    rest.iter().fold(sum, |s, &b| s.wrapping_add(u64::from(b)))
+}
+
+fn meter_1288x964(c: &mut Criterion) {
+    let (w, h) = (1288usize, 964usize);
+    let size = Size::new(322, 241);
+    let mono = scene_frame(w, h, EXPOSURE);
+    let rgb = rgb_frame(w, h);
+    // BayerRG8: each pixel's channel of the RGB frame.
+    let bayer: Vec<u8> = rgb
+        .chunks_exact(3)
+        .enumerate()
+        .map(|(i, p)| p[[[0, 1], [1, 2]][i / w % 2][i % w % 2]])
+        .collect();
+    let mat = |data: &[u8], channels: i32| {
+        let mut m = Mat::new_rows_cols_with_default(
+            h as i32,
+            w as i32,
+            core::CV_MAKETYPE(core::CV_8U, channels),
+            core::Scalar::all(0.0),
+        )
+        .unwrap();
+        m.data_bytes_mut().unwrap().copy_from_slice(data);
+        m
+    };
+    let inputs = [
+        ("mono8", PixelFormat::Mono8, &mono[..], mat(&mono, 1), None),
+        (
+            "rgb8",
+            PixelFormat::Rgb8,
+            &rgb[..],
+            mat(&rgb, 3),
+            Some(imgproc::COLOR_RGB2GRAY),
+        ),
+        (
+            "bayer_rg8",
+            PixelFormat::BayerRg8,
+            &bayer[..],
+            mat(&bayer, 1),
+            Some(imgproc::COLOR_BayerRGGB2GRAY),
+        ),
+    ];
+    let meter = Meter::new(MeteringConfig::default()).unwrap();
+    let mut group = c.benchmark_group("meter_1288x964");
+    configure(&mut group);
+    let (mut gray, mut small) = (Mat::default(), Mat::default());
+    for (name, format, data, frame, convert) in &inputs {
+        let view = FrameView::new(*format, w, h, data).unwrap();
+        let metered = meter.meter(&view, None).unwrap();
+        assert_eq!(metered.width() * metered.height(), 322 * 241);
+        group.bench_function(format!("rigview_{name}"), |b| {
+            b.iter(|| meter.meter(black_box(&view), None).unwrap());
+        });
+        group.bench_function(format!("opencv_{name}_1thread"), |b| {
+            single_threaded(|| {
+                b.iter(|| {
+                    let src = match convert {
+                        Some(code) => {
+                            imgproc::cvt_color(black_box(frame), &mut gray, *code, 0).unwrap();
+                            &gray
+                        }
+                        None => black_box(frame),
+                    };
+                    imgproc::resize(src, &mut small, size, 0.0, 0.0, imgproc::INTER_AREA).unwrap();
+                });
+            });
+        });
+        group.bench_function(format!("read_pass_{name}"), |b| {
+            b.iter(|| read_pass(black_box(data)));
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(
+    benches,
+    estimate_320x240,
+    meter_and_estimate_1288x964,
+    meter_1288x964
+);
 criterion_main!(benches);

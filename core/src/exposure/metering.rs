@@ -84,33 +84,110 @@ pub struct ImageStats {
 }
 
 impl ImageStats {
+    /// The statistics of `pixels`, taken 4096 at a time (see
+    /// [`StatsSums::add`]).
     fn from_pixels<'a>(pixels: impl Iterator<Item = &'a f32>) -> Self {
-        let mut histogram = vec![0u32; HISTOGRAM_BINS];
-        let (mut sum, mut count, mut sat, mut dark) = (0.0f64, 0usize, 0usize, 0usize);
-        // Eight partial sums, so that the additions do not wait on each
-        // other; flushed to f64 every 4096 pixels.
-        let mut partial = [0.0f32; 8];
+        let mut sums = StatsSums::default();
+        let mut block = [0.0f32; STATS_BLOCK];
+        let mut n = 0;
         for &v in pixels {
-            partial[count % 8] += v;
-            count += 1;
-            if count % 4096 == 0 {
-                sum += f64::from(partial.iter().sum::<f32>());
-                partial = [0.0; 8];
+            block[n] = v;
+            n += 1;
+            if n == STATS_BLOCK {
+                sums.add(&block);
+                n = 0;
             }
-            sat += usize::from(v >= SATURATED_LEVEL);
-            dark += usize::from(v <= DARK_LEVEL);
-            let bin = ((v * HISTOGRAM_BINS as f32) as usize).min(HISTOGRAM_BINS - 1);
-            histogram[bin] += 1;
         }
-        sum += f64::from(partial.iter().sum::<f32>());
-        let n = count.max(1) as f32;
+        sums.add(&block[..n]);
+        sums.finish()
+    }
+
+    /// The statistics of every pixel of `pixels`.
+    fn from_slice(pixels: &[f32]) -> Self {
+        let mut sums = StatsSums::default();
+        for block in pixels.chunks(STATS_BLOCK) {
+            sums.add(block);
+        }
+        sums.finish()
+    }
+}
+
+/// Pixels summed in `f32` before the sum is carried in `f64`.
+const STATS_BLOCK: usize = 4096;
+
+/// The running sums of [`ImageStats`].
+struct StatsSums {
+    sum: f64,
+    count: usize,
+    saturated: usize,
+    dark: usize,
+    /// Four histograms, pixel `i` counted in `i % 4`'s: consecutive
+    /// pixels in the same bin then do not wait on each other's count.
+    histograms: [[u32; HISTOGRAM_BINS]; 4],
+}
+
+impl Default for StatsSums {
+    fn default() -> Self {
         Self {
-            mean: (sum / count.max(1) as f64) as f32,
+            sum: 0.0,
+            count: 0,
+            saturated: 0,
+            dark: 0,
+            histograms: [[0; HISTOGRAM_BINS]; 4],
+        }
+    }
+}
+
+impl StatsSums {
+    /// Adds a block of at most [`STATS_BLOCK`] pixels (every block but
+    /// the last of a sequence exactly that many). The block is summed in
+    /// eight `f32` partial sums, pixel `i` into `i % 8`'s, so that the
+    /// additions do not wait on each other, and the partial sums are
+    /// added to the `f64` total in order.
+    fn add(&mut self, block: &[f32]) {
+        let mut partial = [0.0f32; 8];
+        let (eights, rest) = block.as_chunks::<8>();
+        for e in eights {
+            for (p, &v) in partial.iter_mut().zip(e) {
+                *p += v;
+            }
+        }
+        for (p, &v) in partial.iter_mut().zip(rest) {
+            *p += v;
+        }
+        self.sum += f64::from(partial.iter().sum::<f32>());
+        self.count += block.len();
+        self.saturated += block.iter().filter(|&&v| v >= SATURATED_LEVEL).count();
+        self.dark += block.iter().filter(|&&v| v <= DARK_LEVEL).count();
+        let (quads, rest) = block.as_chunks::<4>();
+        let bin = |v: f32| ((v * HISTOGRAM_BINS as f32) as usize).min(HISTOGRAM_BINS - 1);
+        let [h0, h1, h2, h3] = &mut self.histograms;
+        for q in quads {
+            h0[bin(q[0])] += 1;
+            h1[bin(q[1])] += 1;
+            h2[bin(q[2])] += 1;
+            h3[bin(q[3])] += 1;
+        }
+        for &v in rest {
+            h0[bin(v)] += 1;
+        }
+    }
+
+    fn finish(self) -> ImageStats {
+        let mut histogram = vec![0u32; HISTOGRAM_BINS];
+        for h in &self.histograms {
+            for (t, &c) in histogram.iter_mut().zip(h) {
+                *t += c;
+            }
+        }
+        let n = self.count.max(1) as f32;
+        ImageStats {
+            mean: (self.sum / self.count.max(1) as f64) as f32,
             median: histogram_quantile(&histogram, 0.5),
-            saturated_fraction: sat as f32 / n,
-            dark_fraction: dark as f32 / n,
+            saturated_fraction: self.saturated as f32 / n,
+            dark_fraction: self.dark as f32 / n,
             histogram,
-            count,
+            count: self.count,
         }
     }
 }
@@ -194,7 +271,7 @@ impl Metered {
             Some(w) => ImageStats::from_pixels(
                 luma.iter().zip(w).filter(|(_, &w)| w > 0.0).map(|(v, _)| v),
             ),
-            None => ImageStats::from_pixels(luma.iter()),
+            None => ImageStats::from_slice(&luma),
         };
         Ok(Self {
             width,
@@ -404,37 +481,28 @@ impl Meter {
         let blocks = k > 1;
         let mut sat_sums = vec![0.0f32; if blocks { ow * oh } else { 0 }];
         let mut sat_scratch = SaturationScratch::default();
+        let mut fused = FusedScratch::default();
         let mut sat_row = vec![0.0f32; if blocks { gw } else { 0 }];
         for oy in 0..oh {
             let out = &mut luma[oy * ow..(oy + 1) * ow];
             if let Some(c) = channels {
                 let rows = oy * k..(oy + 1) * k;
-                block_sums_8bit(frame, rows.clone(), c, k, &mut bytes, out);
-                if blocks {
-                    let sums = &mut sat_sums[oy * ow..(oy + 1) * ow];
-                    saturated_sums_8bit(frame, rows, c, k, &mut sat_scratch, sums);
+                let sums = blocks.then(|| &mut sat_sums[oy * ow..(oy + 1) * ow]);
+                if k <= usize::from(u8::MAX) {
+                    // One pass over the rows: sums and saturated counts
+                    // per column in 16 and 8 bits.
+                    fused.block_row(BlockRows { frame, rows, c, k }, out, sums);
+                } else {
+                    block_sums_8bit(frame, rows.clone(), c, k, &mut bytes, out);
+                    if let Some(sums) = sums {
+                        saturated_sums_8bit(frame, rows, c, k, &mut sat_scratch, sums);
+                    }
                 }
             } else {
-                for gy in oy * k..(oy + 1) * k {
-                    if bayer {
-                        let (top, bottom) = (frame.row(2 * gy), frame.row(2 * gy + 1));
-                        bayer_luma_row(frame.format(), top, bottom, &mut row);
-                        if blocks {
-                            bayer_saturated_row(frame.format(), top, bottom, &mut sat_row);
-                        }
-                    } else {
-                        luma_row(frame.format(), frame.row(gy), &mut row);
-                        if blocks {
-                            for (s, &v) in sat_row.iter_mut().zip(&row) {
-                                *s = if v >= SATURATED_LEVEL { 1.0 } else { 0.0 };
-                            }
-                        }
-                    }
-                    add_block_sums(out, &row, k);
-                    if blocks {
-                        add_block_sums(&mut sat_sums[oy * ow..(oy + 1) * ow], &sat_row, k);
-                    }
-                }
+                let rows = oy * k..(oy + 1) * k;
+                let sat = blocks.then(|| &mut sat_sums[oy * ow..(oy + 1) * ow]);
+                let scratch = (&mut row[..], &mut sat_row[..]);
+                float_block_row(frame, rows, bayer, k, scratch, out, sat);
             }
             for o in out.iter_mut() {
                 *o = (*o * inv_block).clamp(0.0, 1.0);
@@ -450,7 +518,7 @@ impl Meter {
                         .map(|(l, _)| l),
                 ),
             ),
-            None => (None, ImageStats::from_pixels(luma.iter())),
+            None => (None, ImageStats::from_slice(&luma)),
         };
         let saturated = sat_sums.iter().any(|&c| c > 0.0).then(|| {
             sat_sums
@@ -560,6 +628,41 @@ impl CameraMasks {
     }
 }
 
+/// The luminance sums of the `k×k` blocks over the source rows `rows`
+/// (pixels, or Bayer quad rows) of a frame that is not Mono8 or RGB8, in
+/// `f32` row by row, into `out`; with `saturated`, the luminance of their
+/// saturated samples. `scratch` holds a row of each.
+fn float_block_row(
+    frame: &FrameView<'_>,
+    rows: std::ops::Range<usize>,
+    bayer: bool,
+    k: usize,
+    (row, sat_row): (&mut [f32], &mut [f32]),
+    out: &mut [f32],
+    mut saturated: Option<&mut [f32]>,
+) {
+    for gy in rows {
+        if bayer {
+            let (top, bottom) = (frame.row(2 * gy), frame.row(2 * gy + 1));
+            bayer_luma_row(frame.format(), top, bottom, row);
+            if saturated.is_some() {
+                bayer_saturated_row(frame.format(), top, bottom, sat_row);
+            }
+        } else {
+            luma_row(frame.format(), frame.row(gy), row);
+            if saturated.is_some() {
+                for (s, &v) in sat_row.iter_mut().zip(row.iter()) {
+                    *s = if v >= SATURATED_LEVEL { 1.0 } else { 0.0 };
+                }
+            }
+        }
+        add_block_sums(out, row, k);
+        if let Some(sat) = saturated.as_deref_mut() {
+            add_block_sums(sat, sat_row, k);
+        }
+    }
+}
+
 /// A ground mask prepared for one frame size, pixel layout and metering
 /// size ([`Meter::prepare`]).
 #[derive(Clone, Debug, PartialEq)]
@@ -632,6 +735,186 @@ fn saturated_sums_8bit(
     }
 }
 
+/// The per-column sums (16 bits) and saturated counts (8 bits) of one
+/// block row of an 8-bit frame, taken in one pass over its rows: the
+/// metering of Mono8 and RGB8 frames for blocks of at most 255 rows.
+#[derive(Default)]
+struct FusedScratch {
+    sums: Vec<u16>,
+    saturated: Vec<u8>,
+    /// The saturated counts widened, for [`rgb_totals`].
+    wide: Vec<u16>,
+    /// [`rgb_totals`]'s scratch.
+    a: Vec<u16>,
+    b: Vec<u16>,
+}
+
+/// The rows of one block row of an 8-bit frame with `c` channels (1 or
+/// 3), blocks of `k×k` pixels.
+struct BlockRows<'f, 'a> {
+    frame: &'f FrameView<'a>,
+    rows: std::ops::Range<usize>,
+    c: usize,
+    k: usize,
+}
+
+impl FusedScratch {
+    /// The luminance sums (in [0, 1] units) of the `k×k` blocks of an
+    /// 8-bit frame with `c` channels over the frame rows `rows` (`k ≤ 255`
+    /// of them) into `out`, and, with `saturated`, the luminance of their
+    /// saturated samples: the same values as [`block_sums_8bit`] and
+    /// [`saturated_sums_8bit`].
+    fn block_row(
+        &mut self,
+        rows: BlockRows<'_, '_>,
+        out: &mut [f32],
+        saturated: Option<&mut [f32]>,
+    ) {
+        let n = out.len() * rows.k * rows.c;
+        self.sums.clear();
+        self.sums.resize(n, 0);
+        self.saturated.clear();
+        self.saturated.resize(n, 0);
+        #[cfg(target_arch = "x86_64")]
+        if crate::cpu::Isa::detect() >= crate::cpu::Isa::Avx2 {
+            // SAFETY: `detect` reports AVX2 only when the CPU has it.
+            #[allow(unsafe_code)]
+            unsafe {
+                self.block_row_avx2(rows, out, saturated);
+            }
+            return;
+        }
+        self.block_row_in(rows, out, saturated);
+    }
+
+    /// [`FusedScratch::block_row_in`] compiled for AVX2.
+    ///
+    /// # Safety
+    ///
+    /// The CPU has AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    #[allow(unsafe_code)]
+    unsafe fn block_row_avx2(
+        &mut self,
+        rows: BlockRows<'_, '_>,
+        out: &mut [f32],
+        saturated: Option<&mut [f32]>,
+    ) {
+        self.block_row_in(rows, out, saturated);
+    }
+
+    /// The work of [`FusedScratch::block_row`], its buffers sized.
+    #[inline(always)]
+    fn block_row_in(
+        &mut self,
+        rows: BlockRows<'_, '_>,
+        out: &mut [f32],
+        saturated: Option<&mut [f32]>,
+    ) {
+        let BlockRows { frame, rows, c, k } = rows;
+        let n = self.sums.len();
+        for y in rows {
+            let Some(row) = frame.row(y).get(..n) else {
+                continue;
+            };
+            let sums = self.sums.iter_mut().zip(self.saturated.iter_mut());
+            for ((s, t), &b) in sums.zip(row) {
+                // At most 255 rows: neither wraps.
+                *s = s.wrapping_add(u16::from(b));
+                *t = t.wrapping_add(u8::from(b >= SATURATED_BYTE));
+            }
+        }
+        let to_unit = 1.0 / 255.0;
+        if c == 1 {
+            block_totals(out, &self.sums, k, to_unit);
+        } else if !rgb_totals(out, &self.sums, k, to_unit, (&mut self.a, &mut self.b)) {
+            for (o, block) in out.iter_mut().zip(self.sums.chunks_exact(3 * k)) {
+                *o = rgb_sum(block) * to_unit;
+            }
+        }
+        let Some(sat) = saturated else { return };
+        // Whether any sample saturated, 64 columns at a time (an early
+        // exit per byte would not vectorise).
+        let none = self
+            .saturated
+            .chunks(64)
+            .all(|c| c.iter().fold(0u8, |a, &b| a | b) == 0);
+        if none {
+            sat.fill(0.0);
+        } else if c == 1 {
+            block_totals(sat, &self.saturated, k, 1.0);
+        } else {
+            self.wide.clear();
+            self.wide
+                .extend(self.saturated.iter().map(|&v| u16::from(v)));
+            if !rgb_totals(sat, &self.wide, k, 1.0, (&mut self.a, &mut self.b)) {
+                for (o, block) in sat.iter_mut().zip(self.saturated.chunks_exact(3 * k)) {
+                    *o = rgb_sum(block);
+                }
+            }
+        }
+    }
+}
+
+/// Per block of `k` RGB pixels (`3k` consecutive `values`), the luminance
+/// of its channels' sums times `scale` into `out`, as [`rgb_sum`] gives
+/// it, for `k` a power of two up to 16 (else `false`, and nothing
+/// written). The channels are summed in halving steps over the whole row
+/// (`v[i] + v[i + 3k/2]`, then of that `w[i] + w[i + 3k/4]`, … down to
+/// `+ 3`: shifted adds of whole slices, which vectorise), after which each
+/// block's first three values are its sums of R, G and B. A block's sum is
+/// at most `k²·255` and fits 16 bits. `a` and `b` are scratch.
+#[inline(always)]
+fn rgb_totals(
+    out: &mut [f32],
+    values: &[u16],
+    k: usize,
+    scale: f32,
+    (a, b): (&mut Vec<u16>, &mut Vec<u16>),
+) -> bool {
+    if !k.is_power_of_two() || k > 16 {
+        return false;
+    }
+    a.clear();
+    a.extend_from_slice(values);
+    let mut step = 3 * k / 2;
+    while step >= 3 && step < a.len() {
+        b.clear();
+        let (head, tail) = (&a[..a.len() - step], &a[step..]);
+        b.extend(head.iter().zip(tail).map(|(&x, &y)| x.wrapping_add(y)));
+        std::mem::swap(a, b);
+        step /= 2;
+    }
+    let (triples, _) = a.as_chunks::<3>();
+    for (o, t) in out.iter_mut().zip(triples.iter().step_by(k)) {
+        *o = luma::rgb(f32::from(t[0]), f32::from(t[1]), f32::from(t[2])) * scale;
+    }
+    true
+}
+
+/// Per block of `k` consecutive `values`, their sum times `scale` into
+/// `out` (summed in integers; vectorised for the usual block sizes).
+#[inline(always)]
+fn block_totals<T: Copy + Into<u32>>(out: &mut [f32], values: &[T], k: usize, scale: f32) {
+    fn fixed<const K: usize, T: Copy + Into<u32>>(out: &mut [f32], values: &[T], scale: f32) {
+        let (blocks, _) = values.as_chunks::<K>();
+        for (o, b) in out.iter_mut().zip(blocks) {
+            *o = b.iter().map(|&v| v.into()).sum::<u32>() as f32 * scale;
+        }
+    }
+    match k {
+        2 => fixed::<2, T>(out, values, scale),
+        4 => fixed::<4, T>(out, values, scale),
+        8 => fixed::<8, T>(out, values, scale),
+        _ => {
+            for (o, block) in out.iter_mut().zip(values.chunks_exact(k)) {
+                *o = block.iter().map(|&v| v.into()).sum::<u32>() as f32 * scale;
+            }
+        }
+    }
+}
+
 /// The per-column counters of [`saturated_sums_8bit`].
 #[derive(Default)]
 struct SaturationScratch {
@@ -690,6 +973,7 @@ fn saturated_sums_in<T>(
 
 /// The luminance of the summed channels of the RGB triples in `block`
 /// ([`luma::rgb`] of `ΣR`, `ΣG`, `ΣB`).
+#[inline(always)]
 fn rgb_sum<T: Copy + Into<u32>>(block: &[T]) -> f32 {
     let (pixels, _) = block.as_chunks::<3>();
     let [r, g, b] = pixels.iter().fold([0u32; 3], |[r, g, b], p| {

@@ -207,3 +207,118 @@ fn metering_one_sample_per_pixel_gives_the_luminance_of_luma_at() {
         assert!(m.stats().histogram.iter().filter(|&&c| c > 0).count() > 20);
     }
 }
+
+/// A xorshift generator from `state` (not zero).
+fn xorshift(mut state: u64) -> impl FnMut() -> u64 {
+    move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        state
+    }
+}
+
+/// The one-pass metering of 8-bit frames (16-bit sums, 8-bit saturated
+/// counts) gives exactly the values of the two-pass one it replaced for
+/// blocks of up to 255 rows, on frames with saturated and dark samples, for
+/// block sides from 1 to 8 and 16 (the powers of two take the halving
+/// sums of RGB rows) and a width that leaves a remainder.
+#[test]
+fn one_pass_8bit_metering_equals_the_two_pass_sums() {
+    let (w, h) = (203usize, 61usize);
+    let mut next = xorshift(0x2545_f491_4f6c_dd1d);
+    for (format, c) in [(PixelFormat::Mono8, 1), (PixelFormat::Rgb8, 3)] {
+        // A third of the samples saturated (250–255), the rest anywhere.
+        let data: Vec<u8> = (0..w * h * c)
+            .map(|_| {
+                let r = next();
+                if r.is_multiple_of(3) {
+                    250 + (r >> 8) as u8 % 6
+                } else {
+                    (r >> 16) as u8
+                }
+            })
+            .collect();
+        let frame = FrameView::new(format, w, h, &data).unwrap();
+        for k in (1..=8).chain([16]) {
+            let ow = w / k;
+            for oy in [0, h / k - 1] {
+                let rows = oy * k..(oy + 1) * k;
+                let (mut luma, mut sat) = (vec![0.0f32; ow], vec![0.0f32; ow]);
+                let mut bytes = vec![0u32; w * 3];
+                block_sums_8bit(&frame, rows.clone(), c, k, &mut bytes, &mut luma);
+                let mut scratch = SaturationScratch::default();
+                saturated_sums_8bit(&frame, rows.clone(), c, k, &mut scratch, &mut sat);
+                let (mut luma1, mut sat1) = (vec![-1.0f32; ow], vec![-1.0f32; ow]);
+                let mut fused = FusedScratch::default();
+                let at = BlockRows {
+                    frame: &frame,
+                    rows,
+                    c,
+                    k,
+                };
+                fused.block_row(at, &mut luma1, Some(&mut sat1));
+                assert_eq!(luma1, luma, "{format:?}, k {k}, row {oy}");
+                assert_eq!(sat1, sat, "{format:?}, k {k}, row {oy}");
+                assert!(sat.iter().any(|&v| v > 0.0));
+            }
+        }
+    }
+}
+
+/// The statistics as they were summed before they were taken in blocks of
+/// four histograms: one pass, the partial sums indexed by the count.
+fn stats_one_by_one<'a>(pixels: impl Iterator<Item = &'a f32>) -> ImageStats {
+    let mut histogram = vec![0u32; HISTOGRAM_BINS];
+    let (mut sum, mut count, mut sat, mut dark) = (0.0f64, 0usize, 0usize, 0usize);
+    let mut partial = [0.0f32; 8];
+    for &v in pixels {
+        partial[count % 8] += v;
+        count += 1;
+        if count % 4096 == 0 {
+            sum += f64::from(partial.iter().sum::<f32>());
+            partial = [0.0; 8];
+        }
+        sat += usize::from(v >= SATURATED_LEVEL);
+        dark += usize::from(v <= DARK_LEVEL);
+        histogram[((v * HISTOGRAM_BINS as f32) as usize).min(HISTOGRAM_BINS - 1)] += 1;
+    }
+    sum += f64::from(partial.iter().sum::<f32>());
+    let n = count.max(1) as f32;
+    ImageStats {
+        mean: (sum / count.max(1) as f64) as f32,
+        median: histogram_quantile(&histogram, 0.5),
+        saturated_fraction: sat as f32 / n,
+        dark_fraction: dark as f32 / n,
+        histogram,
+        count,
+    }
+}
+
+/// The blocked statistics are bit for bit those summed one pixel at a
+/// time, over whole images and masked ones, of lengths around the block.
+#[test]
+fn blocked_statistics_equal_the_one_by_one_sums() {
+    let mut next = xorshift(0x9e37_79b9_7f4a_7c15);
+    for len in [0, 1, 7, 8, 4095, 4096, 4097, 77_602] {
+        let values: Vec<f32> = (0..len)
+            .map(|_| match next() % 5 {
+                0 => 1.0,
+                1 => 0.0,
+                _ => (next() >> 40) as f32 / (1u64 << 24) as f32,
+            })
+            .collect();
+        let mask: Vec<bool> = (0..len).map(|_| !next().is_multiple_of(3)).collect();
+        let whole = ImageStats::from_slice(&values);
+        assert_eq!(whole, stats_one_by_one(values.iter()), "{len} pixels");
+        let masked = || values.iter().zip(&mask).filter(|(_, &m)| m).map(|(v, _)| v);
+        assert_eq!(
+            ImageStats::from_pixels(masked()),
+            stats_one_by_one(masked()),
+            "{len} pixels, masked"
+        );
+        if len > 100 {
+            assert!(whole.saturated_fraction > 0.1 && whole.dark_fraction > 0.1);
+        }
+    }
+}
