@@ -130,4 +130,35 @@ impl<'a> FrameView<'a> {
         luma::luma_row(self.format, &self.row(y)[x * bpp..(x + 1) * bpp], &mut out);
         out[0]
     }
+
+    /// Calls `f` with the luminance of each pixel `p` of `pixels` (row-major
+    /// indices, `y · width + x`, in the frame), in order: the values of
+    /// [`FrameView::luma_at`], with the format looked at once rather than
+    /// per pixel for Mono8 and RGB8.
+    pub fn for_each_luma(&self, pixels: &[u32], mut f: impl FnMut(f32)) {
+        let w = self.width;
+        let at = |p: u32| (p as usize % w, p as usize / w);
+        match self.format {
+            PixelFormat::Mono8 => {
+                for &p in pixels {
+                    let (x, y) = at(p);
+                    f(f32::from(self.row(y)[x]) * (1.0 / 255.0));
+                }
+            }
+            PixelFormat::Rgb8 => {
+                for &p in pixels {
+                    let (x, y) = at(p);
+                    let s = &self.row(y)[3 * x..3 * x + 3];
+                    let v = luma::rgb(f32::from(s[0]), f32::from(s[1]), f32::from(s[2]));
+                    f(v * (1.0 / 255.0));
+                }
+            }
+            _ => {
+                for &p in pixels {
+                    let (x, y) = at(p);
+                    f(self.luma_at(x, y));
+                }
+            }
+        }
+    }
 }

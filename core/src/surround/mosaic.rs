@@ -946,14 +946,11 @@ fn patch_stats(frame: &FrameView<'_>, idx: &[u32]) -> (f32, f32) {
     if idx.is_empty() {
         return (0.0, 0.0);
     }
-    let w = frame.width();
     let (mut sum, mut sat) = (0.0f64, 0usize);
-    for &p in idx {
-        let p = p as usize;
-        let v = frame.luma_at(p % w, p / w);
+    frame.for_each_luma(idx, |v| {
         sum += f64::from(v);
         sat += usize::from(v >= crate::exposure::metering::SATURATED_LEVEL);
-    }
+    });
     let n = idx.len() as f32;
     ((sum / idx.len() as f64) as f32, sat as f32 / n)
 }

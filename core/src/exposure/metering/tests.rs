@@ -182,7 +182,8 @@ fn a_16_bit_mosaic_meters_as_the_8_bit_one_of_the_same_light() {
 #[test]
 fn metering_one_sample_per_pixel_gives_the_luminance_of_luma_at() {
     // One metered pixel per pixel (or Bayer quad): the metering's
-    // luminance and the frame's own agree exactly, in every format.
+    // luminance and the frame's own agree exactly, in every format; and
+    // `for_each_luma` reads what `luma_at` reads.
     let meter = square_meter(12);
     for format in PixelFormat::ALL {
         let side = if format.is_bayer() { 24 } else { 12 };
@@ -205,6 +206,21 @@ fn metering_one_sample_per_pixel_gives_the_luminance_of_luma_at() {
         }
         // Not all alike: the test reads different values.
         assert!(m.stats().histogram.iter().filter(|&&c| c > 0).count() > 20);
+        // Read by index list, in a scattered order, the same bits.
+        let pixels: Vec<u32> = (0..side * side)
+            .map(|i| (i * 37 % (side * side)) as u32)
+            .collect();
+        let mut got = Vec::new();
+        frame.for_each_luma(&pixels, |v| got.push(v.to_bits()));
+        let want: Vec<u32> = pixels
+            .iter()
+            .map(|&p| {
+                frame
+                    .luma_at(p as usize % side, p as usize / side)
+                    .to_bits()
+            })
+            .collect();
+        assert_eq!(got, want, "{format:?}: for_each_luma");
     }
 }
 
