@@ -138,6 +138,25 @@ impl<'a> FrameView<'a> {
     pub fn for_each_luma(&self, pixels: &[u32], mut f: impl FnMut(f32)) {
         let w = self.width;
         let at = |p: u32| (p as usize % w, p as usize / w);
+        // Packed rows: the pixel's bytes are at its index, with no division
+        // into row and column.
+        match (self.format, self.packed()) {
+            (PixelFormat::Mono8, Some(data)) => {
+                for &p in pixels {
+                    f(f32::from(data[p as usize]) * (1.0 / 255.0));
+                }
+                return;
+            }
+            (PixelFormat::Rgb8, Some(data)) => {
+                for &p in pixels {
+                    let s = &data[3 * p as usize..3 * p as usize + 3];
+                    let v = luma::rgb(f32::from(s[0]), f32::from(s[1]), f32::from(s[2]));
+                    f(v * (1.0 / 255.0));
+                }
+                return;
+            }
+            _ => {}
+        }
         match self.format {
             PixelFormat::Mono8 => {
                 for &p in pixels {

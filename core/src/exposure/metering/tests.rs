@@ -221,6 +221,16 @@ fn metering_one_sample_per_pixel_gives_the_luminance_of_luma_at() {
             })
             .collect();
         assert_eq!(got, want, "{format:?}: for_each_luma");
+        // The same frame with padded rows reads the same.
+        let row = side * format.bytes_per_pixel();
+        let padded: Vec<u8> = data
+            .chunks_exact(row)
+            .flat_map(|r| r.iter().copied().chain([0xa5; 5]))
+            .collect();
+        let strided = FrameView::with_stride(format, side, side, row + 5, &padded).unwrap();
+        let mut got = Vec::new();
+        strided.for_each_luma(&pixels, |v| got.push(v.to_bits()));
+        assert_eq!(got, want, "{format:?}: for_each_luma, padded rows");
     }
 }
 
