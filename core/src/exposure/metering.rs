@@ -502,7 +502,13 @@ impl Meter {
                 let rows = oy * k..(oy + 1) * k;
                 let sat = blocks.then(|| &mut sat_sums[oy * ow..(oy + 1) * ow]);
                 let scratch = (&mut row[..], &mut sat_row[..]);
-                float_block_row(frame, rows, bayer, k, scratch, out, sat);
+                let at = FloatRows {
+                    frame,
+                    rows,
+                    bayer,
+                    k,
+                };
+                float_block_row(at, scratch, out, sat);
             }
             for o in out.iter_mut() {
                 *o = (*o * inv_block).clamp(0.0, 1.0);
@@ -628,39 +634,88 @@ impl CameraMasks {
     }
 }
 
-/// The luminance sums of the `k×k` blocks over the source rows `rows`
-/// (pixels, or Bayer quad rows) of a frame that is not Mono8 or RGB8, in
-/// `f32` row by row, into `out`; with `saturated`, the luminance of their
-/// saturated samples. `scratch` holds a row of each.
-fn float_block_row(
-    frame: &FrameView<'_>,
+/// The source rows `rows` (pixels, or Bayer quad rows with `bayer`) of one
+/// block row of a frame that is not Mono8 or RGB8, blocks of `k×k`.
+struct FloatRows<'f, 'a> {
+    frame: &'f FrameView<'a>,
     rows: std::ops::Range<usize>,
     bayer: bool,
     k: usize,
-    (row, sat_row): (&mut [f32], &mut [f32]),
+}
+
+/// The luminance sums of the `k×k` blocks over the source rows `rows`
+/// (pixels, or Bayer quad rows) of a frame that is not Mono8 or RGB8, in
+/// `f32` row by row, into `out`; with `saturated`, the luminance of their
+/// saturated samples. `scratch` holds a row of each. Compiled for AVX2
+/// where the CPU has it: the same operations in the same order, so the
+/// same values.
+fn float_block_row(
+    at: FloatRows<'_, '_>,
+    scratch: (&mut [f32], &mut [f32]),
     out: &mut [f32],
-    mut saturated: Option<&mut [f32]>,
+    saturated: Option<&mut [f32]>,
 ) {
-    for gy in rows {
-        if bayer {
-            let (top, bottom) = (frame.row(2 * gy), frame.row(2 * gy + 1));
-            bayer_luma_row(frame.format(), top, bottom, row);
-            if saturated.is_some() {
-                bayer_saturated_row(frame.format(), top, bottom, sat_row);
-            }
-        } else {
-            luma_row(frame.format(), frame.row(gy), row);
-            if saturated.is_some() {
-                for (s, &v) in sat_row.iter_mut().zip(row.iter()) {
-                    *s = if v >= SATURATED_LEVEL { 1.0 } else { 0.0 };
+    /// The work, inlined into each build.
+    #[inline(always)]
+    fn work(
+        at: FloatRows<'_, '_>,
+        (row, sat_row): (&mut [f32], &mut [f32]),
+        out: &mut [f32],
+        mut saturated: Option<&mut [f32]>,
+    ) {
+        let FloatRows {
+            frame,
+            rows,
+            bayer,
+            k,
+        } = at;
+        for gy in rows {
+            if bayer {
+                let (top, bottom) = (frame.row(2 * gy), frame.row(2 * gy + 1));
+                bayer_luma_row(frame.format(), top, bottom, row);
+                if saturated.is_some() {
+                    bayer_saturated_row(frame.format(), top, bottom, sat_row);
+                }
+            } else {
+                luma_row(frame.format(), frame.row(gy), row);
+                if saturated.is_some() {
+                    for (s, &v) in sat_row.iter_mut().zip(row.iter()) {
+                        *s = if v >= SATURATED_LEVEL { 1.0 } else { 0.0 };
+                    }
                 }
             }
-        }
-        add_block_sums(out, row, k);
-        if let Some(sat) = saturated.as_deref_mut() {
-            add_block_sums(sat, sat_row, k);
+            add_block_sums(out, row, k);
+            if let Some(sat) = saturated.as_deref_mut() {
+                add_block_sums(sat, sat_row, k);
+            }
         }
     }
+    /// [`work`] compiled for AVX2.
+    ///
+    /// # Safety
+    ///
+    /// The CPU has AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    #[allow(unsafe_code)]
+    unsafe fn avx2(
+        at: FloatRows<'_, '_>,
+        scratch: (&mut [f32], &mut [f32]),
+        out: &mut [f32],
+        saturated: Option<&mut [f32]>,
+    ) {
+        work(at, scratch, out, saturated);
+    }
+    #[cfg(target_arch = "x86_64")]
+    if crate::cpu::Isa::detect() >= crate::cpu::Isa::Avx2 {
+        // SAFETY: `detect` reports AVX2 only when the CPU has it.
+        #[allow(unsafe_code)]
+        unsafe {
+            avx2(at, scratch, out, saturated);
+        }
+        return;
+    }
+    work(at, scratch, out, saturated);
 }
 
 /// A ground mask prepared for one frame size, pixel layout and metering
@@ -984,6 +1039,7 @@ fn rgb_sum<T: Copy + Into<u32>>(block: &[T]) -> f32 {
 
 /// The luminance of the saturated samples of a row of 2×2 Bayer quads (a
 /// quad whose samples are all saturated counts 1).
+#[inline(always)]
 fn bayer_saturated_row(format: PixelFormat, top: &[u8], bottom: &[u8], dst: &mut [f32]) {
     if format.bytes_per_pixel() == 2 {
         let sat = |v: f32| if v >= SATURATED_LEVEL { 1.0 } else { 0.0 };
@@ -994,6 +1050,7 @@ fn bayer_saturated_row(format: PixelFormat, top: &[u8], bottom: &[u8], dst: &mut
 }
 
 /// Adds the sums of `row`'s consecutive blocks of `k` to `out`.
+#[inline(always)]
 fn add_block_sums(out: &mut [f32], row: &[f32], k: usize) {
     /// With the block size known at compile time, the sums vectorise.
     fn fixed<const K: usize>(out: &mut [f32], row: &[f32]) {

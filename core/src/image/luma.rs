@@ -50,7 +50,7 @@ pub(crate) fn bayer_weights(format: PixelFormat) -> [f32; 4] {
 
 /// `Σ w_i·value(sample_i)` over each 2×2 Bayer quad of the two rows `top`
 /// and `bottom`, into `dst` (one value per quad).
-#[inline]
+#[inline(always)]
 pub(crate) fn bayer_row(
     w: [f32; 4],
     top: &[u8],
@@ -58,17 +58,17 @@ pub(crate) fn bayer_row(
     dst: &mut [f32],
     value: impl Fn(u8) -> f32,
 ) {
-    for ((d, t), b) in dst
-        .iter_mut()
-        .zip(top.chunks_exact(2))
-        .zip(bottom.chunks_exact(2))
-    {
+    // Pairs as arrays (not `chunks_exact` slices), so that the loop
+    // vectorises.
+    let (top, _) = top.as_chunks::<2>();
+    let (bottom, _) = bottom.as_chunks::<2>();
+    for ((d, t), b) in dst.iter_mut().zip(top).zip(bottom) {
         *d = w[0] * value(t[0]) + w[1] * value(t[1]) + w[2] * value(b[0]) + w[3] * value(b[1]);
     }
 }
 
 /// Luminance of a row of 2×2 Bayer quads, from the quad's two source rows.
-#[inline]
+#[inline(always)]
 pub(crate) fn bayer_luma_row(format: PixelFormat, top: &[u8], bottom: &[u8], dst: &mut [f32]) {
     if format.bytes_per_pixel() == 2 {
         bayer_wide_row(format, top, bottom, dst, |v| v);

@@ -348,3 +348,47 @@ fn blocked_statistics_equal_the_one_by_one_sums() {
         }
     }
 }
+
+/// Frames metered through the `f32` rows (Bayer mosaics, 12- and 16-bit
+/// frames), compiled for AVX2 where the CPU has it, give the bits of the
+/// same rows summed here in the baseline build, blocks of 4×4.
+#[test]
+fn float_rows_meter_as_the_baseline_sums() {
+    let mut next = xorshift(0x5851_f42d_4c95_7f2d);
+    let meter = square_meter(12);
+    for format in PixelFormat::ALL {
+        if matches!(format, PixelFormat::Mono8 | PixelFormat::Rgb8) {
+            continue;
+        }
+        let bayer = format.is_bayer();
+        // 12×12 blocks of 4×4 pixels or quads.
+        let (gw, gh) = (48 + 3, 48 + 2);
+        let (w, h) = if bayer { (2 * gw, 2 * gh) } else { (gw, gh) };
+        let data: Vec<u8> = (0..w * h * format.bytes_per_pixel())
+            .map(|_| (next() >> 24) as u8)
+            .collect();
+        let frame = FrameView::new(format, w, h, &data).unwrap();
+        let m = meter.meter(&frame, None).unwrap();
+        assert_eq!((m.width(), m.height()), (12, 12), "{format:?}");
+        let (mut row, mut sums) = (vec![0.0f32; gw], vec![0.0f32; 12]);
+        for oy in 0..12 {
+            sums.fill(0.0);
+            for gy in 4 * oy..4 * oy + 4 {
+                if bayer {
+                    let (top, bottom) = (frame.row(2 * gy), frame.row(2 * gy + 1));
+                    luma::bayer_luma_row(format, top, bottom, &mut row);
+                } else {
+                    luma_row(format, frame.row(gy), &mut row);
+                }
+                for (s, block) in sums.iter_mut().zip(row.chunks_exact(4)) {
+                    *s += block.iter().sum::<f32>();
+                }
+            }
+            for (x, s) in sums.iter().enumerate() {
+                let want = (s * (1.0 / 16.0)).clamp(0.0, 1.0);
+                let got = m.luma()[oy * 12 + x];
+                assert_eq!(got.to_bits(), want.to_bits(), "{format:?} ({x}, {oy})");
+            }
+        }
+    }
+}
