@@ -145,6 +145,34 @@ impl StatsSums {
     /// additions do not wait on each other, and the partial sums are
     /// added to the `f64` total in order.
     fn add(&mut self, block: &[f32]) {
+        #[cfg(target_arch = "x86_64")]
+        if crate::cpu::Isa::detect() >= crate::cpu::Isa::Avx2 {
+            // SAFETY: `detect` reports AVX2 only when the CPU has it.
+            #[allow(unsafe_code)]
+            unsafe {
+                self.add_avx2(block);
+            }
+            return;
+        }
+        self.add_in(block);
+    }
+
+    /// [`StatsSums::add_in`] compiled for AVX2 (the same operations in
+    /// the same order: the same values).
+    ///
+    /// # Safety
+    ///
+    /// The CPU has AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    #[allow(unsafe_code)]
+    unsafe fn add_avx2(&mut self, block: &[f32]) {
+        self.add_in(block);
+    }
+
+    /// The work of [`StatsSums::add`].
+    #[inline(always)]
+    fn add_in(&mut self, block: &[f32]) {
         let mut partial = [0.0f32; 8];
         let (eights, rest) = block.as_chunks::<8>();
         for e in eights {
