@@ -200,6 +200,44 @@ mod tests {
         assert_eq!(last.cameras[2].manual, Some(777.0));
     }
 
+    /// A processor whose pictures are let go takes their canvases again
+    /// (the same buffers), and its pictures are those of a processor whose
+    /// pictures are all held (new canvases every set): a reused canvas is
+    /// written whole.
+    #[test]
+    fn released_canvases_are_reused_and_written_whole() {
+        let run = |hold: bool| {
+            let (rig, view, graph) = small_rig(8);
+            let processor = default_processor(&rig, view, graph);
+            let mut lp = LockStep::new(rig, processor).unwrap_or_else(|e| panic!("{e}"));
+            let (mut pictures, mut buffers, mut held) = (Vec::new(), Vec::new(), Vec::new());
+            while let Some(step) = lp.step().unwrap_or_else(|e| panic!("{e}")) {
+                let out = step.output.unwrap_or_else(|| panic!("incomplete set"));
+                let canvas = out.canvas.unwrap_or_else(|| panic!("no picture"));
+                pictures.push(canvas.data.clone());
+                buffers.push(canvas.data.as_ptr() as usize);
+                if hold {
+                    held.push(canvas);
+                }
+            }
+            (pictures, buffers)
+        };
+        let (reused, reused_at) = run(false);
+        let (fresh, fresh_at) = run(true);
+        assert_eq!(reused.len(), 8);
+        for (k, (a, b)) in reused.iter().zip(&fresh).enumerate() {
+            assert!(a == b, "set {k}: the reused canvas differs");
+        }
+        // Held pictures each have a buffer of their own; released ones
+        // come back.
+        let distinct = |at: &[usize]| at.iter().collect::<std::collections::HashSet<_>>().len();
+        assert_eq!(distinct(&fresh_at), 8);
+        assert!(distinct(&reused_at) < 8, "{reused_at:?}");
+        // The sets differ, so equal pictures are no accident of a still
+        // scene.
+        assert!(reused.windows(2).any(|w| w[0] != w[1]));
+    }
+
     #[test]
     fn refinement_without_a_panorama_says_so() {
         let (rig, view, graph) = small_rig(1);

@@ -87,6 +87,28 @@ pub struct Processor {
     scaled: Vec<Vec<u8>>,
     /// The view's seam bands, for the seam gains (built when first needed).
     seams: Option<SeamBands>,
+    /// The canvases handed out last ([`CANVASES`]), taken again for a new
+    /// set once nothing else holds them.
+    canvases: Vec<Arc<Canvas>>,
+}
+
+/// How many canvases handed out a [`Processor`] keeps for reuse.
+const CANVASES: usize = 4;
+
+/// A `w×h` canvas of `channels` for a new set's picture (whose every pixel
+/// the composition writes): one of `canvases` (handed out before) that
+/// nothing else holds any more, or a new one. Reusing them spares a fresh
+/// allocation of a few megabytes, and its page faults, per set.
+fn take_canvas(canvases: &mut Vec<Arc<Canvas>>, w: usize, h: usize, channels: usize) -> Canvas {
+    let free = canvases
+        .iter()
+        .position(|c| Arc::strong_count(c) == 1 && Arc::weak_count(c) == 0);
+    let Some(mut canvas) = free.and_then(|i| Arc::into_inner(canvases.remove(i))) else {
+        return Canvas::new(w, h, channels);
+    };
+    canvas.data.resize(w * h * channels, 0);
+    (canvas.width, canvas.height, canvas.channels) = (w, h, channels);
+    canvas
 }
 
 impl Processor {
@@ -120,6 +142,7 @@ impl Processor {
             compose: true,
             display: DisplayGains::default(),
             scaled: Vec::new(),
+            canvases: Vec::new(),
             seams: None,
             cameras,
             shared_settings: Arc::new(settings.clone()),
@@ -434,7 +457,7 @@ impl Processor {
                 let shown_view = view.display_mosaic();
                 let view = view.mosaic();
                 let (w, h) = shown_view.size();
-                let mut canvas = Canvas::new(w, h, channels);
+                let mut canvas = take_canvas(&mut self.canvases, w, h, channels);
                 let inputs: Vec<DisplayInput> = cameras
                     .iter()
                     .map(|c| DisplayInput {
@@ -553,7 +576,14 @@ impl Processor {
                 }
                 match composed {
                     Ok(()) if skip_picture => None,
-                    Ok(()) => Some(Arc::new(canvas)),
+                    Ok(()) => {
+                        let canvas = Arc::new(canvas);
+                        if self.canvases.len() == CANVASES {
+                            self.canvases.remove(0);
+                        }
+                        self.canvases.push(Arc::clone(&canvas));
+                        Some(canvas)
+                    }
                     Err(e) => {
                         compose_error = Some(e.to_string());
                         None
