@@ -136,46 +136,34 @@ impl<'a> FrameView<'a> {
     /// [`FrameView::luma_at`], with the format looked at once rather than
     /// per pixel for Mono8 and RGB8.
     pub fn for_each_luma(&self, pixels: &[u32], mut f: impl FnMut(f32)) {
-        let w = self.width;
-        let at = |p: u32| (p as usize % w, p as usize / w);
-        // Packed rows: the pixel's bytes are at its index, with no division
-        // into row and column.
-        match (self.format, self.packed()) {
-            (PixelFormat::Mono8, Some(data)) => {
-                for &p in pixels {
-                    f(f32::from(data[p as usize]) * (1.0 / 255.0));
-                }
-                return;
+        let (w, stride, data) = (self.width, self.stride, self.data);
+        let bpp = self.format.bytes_per_pixel();
+        // The pixel's first byte: in packed rows at its index, with no
+        // division into row and column.
+        let packed = stride == w * bpp;
+        let at = move |p: u32| {
+            let p = p as usize;
+            if packed {
+                p * bpp
+            } else {
+                p / w * stride + p % w * bpp
             }
-            (PixelFormat::Rgb8, Some(data)) => {
-                for &p in pixels {
-                    let s = &data[3 * p as usize..3 * p as usize + 3];
-                    let v = luma::rgb(f32::from(s[0]), f32::from(s[1]), f32::from(s[2]));
-                    f(v * (1.0 / 255.0));
-                }
-                return;
-            }
-            _ => {}
-        }
+        };
         match self.format {
             PixelFormat::Mono8 => {
                 for &p in pixels {
-                    let (x, y) = at(p);
-                    f(f32::from(self.row(y)[x]) * (1.0 / 255.0));
+                    f(luma::mono8(data[at(p)]));
                 }
             }
             PixelFormat::Rgb8 => {
                 for &p in pixels {
-                    let (x, y) = at(p);
-                    let s = &self.row(y)[3 * x..3 * x + 3];
-                    let v = luma::rgb(f32::from(s[0]), f32::from(s[1]), f32::from(s[2]));
-                    f(v * (1.0 / 255.0));
+                    let i = at(p);
+                    f(luma::rgb8(&data[i..i + 3]));
                 }
             }
             _ => {
                 for &p in pixels {
-                    let (x, y) = at(p);
-                    f(self.luma_at(x, y));
+                    f(self.luma_at(p as usize % w, p as usize / w));
                 }
             }
         }

@@ -111,6 +111,18 @@ pub(crate) fn bayer_wide_row(
     }
 }
 
+/// The luminance of a Mono8 sample.
+#[inline(always)]
+pub(crate) fn mono8(v: u8) -> f32 {
+    f32::from(v) * (1.0 / 255.0)
+}
+
+/// The luminance of an RGB8 pixel (its first three bytes).
+#[inline(always)]
+pub(crate) fn rgb8(p: &[u8]) -> f32 {
+    rgb(f32::from(p[0]), f32::from(p[1]), f32::from(p[2])) * (1.0 / 255.0)
+}
+
 /// Luminance of one row of a frame, one value per pixel; a Bayer row is
 /// read sample by sample (its quads go through [`bayer_luma_row`]).
 #[inline]
@@ -118,7 +130,7 @@ pub(crate) fn luma_row(format: PixelFormat, src: &[u8], dst: &mut [f32]) {
     match format {
         PixelFormat::Mono8 => {
             for (d, &s) in dst.iter_mut().zip(src) {
-                *d = f32::from(s) * (1.0 / 255.0);
+                *d = mono8(s);
             }
         }
         PixelFormat::Mono12 => {
@@ -135,7 +147,7 @@ pub(crate) fn luma_row(format: PixelFormat, src: &[u8], dst: &mut [f32]) {
         PixelFormat::Rgb8 => {
             let (pixels, _) = src.as_chunks::<3>();
             for (d, s) in dst.iter_mut().zip(pixels) {
-                *d = rgb(f32::from(s[0]), f32::from(s[1]), f32::from(s[2])) * (1.0 / 255.0);
+                *d = rgb8(s);
             }
         }
         PixelFormat::BayerRg8

@@ -93,8 +93,8 @@ macro_rules! steps {
 
 /// The AVX2 kernel: per camera, the taps of 4 RGB pixels (each pixel's
 /// top and bottom 8 bytes, loaded one by one), 8 mono pixels (4 bytes
-/// each, loaded one by one) or 8 Bayer pixels (four gathers of 4 bytes, one per row
-/// of the neighbourhood) at a time; each neighbour pair (left, right)
+/// each, loaded one by one) or 8 Bayer pixels (four gathers of 4 bytes,
+/// one per row of the neighbourhood) at a time; each neighbour pair (left, right)
 /// meets its weight pair in one `vpmaddwd`; the cameras' sums are
 /// scaled by their gains (`GAIN`), added, rounded and packed. The ends
 /// of runs, Bayer steps with a tap at the image's edge and runs mixing
@@ -442,10 +442,10 @@ mod ops {
         // Each pixel's top 8 bytes at `3·index` and its bottom 8 bytes at
         // `3·(index + width) − 2`, loaded one by one: on the machine
         // measured (BENCHMARKS.md) eight plain loads and their inserts
-        // take fewer cycles than two 4-lane gathers. Pixels 0 and 2 in one vector, 1
-        // and 3 in the other: then each 128-bit lane's weight pairs are
-        // one in-lane shuffle of the weights (pixel 0's and 1's in lane
-        // 0, 2's and 3's in lane 1).
+        // take fewer cycles than two 4-lane gathers. Pixels 0 and 2 in one
+        // vector, 1 and 3 in the other: then each 128-bit lane's weight
+        // pairs are one in-lane shuffle of the weights (pixel 0's and 1's
+        // in lane 0, 2's and 3's in lane 1).
         let below = 3 * width - 2;
         let base = bytes.as_ptr();
         let load = |p: usize, off: usize| {
