@@ -180,6 +180,16 @@ fn the_log_fit_recovers_a_maximum_in_ln_x_and_reports_anchor_values() {
     assert_eq!(Simulation::Gamma.fit_variable(), FitVariable::Linear);
 }
 
+/// The paper's γ-mapping, named: these tests are about its numbers, whatever
+/// the default simulation.
+fn gamma_estimator() -> Estimator {
+    Estimator::new(EstimatorConfig {
+        simulation: Simulation::Gamma,
+        ..Default::default()
+    })
+    .unwrap()
+}
+
 fn scale_clip_estimator() -> Estimator {
     Estimator::new(EstimatorConfig {
         simulation: Simulation::ScaleClip,
@@ -354,7 +364,7 @@ fn metered_scene(exposure: f64) -> Metered {
 fn both_simulations_point_the_right_way() {
     let dark = metered_scene(2000.0);
     let bright = metered_scene(40000.0);
-    let mut g = Estimator::new(EstimatorConfig::default()).unwrap();
+    let mut g = gamma_estimator();
     let mut s = Estimator::new(EstimatorConfig {
         simulation: Simulation::ScaleClip,
         ..Default::default()
@@ -379,7 +389,7 @@ fn both_simulations_point_the_right_way() {
 #[test]
 fn the_information_weighted_intensity_comes_when_asked() {
     let image = metered_scene(9000.0);
-    let mut g = Estimator::new(EstimatorConfig::default()).unwrap();
+    let mut g = gamma_estimator();
     let plain = g.estimate(&image).unwrap();
     let full = g.estimate_with_info(&image).unwrap();
     assert_eq!(plain.info_intensity, None);
@@ -705,6 +715,76 @@ fn damping_settles_a_two_step_cycle_on_the_balanced_fixed_point() {
     assert!((b.exposure / last).log2().abs() < 0.01);
 }
 
+/// A camera whose own law's ratio `R` falls steeply near its balanced rest
+/// (from 0.9 to 0.5 within 0.02 EV, as where the estimate moves from one
+/// hump of `M` to the other) while its neighbours want it about 1.5 EV
+/// brighter. With each frame's own `α`, Eq. 6 amplifies every swing of `R`
+/// and the damped camera circles 1.5 EV wide; with `α` averaged over frames
+/// it settles, on Eq. 5's fixed point.
+#[test]
+fn averaging_alpha_settles_a_camera_whose_own_law_turns_steeply() {
+    let ratio = |e: f64| 0.7 - 0.2 * ((e.log2() - 10.0) / 0.01).clamp(-1.0, 1.0);
+    let neighbours = |e: f64| 3000.0 / e;
+    let run = |params: balance::DampingParams| {
+        let mut d = balance::Damping::default();
+        let mut e = 9.5f64.exp2();
+        let mut path = Vec::new();
+        for _ in 0..400 {
+            let b = balance::balance_with(e * ratio(e), e, &[neighbours(e)], |a| {
+                d.smooth_alpha(a, &params)
+            });
+            e = d.apply(e, b.exposure, &params).0;
+            path.push(e.log2());
+        }
+        let tail = &path[path.len() - 50..];
+        let band = tail.iter().cloned().fold(f64::MIN, f64::max)
+            - tail.iter().cloned().fold(f64::MAX, f64::min);
+        (band, path[path.len() - 1])
+    };
+    let (plain, _) = run(balance::DampingParams::default());
+    let averaged_params = balance::DampingParams {
+        alpha_weight: 0.125,
+        ..Default::default()
+    };
+    let (averaged, at) = run(averaged_params);
+    println!("each frame's α: band {plain:.4} EV; averaged: {averaged:.4} EV at 2^{at:.3}");
+    assert!(plain > 0.3, "each frame's α: band {plain:.4} EV");
+    assert!(averaged < 0.01, "averaged α: band {averaged:.4} EV");
+    // Eq. 5's own fixed point: the balanced target is the exposure.
+    let e = at.exp2();
+    let b = balance::balance(e * ratio(e), e, &[neighbours(e)]);
+    assert!(
+        (b.exposure / e).log2().abs() < 0.02,
+        "{} at {e}",
+        b.exposure
+    );
+    // Each frame's own α by default (Eq. 6 as written). Averaged: the
+    // first frame starts the mean; the next ones fold in with the weight; a
+    // change of light starts it again.
+    let mut d = balance::Damping::default();
+    let default = balance::DampingParams::default();
+    assert_eq!(default.alpha_weight, 1.0);
+    assert_eq!(d.smooth_alpha(0.6, &default), 0.6);
+    assert_eq!(d.smooth_alpha(1.0, &default), 1.0);
+    let p = averaged_params;
+    let mut d = balance::Damping::default();
+    assert_eq!(d.smooth_alpha(0.6, &p), 0.6);
+    assert!(close(
+        d.smooth_alpha(1.0, &p),
+        0.6 + 0.4 * p.alpha_weight,
+        1e-12
+    ));
+    d.observe(10.0, 0.5, 0.1);
+    d.observe(10.0, 0.05, 0.1);
+    assert_eq!(d.smooth_alpha(0.9, &p), 0.9);
+    let bad = balance::DampingParams {
+        alpha_weight: 0.0,
+        ..p
+    };
+    let err = bad.validate().unwrap_err().to_string();
+    assert!(err.contains("balance.damping.alpha_weight"), "{err}");
+}
+
 // ---------- split ----------
 
 #[test]
@@ -944,9 +1024,15 @@ fn a_frame_still_at_the_old_setting_shows_no_command_that_leads_back_towards_it(
 
 #[test]
 fn a_frame_that_shows_a_change_of_light_is_answered_before_the_last_command_shows() {
+    // Under the γ-mapping, whose fixed point on this scene lies below
+    // 8000 µs.
     let config = ControllerConfig {
         balancing: None,
         probe: None,
+        estimator: EstimatorConfig {
+            simulation: Simulation::Gamma,
+            ..Default::default()
+        },
         ..Default::default()
     };
     let mut cam = CameraController::new(&config, ExposureRange::default()).unwrap();
@@ -1303,7 +1389,7 @@ fn a_darker_frame_tells_scale_clip_what_saturation_hides() {
             assert!(!e.declipped, "{w}×{h}: a darker frame {what} was read");
             assert_eq!(e.anchors, plain.anchors, "{w}×{h}: {what}");
         }
-        let mut gamma = Estimator::new(EstimatorConfig::default()).unwrap();
+        let mut gamma = gamma_estimator();
         let darker = metered(1.0 / 1.9);
         let g = gamma
             .estimate_with(

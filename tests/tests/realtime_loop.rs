@@ -7,7 +7,7 @@
 use std::sync::Arc;
 use std::time::Duration;
 
-use rigview_core::exposure::NeighbourGraph;
+use rigview_core::exposure::{NeighbourGraph, Simulation};
 use rigview_core::pipeline::{Pipeline, PipelineOptions, ProcessingSettings, Processor};
 use rigview_core::sim::{Pacing, SimConfig, SimRender, SimRig, SimRigOptions};
 use rigview_core::surround::{CanvasSpec, SurroundOptions, SurroundView};
@@ -30,6 +30,20 @@ const TAIL: usize = 100;
 /// view pulsed by 0.1 EV about once a second.
 #[test]
 fn the_default_mode_holds_every_camera_still_in_real_time() {
+    holds_every_camera_still(ProcessingSettings::default());
+}
+
+/// The same under scale-and-clip, with Eq. 6's `α` averaged over frames
+/// (weight 1/8). With each frame's own `α` the front camera swung 0.12 EV.
+#[test]
+fn scale_clip_with_alpha_averaged_holds_every_camera_still_in_real_time() {
+    let mut settings = ProcessingSettings::default();
+    settings.controller.estimator.simulation = Simulation::ScaleClip;
+    settings.balance.damping.alpha_weight = 0.125;
+    holds_every_camera_still(settings);
+}
+
+fn holds_every_camera_still(settings: ProcessingSettings) {
     let config = SimConfig::preset("reference").unwrap();
     let render = Arc::new(SimRender::new(&config).unwrap());
     let view = SurroundView::build(
@@ -52,7 +66,7 @@ fn the_default_mode_holds_every_camera_still_in_real_time() {
         render.cameras().to_vec(),
         Some(view.into()),
         graph,
-        ProcessingSettings::default(),
+        settings,
     )
     .unwrap();
     let mut pipeline = Pipeline::start(

@@ -5,6 +5,7 @@
 
 use egui::{Color32, Ui};
 use egui_plot::{Legend, Line, Plot, PlotPoints, Points, VLine};
+use rigview_core::exposure::Simulation;
 use rigview_core::pipeline::{Output, StageTimes, Telemetry, TelemetryRow};
 
 use super::{camera_colour, RigviewApp};
@@ -116,13 +117,18 @@ fn plot_with(
         });
 }
 
-/// The M(γ) curve of one camera's newest estimate: the anchors, the fitted
-/// polynomial and γ̂.
+/// The M(γ) or M(s) curve of one camera's newest estimate: the anchors,
+/// the fitted polynomial and γ̂ or ŝ.
 pub fn curve_plot(ui: &mut Ui, out: Option<&Output>, camera: usize, name: &str) {
-    ui.label(format!("M(γ) of {name}: anchors, 5th-order fit, estimate"));
     let est = out
         .and_then(|o| o.cameras.get(camera))
         .and_then(|c| c.estimate.as_ref());
+    ui.label(match est.map(|e| e.simulation) {
+        Some(Simulation::ScaleClip) => {
+            format!("M(s) of {name} (s: exposure scale): anchors, 5th-order fit, estimate")
+        }
+        _ => format!("M(γ) of {name}: anchors, 5th-order fit, estimate"),
+    });
     Plot::new("curve")
         .height(150.0)
         .legend(Legend::default())

@@ -37,6 +37,21 @@
 //! the damping: `κ` is 1 again, so that a camera damped while it rested
 //! follows the new light at the full step.
 //!
+//! Eq. 6's `α` can be a running mean over the camera's frames (weight
+//! `alpha_weight` below 1; 1, the default, is each frame's own `α`, as
+//! Eq. 6 is written). The loop gain above comes mostly from `α` moving with
+//! `R` (`dα/dR·(R − mean_j r_ij)`: 3.4 of the 4.3 at the balanced rest of a
+//! camera whose neighbours want it 2 EV brighter); with `α` averaged, a
+//! swing of `R` from frame to frame moves the balanced step by about `α`
+//! times as much. The fixed points are Eq. 5's (`α` settles where `R`
+//! does); a change of light starts the mean again from the frame's own
+//! `α`, with `κ`. Under scale-and-clip a weight of 1/8 holds the simulated
+//! front camera still in real time where each frame's `α` lets it
+//! saw-tooth; under the γ-mapping (the default) it does not help
+//! (docs/exposure-results.md). Taking the mean only while a camera is
+//! damped was tried: switching between the two made slow cycles of more
+//! than 1 EV on a model of a steep own law.
+//!
 //! The distance before `κ` grows again catches a saw-tooth as well as a
 //! two-step cycle: where the balanced target jumps (γ̂ of the γ-mapping
 //! jumping to the end of the anchors as the exposure crosses a point),
@@ -268,6 +283,17 @@ pub struct Balanced {
 /// `E*_{t,i}` (the exposure its frame was taken with), `ratios` the `r_ij`
 /// of its neighbours that have one. With no ratios the unary stands.
 pub fn balance(unary: f64, current: f64, ratios: &[f64]) -> Balanced {
+    balance_with(unary, current, ratios, |a| a)
+}
+
+/// [`balance`] with Eq. 6's `α` passed through `alpha_of` (the damping's
+/// smoothing of `α` over frames, [`Damping::smooth_alpha`]).
+pub fn balance_with(
+    unary: f64,
+    current: f64,
+    ratios: &[f64],
+    alpha_of: impl FnOnce(f64) -> f64,
+) -> Balanced {
     if ratios.is_empty() || current <= 0.0 {
         return Balanced {
             exposure: unary,
@@ -275,7 +301,7 @@ pub fn balance(unary: f64, current: f64, ratios: &[f64]) -> Balanced {
             mean_ratio: 1.0,
         };
     }
-    let a = alpha(unary / current);
+    let a = alpha_of(alpha(unary / current)).clamp(0.5, 1.0);
     let mean_ratio = ratios.iter().sum::<f64>() / ratios.len() as f64;
     Balanced {
         exposure: a * unary + (1.0 - a) * mean_ratio * current,
@@ -296,6 +322,14 @@ pub struct DampingParams {
     /// last reversal before `κ` grows again (0: at once).
     #[serde(default = "default_recover_ev")]
     pub recover_ev: f64,
+    /// The weight of each frame's Eq. 6 `α` in its running mean over the
+    /// camera's frames (1: every frame's own `α`, as Eq. 6 is written).
+    #[serde(default = "default_alpha_weight")]
+    pub alpha_weight: f64,
+}
+
+fn default_alpha_weight() -> f64 {
+    1.0
 }
 
 fn default_recover_ev() -> f64 {
@@ -308,6 +342,7 @@ impl Default for DampingParams {
             dead_band_ev: 0.05,
             floor: 1.0 / 16.0,
             recover_ev: default_recover_ev(),
+            alpha_weight: default_alpha_weight(),
         }
     }
 }
@@ -336,6 +371,13 @@ impl DampingParams {
             20.0,
             "a distance in EV in [0, 20]",
         )?;
+        check_range(
+            "balance.damping.alpha_weight",
+            self.alpha_weight,
+            0.01,
+            1.0,
+            "a weight in [0.01, 1]",
+        )?;
         Ok(())
     }
 }
@@ -351,6 +393,8 @@ pub struct Damping {
     travel: f64,
     /// The last frame seen: log2 of its exposure and its mean intensity.
     frame: Option<(f64, f64)>,
+    /// The running mean of Eq. 6's `α`.
+    alpha: Option<f64>,
 }
 
 impl Default for Damping {
@@ -360,6 +404,7 @@ impl Default for Damping {
             last: None,
             travel: 0.0,
             frame: None,
+            alpha: None,
         }
     }
 }
@@ -390,6 +435,19 @@ impl Damping {
             *self = Self::default();
         }
         self.frame = Some(now);
+    }
+
+    /// Eq. 6's `α` for this frame, whose own `α` is `raw`: `raw` folded
+    /// into the running mean with weight `params.alpha_weight` (the first
+    /// frame, and the first after a change of light, start the mean).
+    pub fn smooth_alpha(&mut self, raw: f64, params: &DampingParams) -> f64 {
+        let a = match self.alpha {
+            Some(a) if !raw.is_finite() => a,
+            Some(a) => a + params.alpha_weight * (raw - a),
+            None => raw,
+        };
+        self.alpha = Some(a);
+        a
     }
 
     /// The exposure to command for the balanced target `target` of a frame

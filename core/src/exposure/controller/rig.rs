@@ -305,7 +305,13 @@ impl RigController {
                                 config.bracket.light_tolerance,
                             );
                         }
-                        let b = balance::balance(u.desired, bases[i], &neighbour);
+                        let b = balance::balance_with(u.desired, bases[i], &neighbour, |a| {
+                            if cam.has_levels() {
+                                a
+                            } else {
+                                cam.damping.smooth_alpha(a, &params.damping)
+                            }
+                        });
                         // On fixed levels the walker keeps a camera from
                         // circling, and a damped step would only add up
                         // more slowly.
