@@ -15,6 +15,7 @@ fn frame(taken: f64, m: f64, desired: f64) -> ProbeInput {
         desired,
         wants_frame: false,
         read_probe_frame: false,
+        rungs: 1,
     }
 }
 
@@ -370,4 +371,78 @@ fn bad_parameters_are_named() {
         assert!(err.contains(name), "{err}");
     }
     ProbeParams::default().validate().unwrap();
+}
+
+/// A ladder of three rungs: a rung that measures no better is followed by
+/// one a probe step darker again, from the same home; the first that
+/// measures better is taken; after the last the camera goes home and
+/// rests.
+#[test]
+fn a_ladder_probes_further_down_until_a_rung_measures_better() {
+    let params = params();
+    let ladder = |p: &mut Prober, e: f64, m: f64| {
+        p.step(
+            &params,
+            ProbeInput {
+                rungs: 3,
+                ..settled(e, m)
+            },
+        )
+    };
+    let step = 1.9f64;
+    // Settle at 1000 (M 100) and probe: rung 1 at 1000/1.9.
+    let mut p = Prober::default();
+    assert_eq!(ladder(&mut p, 1000.0, 100.0).1, None);
+    let (d, e) = ladder(&mut p, 1000.0, 100.0);
+    assert!(matches!(e, Some(ProbeEvent::Sent { .. })));
+    assert!((d - 1000.0 / step).abs() < 1e-6);
+    // Rung 1 measures less (a dip): rung 2, one step darker again.
+    let (d, e) = p.step(&params, frame(d, 96.0, d));
+    match e {
+        Some(ProbeEvent::Sent { from, to }) => {
+            assert!((from - 1000.0).abs() < 1e-9);
+            assert!((to - 1000.0 / (step * step)).abs() < 1e-6, "rung 2 at {to}");
+            assert!((d - to).abs() < 1e-9);
+        }
+        other => panic!("expected rung 2, got {other:?}"),
+    }
+    // Rung 2 measures 20 % more: taken, the law goes on from there.
+    let (d2, e) = p.step(&params, frame(d, 120.0, d * 1.05));
+    assert!(matches!(e, Some(ProbeEvent::Taken { gain }) if (gain - 0.2).abs() < 1e-9));
+    assert!((d2 - d * 1.05).abs() < 1e-9);
+
+    // Every rung no better: three probe frames, then home, resting.
+    let mut p = Prober::default();
+    ladder(&mut p, 1000.0, 100.0);
+    let (mut d, _) = ladder(&mut p, 1000.0, 100.0);
+    let mut sent = 1;
+    loop {
+        let (next, e) = p.step(&params, frame(d, 90.0, d));
+        match e {
+            Some(ProbeEvent::Sent { .. }) => {
+                sent += 1;
+                d = next;
+            }
+            Some(ProbeEvent::Rejected { .. }) => {
+                assert!((next - 1000.0).abs() < 1e-9, "back to {next}, not home");
+                break;
+            }
+            other => panic!("unexpected {other:?}"),
+        }
+    }
+    assert_eq!(sent, 3);
+    assert!(p.resting());
+    assert!((d - 1000.0 / step.powi(3)).abs() < 1e-6, "last rung at {d}");
+    // A one-rung probe (the default) goes home after the first.
+    let mut p = Prober::default();
+    let probe = settle_and_probe(&mut p, &params, 100.0);
+    let (_, e) = p.step(&params, frame(probe, 90.0, probe));
+    assert!(matches!(e, Some(ProbeEvent::Rejected { .. })));
+    // The ladder's parameters are checked.
+    let bad = ProbeParams {
+        ladder: 0,
+        ..ProbeParams::default()
+    };
+    let err = bad.validate().unwrap_err().to_string();
+    assert!(err.contains("controller.probe.ladder"), "{err}");
 }

@@ -159,6 +159,11 @@ pub struct CameraController {
     damping: balance::Damping,
     prober: Prober,
     last_probe: Option<ProbeEvent>,
+    /// Reacquiring after mostly saturated frames (scale-and-clip,
+    /// [`ProbeParams::reacquire_saturated`]): the camera follows its own
+    /// law, unbalanced, until it rests again, and probes there with a
+    /// ladder.
+    reacquiring: bool,
     /// The frame of the latest probe that measured no better, kept while
     /// the camera rests after it: scale-and-clip reads from it what the
     /// saturated pixels hide. (A metered frame: about 1 MB at the
@@ -247,6 +252,7 @@ impl CameraController {
             damping: balance::Damping::default(),
             prober: Prober::default(),
             last_probe: None,
+            reacquiring: false,
             darker: None,
             passed: None,
             bracket: Bracket::default(),
@@ -322,6 +328,7 @@ impl CameraController {
         self.probe_next = false;
         self.probe_frame = false;
         self.prober.reset();
+        self.reacquiring = false;
         self.darker = None;
         self.passed = None;
         self.bracket.reset();
@@ -338,6 +345,12 @@ impl CameraController {
     /// shown: the newest command's, or `taken` when none is in flight.
     pub fn base(&self, taken: ExposureSetting) -> ExposureSetting {
         self.in_flight.back().map_or(taken, |c| c.setting)
+    }
+
+    /// Whether the camera is reacquiring after mostly saturated frames
+    /// ([`ProbeParams::reacquire_saturated`]): balancing leaves it alone.
+    pub fn reacquiring(&self) -> bool {
+        self.reacquiring
     }
 
     /// Whether the camera takes only fixed levels.
@@ -398,10 +411,26 @@ impl CameraController {
         let base = self.base(info.taken).exposure();
         let needs_estimate = matches!(config.mode, ControlMode::Gradient | ControlMode::Pid);
         let wants_slope = config.mode == ControlMode::Gradient && config.law.kind == LawKind::Fast;
+        // Mostly saturated frames under scale-and-clip start a
+        // reacquisition: the camera follows its own law until it rests
+        // again, and probes there with a ladder.
+        let gradient = config.mode == ControlMode::Gradient && self.manual.is_none();
+        match config.probe.filter(|_| {
+            gradient
+                && config.estimator.simulation == Simulation::ScaleClip
+                && self.walker.is_none()
+        }) {
+            Some(p)
+                if hold.is_none()
+                    && f64::from(metered.stats().saturated_fraction) >= p.reacquire_saturated =>
+            {
+                self.reacquiring = true;
+            }
+            Some(_) => {}
+            None => self.reacquiring = false,
+        }
         // Probes belong to a camera under its own gradient law.
-        let own_law = config.mode == ControlMode::Gradient
-            && config.balancing.is_none()
-            && self.manual.is_none();
+        let own_law = gradient && (config.balancing.is_none() || self.reacquiring);
         let keeps_frames = own_law && config.estimator.simulation == Simulation::ScaleClip;
         if !keeps_frames {
             self.darker = None;
@@ -566,10 +595,19 @@ impl CameraController {
                             desired,
                             wants_frame: keeps_frames,
                             read_probe_frame: e.declipped && read_probe,
+                            rungs: if self.reacquiring { params.ladder } else { 1 },
                         },
                     );
                     desired = d;
                     probe = event;
+                    // A reacquisition ends where the camera rests: after
+                    // its ladder, or settled with too little saturated to
+                    // probe.
+                    let settled = (desired / taken).log2().abs() <= params.settle_ev
+                        && f64::from(stats.saturated_fraction) < params.min_saturated;
+                    if self.prober.resting() || (settled && event.is_none()) {
+                        self.reacquiring = false;
+                    }
                     if let Some(e) = event.filter(|e| !matches!(e, ProbeEvent::Sent { .. })) {
                         self.last_probe = Some(e);
                     }

@@ -48,6 +48,15 @@
 //! frame), and its rest does not end while the estimate reads the frame,
 //! however far the law moves it: the frame says the scene is the same.
 //!
+//! A probe may be a *ladder* ([`ProbeInput::rungs`]): a rung that measured
+//! no better is followed by one `step_ev` darker again, up to the last,
+//! before the camera goes back. The controller asks for one under
+//! scale-and-clip when the camera comes to rest after a frame that was
+//! mostly saturated (`reacquire_saturated`; the exit of a tunnel): coming
+//! down from there, a camera meets the highest hump of `M(E)` first, and
+//! the best can lie two or three probe steps below it, past a dip
+//! (docs/exposure-results.md).
+//!
 //! A camera so ends at a fixed point of its estimator where a probe
 //! `step_ev` darker measures no better. The cost is one darker frame each
 //! time a camera settles (or circles) with saturation in view. The rig controller
@@ -86,6 +95,16 @@ pub struct ProbeParams {
     /// it may probe again, however the scene changes: on a moving vehicle
     /// this bounds the darker frames to one in so many.
     pub cooldown_frames: u32,
+    /// Under scale-and-clip, a frame with at least this fraction of its
+    /// metered pixels saturated starts a *reacquisition*: the camera follows
+    /// its own law, unbalanced, until it rests again, and probes there with
+    /// a ladder of `ladder` rungs ([`ProbeInput::rungs`]). Coming down from
+    /// saturation (a tunnel's exit), a camera meets the highest hump of
+    /// `M(E)` first, which need not be the best.
+    pub reacquire_saturated: f64,
+    /// The rungs of a reacquisition's probe: after a rung that measured no
+    /// better, the next is `step_ev` darker again.
+    pub ladder: u32,
 }
 
 impl Default for ProbeParams {
@@ -98,6 +117,8 @@ impl Default for ProbeParams {
             accept_gain: 0.005,
             rearm_change: 0.02,
             cooldown_frames: 80,
+            reacquire_saturated: 0.75,
+            ladder: 3,
         }
     }
 }
@@ -153,6 +174,20 @@ impl ProbeParams {
             0.0,
             1e6,
             "a number of frames in [0, 1000000]",
+        )?;
+        check_range(
+            "controller.probe.reacquire_saturated",
+            self.reacquire_saturated,
+            0.0,
+            1.0,
+            "a fraction of pixels in [0, 1]",
+        )?;
+        check_range(
+            "controller.probe.ladder",
+            f64::from(self.ladder),
+            1.0,
+            8.0,
+            "a number of probe frames in [1, 8]",
         )?;
         Ok(())
     }
@@ -213,6 +248,9 @@ pub struct ProbeInput {
     /// scene is still the probe's, however far the law has moved the camera
     /// or `M` with it, so the rest goes on.
     pub read_probe_frame: bool,
+    /// How many probe frames, each `step_ev` darker than the last, a probe
+    /// sent now may take before the camera goes back (1: one).
+    pub rungs: u32,
 }
 
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -222,8 +260,14 @@ enum State {
     Watching,
     /// `frames` settled frames at `home`, with their `M` summed.
     Settling { home: f64, m_sum: f64, frames: u32 },
-    /// A probe frame at `probe` was commanded.
-    Probing { home: f64, home_m: f64, probe: f64 },
+    /// A probe frame at `probe` was commanded, the `rung`th of `rungs`.
+    Probing {
+        home: f64,
+        home_m: f64,
+        probe: f64,
+        rung: u32,
+        rungs: u32,
+    },
     /// A probe from `home` measured no better `frames` frames ago; no
     /// probing until the scene changes.
     Resting { home: f64, home_m: f64, frames: u32 },
@@ -330,6 +374,8 @@ impl Prober {
                 home,
                 home_m,
                 probe,
+                rung,
+                rungs,
             } => {
                 // The pending-command logic lets this frame through once it
                 // shows the probe, or once the wait timed out; where the
@@ -356,6 +402,23 @@ impl Prober {
                 if gain > params.accept_gain {
                     self.state = State::Watching;
                     (desired, Some(ProbeEvent::Taken { gain }))
+                } else if rung < rungs {
+                    // The next rung of the ladder, from the same home.
+                    let next = home * (-f64::from(rung + 1) * params.step_ev).exp2();
+                    self.state = State::Probing {
+                        home,
+                        home_m,
+                        probe: next,
+                        rung: rung + 1,
+                        rungs,
+                    };
+                    (
+                        next,
+                        Some(ProbeEvent::Sent {
+                            from: home,
+                            to: next,
+                        }),
+                    )
                 } else {
                     self.state = State::Resting {
                         home,
@@ -490,6 +553,8 @@ impl Prober {
                 home,
                 home_m,
                 probe,
+                rung: 1,
+                rungs: input.rungs.max(1),
             };
             return (
                 probe,

@@ -266,9 +266,9 @@ impl RigController {
         let mut steps = Vec::with_capacity(inputs.len());
         for (i, (u, input)) in unary.into_iter().zip(inputs).enumerate() {
             let cam = &mut self.cameras[i];
-            let balancing = config
-                .balancing
-                .filter(|_| cam.manual.is_none() && config.mode != ControlMode::Fixed);
+            let balancing = config.balancing.filter(|_| {
+                cam.manual.is_none() && config.mode != ControlMode::Fixed && !cam.reacquiring()
+            });
             let neighbour: Vec<f64> = match balancing {
                 Some(_) => self
                     .graph
