@@ -67,12 +67,12 @@ fn run(levels: &[f32], starts: &[f64], balanced: bool, frames: usize) -> f64 {
 }
 
 /// Neighbours see the same surfaces in their overlaps, not in the rest of
-/// their views, so each camera's own best exposure differs (under
-/// scale-and-clip the four strip cameras' lie 0.94 EV apart). Eq. 5 keeps at
+/// their views, so each camera's own best exposure differs. Eq. 5 keeps at
 /// least half of each camera on its own law (`α ≥ 1/2`), so balanced cameras
-/// rest at a compromise: within 0.1 EV of each other where their own optima
-/// lie close, and otherwise with at most a third of the ratio they keep
-/// alone.
+/// rest at a compromise: under the default γ-mapping within 0.1 EV of each
+/// other, and closer than each camera alone. (Under scale-and-clip the four
+/// strip cameras' own optima lie 0.94 EV apart, and they rest at 0.15 EV,
+/// against 0.54 alone: docs/exposure-results.md.)
 #[test]
 fn cameras_on_the_same_surfaces_converge_to_equal_brightness() {
     for (levels, starts) in [
@@ -87,10 +87,8 @@ fn cameras_on_the_same_surfaces_converge_to_equal_brightness() {
             levels.len()
         );
         assert!(initial > 1.0);
-        assert!(
-            balanced < 0.1 || balanced < alone / 3.0,
-            "balanced {balanced}, alone {alone}"
-        );
+        assert!(balanced < 0.1, "balanced {balanced}, alone {alone}");
+        assert!(balanced < alone, "balanced {balanced}, alone {alone}");
     }
 }
 

@@ -426,8 +426,8 @@ fn tail_band(t: &[f64]) -> f64 {
 
 /// The app's default mode (the default exposure simulation, nonlinear law,
 /// balancing over the rig's overlaps) on the reference preset at `scale`:
-/// balancing adds no cycle of its own. Every camera's last exposures lie in a band at most
-/// 0.15 EV wider than the same camera's alone.
+/// balancing adds no cycle of its own. Every camera's last exposures lie in
+/// a band at most 0.15 EV wider than the same camera's alone.
 fn check_balancing_adds_no_cycle(scale: Res) {
     let render = render("reference", scale);
     let alone = run(&render, view(&render), Simulation::default()).log2_e;

@@ -414,6 +414,7 @@ impl CameraController {
         // Mostly saturated frames under scale-and-clip start a
         // reacquisition: the camera follows its own law until it rests
         // again, and probes there with a ladder.
+        let stats = metered.stats();
         let gradient = config.mode == ControlMode::Gradient && self.manual.is_none();
         match config.probe.filter(|_| {
             gradient
@@ -422,7 +423,7 @@ impl CameraController {
         }) {
             Some(p)
                 if hold.is_none()
-                    && f64::from(metered.stats().saturated_fraction) >= p.reacquire_saturated =>
+                    && f64::from(stats.saturated_fraction) >= p.reacquire_saturated =>
             {
                 self.reacquiring = true;
             }
@@ -504,7 +505,6 @@ impl CameraController {
                 self.passed = None;
             }
         }
-        let stats = metered.stats();
         let mean = f64::from(stats.mean);
         let mut fallback = false;
         let step = match (config.mode, &estimate) {

@@ -404,21 +404,7 @@ impl Prober {
                     (desired, Some(ProbeEvent::Taken { gain }))
                 } else if rung < rungs {
                     // The next rung of the ladder, from the same home.
-                    let next = home * (-f64::from(rung + 1) * params.step_ev).exp2();
-                    self.state = State::Probing {
-                        home,
-                        home_m,
-                        probe: next,
-                        rung: rung + 1,
-                        rungs,
-                    };
-                    (
-                        next,
-                        Some(ProbeEvent::Sent {
-                            from: home,
-                            to: next,
-                        }),
-                    )
+                    self.send(params, home, home_m, rung + 1, rungs)
                 } else {
                     self.state = State::Resting {
                         home,
@@ -457,6 +443,33 @@ impl Prober {
             }
             State::Watching | State::Settling { .. } => self.watch(params, input),
         }
+    }
+
+    /// Commands the `rung`th probe frame of `rungs` from `home` (measured
+    /// `home_m` there): `rung` probe steps darker.
+    fn send(
+        &mut self,
+        params: &ProbeParams,
+        home: f64,
+        home_m: f64,
+        rung: u32,
+        rungs: u32,
+    ) -> (f64, Option<ProbeEvent>) {
+        let probe = home * (-f64::from(rung) * params.step_ev).exp2();
+        self.state = State::Probing {
+            home,
+            home_m,
+            probe,
+            rung,
+            rungs,
+        };
+        (
+            probe,
+            Some(ProbeEvent::Sent {
+                from: home,
+                to: probe,
+            }),
+        )
     }
 
     /// Whether the law circles: over the latest [`CIRCLE_FRAMES`] frames
@@ -520,7 +533,6 @@ impl Prober {
                 }
             };
         if frames >= params.settle_frames && saturated >= params.min_saturated {
-            let probe = home * (-params.step_ev).exp2();
             let home_m = m_sum / f64::from(frames);
             // What a probe would show, if a recent frame shows it already.
             let known = self
@@ -549,20 +561,7 @@ impl Prober {
                 };
                 return (desired, Some(ProbeEvent::Known { gain }));
             }
-            self.state = State::Probing {
-                home,
-                home_m,
-                probe,
-                rung: 1,
-                rungs: input.rungs.max(1),
-            };
-            return (
-                probe,
-                Some(ProbeEvent::Sent {
-                    from: home,
-                    to: probe,
-                }),
-            );
+            return self.send(params, home, home_m, 1, input.rungs.max(1));
         }
         self.state = State::Settling {
             home,
