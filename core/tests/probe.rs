@@ -16,6 +16,8 @@ fn frame(taken: f64, m: f64, desired: f64) -> ProbeInput {
         wants_frame: false,
         read_probe_frame: false,
         rungs: 1,
+        balanced: false,
+        relight: false,
     }
 }
 
@@ -343,7 +345,7 @@ fn bad_frames_reset_the_prober_and_pass_the_law_through() {
 
 #[test]
 fn bad_parameters_are_named() {
-    let cases: [(ProbeParams, &str); 3] = [
+    let cases: [(ProbeParams, &str); 5] = [
         (
             ProbeParams {
                 step_ev: 0.0,
@@ -364,6 +366,20 @@ fn bad_parameters_are_named() {
                 ..ProbeParams::default()
             },
             "controller.probe.settle_frames",
+        ),
+        (
+            ProbeParams {
+                ladder_gain: -0.1,
+                ..ProbeParams::default()
+            },
+            "controller.probe.ladder_gain",
+        ),
+        (
+            ProbeParams {
+                relight_change: f64::INFINITY,
+                ..ProbeParams::default()
+            },
+            "controller.probe.relight_change",
         ),
     ];
     for (params, name) in cases {
@@ -445,4 +461,82 @@ fn a_ladder_probes_further_down_until_a_rung_measures_better() {
     };
     let err = bad.validate().unwrap_err().to_string();
     assert!(err.contains("controller.probe.ladder"), "{err}");
+}
+
+/// A balanced camera's probe (or a ladder's rung) must measure
+/// `ladder_gain` more to be taken: balancing's rest is not the camera's
+/// own maximum, and where `M` is flat a darker frame measures a little
+/// more without being worth leaving the neighbours for.
+#[test]
+fn a_balanced_cameras_probe_needs_the_ladder_gain() {
+    let params = ProbeParams {
+        ladder_gain: 0.1,
+        ..params()
+    };
+    let outcome = |balanced: bool, m_probe: f64| {
+        let mut p = Prober::default();
+        let at = |e: f64, m: f64, d: f64| ProbeInput {
+            balanced,
+            ..frame(e, m, d)
+        };
+        p.step(&params, at(1000.0, 100.0, 1000.0));
+        let (probe, sent) = p.step(&params, at(1000.0, 100.0, 1000.0));
+        assert!(matches!(sent, Some(ProbeEvent::Sent { .. })), "{sent:?}");
+        p.step(&params, at(probe, m_probe, probe)).1
+    };
+    // 5 % more: taken alone, not balanced.
+    assert!(matches!(
+        outcome(false, 105.0),
+        Some(ProbeEvent::Taken { .. })
+    ));
+    assert!(matches!(
+        outcome(true, 105.0),
+        Some(ProbeEvent::Rejected { .. })
+    ));
+    // 15 % more: taken either way.
+    assert!(matches!(
+        outcome(true, 115.0),
+        Some(ProbeEvent::Taken { .. })
+    ));
+}
+
+/// After a probe that found nothing, a change of `M` at the rest by more
+/// than `relight_change` (a new light) lets the camera probe again before
+/// the cooldown, where the caller asks for it (scale-and-clip); a smaller
+/// change, or without it, the camera waits out the cooldown.
+#[test]
+fn a_new_light_rearms_the_probe_before_the_cooldown() {
+    let params = ProbeParams {
+        cooldown_frames: 50,
+        relight_change: 0.2,
+        ..params()
+    };
+    // Frames after a rejected probe, resting at 1000 (M 100), then at
+    // `m_after`: whether a probe is sent within ten frames.
+    let probes_again = |relight: bool, m_after: f64| {
+        let mut p = Prober::default();
+        let at = |e: f64, m: f64| ProbeInput {
+            relight,
+            ..settled(e, m)
+        };
+        let probe = settle_and_probe(&mut p, &params, 100.0);
+        let (_, e) = p.step(&params, frame(probe, 90.0, probe));
+        assert!(matches!(e, Some(ProbeEvent::Rejected { .. })));
+        assert!(p.resting());
+        (0..10).any(|_| {
+            matches!(
+                p.step(&params, at(1000.0, m_after)).1,
+                Some(ProbeEvent::Sent { .. })
+            )
+        })
+    };
+    assert!(probes_again(true, 70.0), "a 30 % drop of M is a new light");
+    assert!(
+        !probes_again(false, 70.0),
+        "without relight the cooldown holds"
+    );
+    assert!(
+        !probes_again(true, 90.0),
+        "a 10 % change waits for the cooldown"
+    );
 }

@@ -382,6 +382,16 @@ fn every_law_settles_at_the_estimators_fixed_point() {
 }
 
 /// The median of `v` (0 when empty).
+/// The dense sweep of `M` the best is taken from: 2^4 to 2^18 µs.
+fn dense_sweep() -> SweepOptions {
+    SweepOptions {
+        lo: 16.0,
+        hi: 262_144.0,
+        steps: 141,
+        ..Default::default()
+    }
+}
+
 fn median(mut v: Vec<f64>) -> f64 {
     if v.is_empty() {
         return 0.0;
@@ -407,12 +417,7 @@ fn every_strategy_measured_alike() {
     };
     let render = SimRender::new(&reference).unwrap();
     let view = rigview_tests::test_view(&render).unwrap();
-    let options = SweepOptions {
-        lo: 16.0,
-        hi: 262_144.0,
-        steps: 141,
-        ..Default::default()
-    };
+    let options = dense_sweep();
     let sweeps: Vec<_> = (0..render.cameras().len())
         .map(|cam| truth::sweep(&render, cam, 0.0, &options, view.ground_masks().get(cam)).unwrap())
         .collect();
@@ -466,4 +471,59 @@ fn every_strategy_measured_alike() {
         }
     }
     assert!(failures.is_empty(), "{failures:?}");
+}
+
+/// Under scale-and-clip, a balanced rig comes down after each brighter step
+/// of light to where every camera measures at least 90 % of its best `M`
+/// (a dense sweep in that light) before the next step ([`held`]). The estimator
+/// cannot see under what the brighter light saturates, so each camera
+/// meets a hump of `M(E)` coming down; without the balanced cameras'
+/// probes (as before they probed: the peer, printed) the rig rested there,
+/// 1 EV too bright.
+#[test]
+fn a_balanced_rig_under_scale_and_clip_comes_down_after_brighter_light() {
+    let config = held(&SimConfig {
+        scale: 0.25,
+        ..SimConfig::preset("steps").unwrap()
+    });
+    let render = SimRender::new(&config).unwrap();
+    let view = rigview_tests::test_view(&render).unwrap();
+    let options = dense_sweep();
+    let balanced = |probe| {
+        let s = settings(
+            Strategy::Multi,
+            LawKind::Nonlinear,
+            Simulation::ScaleClip,
+            probe,
+        );
+        run_config(&config, s)
+    };
+    let (r, peer) = (balanced(true), balanced(false));
+    let mut worst = f64::INFINITY;
+    for (k, s) in r.steps().into_iter().enumerate() {
+        // Brighter: the level rises at the step.
+        if r.level[s] <= r.level[s - 1] {
+            continue;
+        }
+        let before_next = r.steps().get(k + 1).copied().unwrap_or(r.level.len()) - 1;
+        let t = before_next as f64 / config.trigger_hz;
+        for cam in 0..r.cameras.len() {
+            let sweep =
+                truth::sweep(&render, cam, t, &options, view.ground_masks().get(cam)).unwrap();
+            let at =
+                |run: &Run| sweep.score_at(run.log2_e[cam][before_next].exp2()) / sweep.best_score;
+            println!(
+                "step at frame {s}, {}: M / best {:.1} % (without balanced probes {:.1} %)",
+                r.cameras[cam],
+                100.0 * at(&r),
+                100.0 * at(&peer)
+            );
+            worst = worst.min(at(&r));
+        }
+    }
+    assert!(
+        worst >= 0.9,
+        "a camera rested at {:.1} % of its best M",
+        100.0 * worst
+    );
 }

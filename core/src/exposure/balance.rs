@@ -437,6 +437,11 @@ impl Damping {
         self.frame = Some(now);
     }
 
+    /// The running mean of Eq. 6's `α`, if a frame started it.
+    pub fn alpha_mean(&self) -> Option<f64> {
+        self.alpha
+    }
+
     /// Eq. 6's `α` for this frame, whose own `α` is `raw`: `raw` folded
     /// into the running mean with weight `params.alpha_weight` (the first
     /// frame, and the first after a change of light, start the mean).

@@ -160,10 +160,16 @@ pub struct CameraController {
     prober: Prober,
     last_probe: Option<ProbeEvent>,
     /// Reacquiring after mostly saturated frames (scale-and-clip,
-    /// [`ProbeParams::reacquire_saturated`]): the camera follows its own
-    /// law, unbalanced, until it rests again, and probes there with a
-    /// ladder.
+    /// [`ProbeParams::reacquire_saturated`]), a camera under its own law:
+    /// where it rests again, it probes with a ladder.
     reacquiring: bool,
+    /// Whether this frame's command is a balanced camera's probe, or the
+    /// return from one: balancing leaves it as it is.
+    probe_alone: bool,
+    /// Whether the latest frame the camera reacted to was under its own
+    /// law: what its prober learnt does not carry over into balancing or
+    /// out of it.
+    was_own_law: bool,
     /// The frame of the latest probe that measured no better, kept while
     /// the camera rests after it: scale-and-clip reads from it what the
     /// saturated pixels hide. (A metered frame: about 1 MB at the
@@ -253,6 +259,8 @@ impl CameraController {
             prober: Prober::default(),
             last_probe: None,
             reacquiring: false,
+            probe_alone: false,
+            was_own_law: false,
             darker: None,
             passed: None,
             bracket: Bracket::default(),
@@ -329,6 +337,7 @@ impl CameraController {
         self.probe_frame = false;
         self.prober.reset();
         self.reacquiring = false;
+        self.probe_alone = false;
         self.darker = None;
         self.passed = None;
         self.bracket.reset();
@@ -347,10 +356,10 @@ impl CameraController {
         self.in_flight.back().map_or(taken, |c| c.setting)
     }
 
-    /// Whether the camera is reacquiring after mostly saturated frames
-    /// ([`ProbeParams::reacquire_saturated`]): balancing leaves it alone.
-    pub fn reacquiring(&self) -> bool {
-        self.reacquiring
+    /// Whether balancing leaves this frame's command as the camera's own:
+    /// a balanced camera's probe or the return from one (scale-and-clip).
+    pub fn probe_alone(&self) -> bool {
+        self.probe_alone
     }
 
     /// Whether the camera takes only fixed levels.
@@ -412,15 +421,16 @@ impl CameraController {
         let needs_estimate = matches!(config.mode, ControlMode::Gradient | ControlMode::Pid);
         let wants_slope = config.mode == ControlMode::Gradient && config.law.kind == LawKind::Fast;
         // Mostly saturated frames under scale-and-clip start a
-        // reacquisition: the camera follows its own law until it rests
-        // again, and probes there with a ladder.
+        // reacquisition: the camera probes with a ladder where it rests
+        // again.
         let stats = metered.stats();
         let gradient = config.mode == ControlMode::Gradient && self.manual.is_none();
-        match config.probe.filter(|_| {
-            gradient
-                && config.estimator.simulation == Simulation::ScaleClip
-                && self.walker.is_none()
-        }) {
+        let scale_clip = config.estimator.simulation == Simulation::ScaleClip;
+        self.probe_alone = false;
+        match config
+            .probe
+            .filter(|_| gradient && scale_clip && self.walker.is_none())
+        {
             Some(p)
                 if hold.is_none()
                     && f64::from(stats.saturated_fraction) >= p.reacquire_saturated =>
@@ -430,9 +440,20 @@ impl CameraController {
             Some(_) => {}
             None => self.reacquiring = false,
         }
-        // Probes belong to a camera under its own gradient law.
-        let own_law = gradient && (config.balancing.is_none() || self.reacquiring);
-        let keeps_frames = own_law && config.estimator.simulation == Simulation::ScaleClip;
+        let own_law = gradient && config.balancing.is_none();
+        // Under scale-and-clip a balanced camera probes too, from where
+        // balancing holds it at rest: the estimator cannot see under
+        // saturated pixels, and coming down from saturation (a brighter
+        // light, a tunnel's exit) a balanced rig rests on a hump of `M(E)`
+        // well below its best (docs/exposure-results.md).
+        let balanced_probe =
+            gradient && config.balancing.is_some() && scale_clip && self.walker.is_none();
+        let keeps_frames = own_law && scale_clip;
+        if own_law != self.was_own_law {
+            self.prober.reset();
+            self.last_probe = None;
+            self.was_own_law = own_law;
+        }
         if !keeps_frames {
             self.darker = None;
         }
@@ -581,29 +602,49 @@ impl CameraController {
             self.bracket.reset();
         }
         // Frames the camera does not react to leave the prober as it is.
-        let probe_params = config.probe.filter(|_| own_law && !fallback);
+        let probe_params = config
+            .probe
+            .filter(|_| (own_law || balanced_probe) && !fallback);
         let mut probe = None;
         match (probe_params, &estimate) {
             (Some(params), Some(e)) => {
                 if hold.is_none() && follow.is_none() {
+                    // A balanced camera probes from where balancing has
+                    // brought it to rest. That rest is rarely the camera's
+                    // own maximum, so only a probe that measures clearly
+                    // more is taken (`ProbeParams::ladder_gain`).
+                    let asked = if own_law { desired } else { base };
                     let (d, event) = self.prober.step(
                         &params,
                         ProbeInput {
                             taken,
                             m: e.m_current,
                             saturated: f64::from(stats.saturated_fraction),
-                            desired,
+                            desired: asked,
                             wants_frame: keeps_frames,
                             read_probe_frame: e.declipped && read_probe,
                             rungs: if self.reacquiring { params.ladder } else { 1 },
+                            balanced: !own_law,
+                            relight: scale_clip,
                         },
                     );
-                    desired = d;
+                    let alone = matches!(
+                        event,
+                        Some(
+                            ProbeEvent::Sent { .. }
+                                | ProbeEvent::Rejected { .. }
+                                | ProbeEvent::Abandoned
+                        )
+                    );
+                    if own_law || alone {
+                        desired = d;
+                    }
+                    self.probe_alone = alone && !own_law;
                     probe = event;
                     // A reacquisition ends where the camera rests: after
                     // its ladder, or settled with too little saturated to
                     // probe.
-                    let settled = (desired / taken).log2().abs() <= params.settle_ev
+                    let settled = (asked / taken).log2().abs() <= params.settle_ev
                         && f64::from(stats.saturated_fraction) < params.min_saturated;
                     if self.prober.resting() || (settled && event.is_none()) {
                         self.reacquiring = false;

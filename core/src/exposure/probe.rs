@@ -49,20 +49,30 @@
 //! however far the law moves it: the frame says the scene is the same.
 //!
 //! A probe may be a *ladder* ([`ProbeInput::rungs`]): a rung that measured
-//! no better is followed by one `step_ev` darker again, up to the last,
-//! before the camera goes back. The controller asks for one under
-//! scale-and-clip when the camera comes to rest after a frame that was
-//! mostly saturated (`reacquire_saturated`; the exit of a tunnel): coming
+//! no better (by `ladder_gain`) is followed by one `step_ev` darker again,
+//! up to the last, before the camera goes back. The controller asks for one
+//! under scale-and-clip when the camera comes to rest after a frame that
+//! was mostly saturated (`reacquire_saturated`; the exit of a tunnel): coming
 //! down from there, a camera meets the highest hump of `M(E)` first, and
 //! the best can lie two or three probe steps below it, past a dip
 //! (docs/exposure-results.md).
 //!
 //! A camera so ends at a fixed point of its estimator where a probe
 //! `step_ev` darker measures no better. The cost is one darker frame each
-//! time a camera settles (or circles) with saturation in view. The rig controller
-//! probes only for cameras under their own gradient law: balancing's
-//! targets are not maxima of the camera's own `M`, and a manual or fixed
-//! exposure is the operator's.
+//! time a camera settles (or circles) with saturation in view, and after a
+//! probe that found nothing, at most one in `cooldown_frames` frames unless
+//! `M` at the rest changes by `relight_change` (a new light; scale-and-clip,
+//! [`ProbeInput::relight`]). A manual or fixed exposure is the operator's
+//! and never probes.
+//!
+//! Under scale-and-clip a balanced camera probes too
+//! ([`ProbeInput::balanced`]), from where balancing holds it at rest:
+//! coming down from a brighter light, every camera of a balanced rig meets
+//! a hump of `M(E)` it cannot see past, and without probes the rig rested
+//! there 1 EV too bright (docs/exposure-results.md). Balancing's rest is
+//! not a maximum of the camera's own `M`, so such a probe, like a ladder's
+//! rung, must measure `ladder_gain` more to be taken; the balancing then
+//! goes on from the probe's exposure.
 
 use std::collections::VecDeque;
 
@@ -95,16 +105,29 @@ pub struct ProbeParams {
     /// it may probe again, however the scene changes: on a moving vehicle
     /// this bounds the darker frames to one in so many.
     pub cooldown_frames: u32,
+    /// The relative change of `M` at the exposure a camera rests at that
+    /// counts as a new light and allows probing again before
+    /// `cooldown_frames`: a brighter light saturates what the estimator
+    /// cannot see under, and the camera would otherwise rest on the hump
+    /// it meets coming down for the whole cooldown.
+    pub relight_change: f64,
     /// Under scale-and-clip, a frame with at least this fraction of its
-    /// metered pixels saturated starts a *reacquisition*: the camera follows
-    /// its own law, unbalanced, until it rests again, and probes there with
-    /// a ladder of `ladder` rungs ([`ProbeInput::rungs`]). Coming down from
-    /// saturation (a tunnel's exit), a camera meets the highest hump of
-    /// `M(E)` first, which need not be the best.
+    /// metered pixels saturated starts a *reacquisition*: where the camera
+    /// (balanced or not) rests again, it probes with a ladder of `ladder`
+    /// rungs ([`ProbeInput::rungs`]). Coming down from saturation (a
+    /// tunnel's exit), a camera meets the highest hump of `M(E)` first,
+    /// which need not be the best.
     pub reacquire_saturated: f64,
     /// The rungs of a reacquisition's probe: after a rung that measured no
     /// better, the next is `step_ev` darker again.
     pub ladder: u32,
+    /// The relative gain in measured `M` a rung of a ladder, or a balanced
+    /// camera's probe, must show to be taken. A balanced camera's rest is
+    /// rarely its own maximum: where `M` is flat (a broad hump), a darker
+    /// frame measures a little more, and the camera would leave its
+    /// neighbours for nothing. The hump a camera meets coming down from
+    /// saturation lies 20–40 % below the best (docs/exposure-results.md).
+    pub ladder_gain: f64,
 }
 
 impl Default for ProbeParams {
@@ -117,8 +140,10 @@ impl Default for ProbeParams {
             accept_gain: 0.005,
             rearm_change: 0.02,
             cooldown_frames: 80,
+            relight_change: 0.2,
             reacquire_saturated: 0.75,
             ladder: 3,
+            ladder_gain: 0.1,
         }
     }
 }
@@ -176,6 +201,13 @@ impl ProbeParams {
             "a number of frames in [0, 1000000]",
         )?;
         check_range(
+            "controller.probe.relight_change",
+            self.relight_change,
+            1e-4,
+            1.0,
+            "a relative change of M in [0.0001, 1]",
+        )?;
+        check_range(
             "controller.probe.reacquire_saturated",
             self.reacquire_saturated,
             0.0,
@@ -188,6 +220,13 @@ impl ProbeParams {
             1.0,
             8.0,
             "a number of probe frames in [1, 8]",
+        )?;
+        check_range(
+            "controller.probe.ladder_gain",
+            self.ladder_gain,
+            0.0,
+            1.0,
+            "a relative gain of M in [0, 1]",
         )?;
         Ok(())
     }
@@ -251,6 +290,14 @@ pub struct ProbeInput {
     /// How many probe frames, each `step_ev` darker than the last, a probe
     /// sent now may take before the camera goes back (1: one).
     pub rungs: u32,
+    /// Whether the camera is balanced with its neighbours: its rest is
+    /// balancing's, not a maximum of its own `M`, so a probe must measure
+    /// `ladder_gain` more to be taken, as a ladder's rungs must.
+    pub balanced: bool,
+    /// Whether a change of `M` by `relight_change` at the rest allows
+    /// probing again before the cooldown (scale-and-clip, whose estimate
+    /// cannot see under what a brighter light saturates).
+    pub relight: bool,
 }
 
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -399,7 +446,12 @@ impl Prober {
                 } else {
                     0.0
                 };
-                if gain > params.accept_gain {
+                let needed = if rungs > 1 || input.balanced {
+                    params.accept_gain.max(params.ladder_gain)
+                } else {
+                    params.accept_gain
+                };
+                if gain > needed {
                     self.state = State::Watching;
                     (desired, Some(ProbeEvent::Taken { gain }))
                 } else if rung < rungs {
@@ -423,9 +475,12 @@ impl Prober {
                 // re-arm; a camera that has moved half a probe step has
                 // found another scene.
                 let moved = ev(taken, home) > 0.5 * params.step_ev;
-                let changed =
-                    (m - home_m).abs() > params.rearm_change * home_m.max(f64::MIN_POSITIVE);
-                if frames >= params.cooldown_frames && (moved || changed) && !input.read_probe_frame
+                let change = (m - home_m).abs();
+                let changed = change > params.rearm_change * home_m.max(f64::MIN_POSITIVE);
+                let relit =
+                    input.relight && change > params.relight_change * home_m.max(f64::MIN_POSITIVE);
+                if (relit || frames >= params.cooldown_frames && (moved || changed))
+                    && !input.read_probe_frame
                 {
                     self.state = State::Watching;
                     if changed {

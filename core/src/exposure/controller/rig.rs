@@ -247,14 +247,22 @@ impl RigController {
             .map(|(c, input)| c.base(input.info.taken).exposure())
             .collect();
         // What balancing acts on: the measured ratios, or a pair's held
-        // scene ratio while its patches are unusable.
+        // scene ratio while its patches are unusable. A probe frame's
+        // patches are clipped less than the frames at rest, so its ratio
+        // is not the one the rest balances: the pair holds its scene ratio
+        // over it, and the neighbours stay where they are.
+        let probing = |k: usize| unary.get(k).is_some_and(|u| u.probe_frame);
         let acted: Vec<PairRatio> = ratios
             .iter()
             .zip(&clipped)
-            .map(|(r, &clipped)| PairRatio {
+            .map(|(r, &clipped)| {
+                let probe = probing(r.i) || probing(r.j);
+                (r, clipped || probe, r.r_ij.filter(|_| !probe))
+            })
+            .map(|(r, clipped, measured)| PairRatio {
                 r_ij: self.held.update(
                     (r.i, r.j),
-                    r.r_ij,
+                    measured,
                     inputs[r.i].info.taken.exposure(),
                     inputs[r.j].info.taken.exposure(),
                     measure.hold_sets,
@@ -267,7 +275,7 @@ impl RigController {
         for (i, (u, input)) in unary.into_iter().zip(inputs).enumerate() {
             let cam = &mut self.cameras[i];
             let balancing = config.balancing.filter(|_| {
-                cam.manual.is_none() && config.mode != ControlMode::Fixed && !cam.reacquiring()
+                cam.manual.is_none() && config.mode != ControlMode::Fixed && !cam.probe_alone()
             });
             let neighbour: Vec<f64> = match balancing {
                 Some(_) => self
@@ -298,16 +306,22 @@ impl RigController {
                         // again); the frames' means guess at it otherwise,
                         // and frames that commands in flight leave at
                         // several exposures would read as changes.
-                        if config.law.kind != LawKind::Fast {
+                        // (A probe frame's mean is no change of light.)
+                        if config.law.kind != LawKind::Fast && !u.probe_frame {
                             cam.damping.observe(
                                 input.info.taken.exposure().log2(),
                                 f64::from(input.metered.stats().mean),
                                 config.bracket.light_tolerance,
                             );
                         }
+                        // A probe frame's own law asks from a darker frame:
+                        // its `α` is not the rest's, and stays out of the
+                        // mean.
                         let b = balance::balance_with(u.desired, bases[i], &neighbour, |a| {
                             if cam.has_levels() {
                                 a
+                            } else if u.probe_frame {
+                                cam.damping.alpha_mean().unwrap_or(a)
                             } else {
                                 cam.damping.smooth_alpha(a, &params.damping)
                             }
