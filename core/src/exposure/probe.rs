@@ -69,7 +69,8 @@
 //! ([`ProbeInput::balanced`]), from where balancing holds it at rest:
 //! coming down from a brighter light, every camera of a balanced rig meets
 //! a hump of `M(E)` it cannot see past, and without probes the rig rested
-//! there 1 EV too bright (docs/exposure-results.md). Balancing's rest is
+//! there 1 EV too bright (at a quarter of the resolution;
+//! docs/exposure-results.md). Balancing's rest is
 //! not a maximum of the camera's own `M`, so such a probe, like a ladder's
 //! rung, must measure `ladder_gain` more to be taken; the balancing then
 //! goes on from the probe's exposure.
@@ -102,8 +103,9 @@ pub struct ProbeParams {
     /// counts as a new scene and allows probing again.
     pub rearm_change: f64,
     /// Frames the camera reacts to after a probe that found nothing before
-    /// it may probe again, however the scene changes: on a moving vehicle
-    /// this bounds the darker frames to one in so many.
+    /// it may probe again, however the scene changes (but for a new light,
+    /// `relight_change`): on a moving vehicle this bounds the darker frames
+    /// to one in so many.
     pub cooldown_frames: u32,
     /// The relative change of `M` at the exposure a camera rests at that
     /// counts as a new light and allows probing again before
