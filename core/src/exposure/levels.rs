@@ -28,7 +28,11 @@
 //!   made (in the same light). When the camera would move to a level whose
 //!   frame asked to come back, the fixed point lies between the two, and
 //!   the two requests place it: linearly in log exposure,
-//!   `x = |s_here| / (|s_here| + |s_there|)` of the way. The camera moves
+//!   `x = |s_here| / (|s_here| + |s_there|)` of the way. Where the darker
+//!   of the two frames gave the distance in EV ([`Request::Placed`]), that
+//!   distance alone places it: a linear sensor's frame predicts brightening
+//!   exactly, and the brighter frame's distance overshoots where darkening
+//!   would bring back what its saturated pixels hide. The camera moves
 //!   only when `x` passes the midpoint by [`SWITCH_MARGIN`], and rests at
 //!   the nearer level otherwise.
 //! - Before it has seen the level ahead, an incremental law's signals at
@@ -93,6 +97,9 @@ struct Seen {
     /// Where the frame places the fixed point: a signed measure that is
     /// zero there and grows with the distance (only ratios are used).
     signal: f64,
+    /// The distance to the fixed point in EV, where the estimate gave it
+    /// ([`Request::Placed`]).
+    placed: Option<f64>,
     frame: LevelFrame,
 }
 
@@ -230,7 +237,15 @@ impl LevelWalker {
         }
         let step_ev = if step_ev.is_finite() { step_ev } else { 0.0 };
         let signal = if signal.is_finite() { signal } else { 0.0 };
-        self.seen[here] = Some(Seen { signal, frame });
+        let placed = match request {
+            Request::Placed(d) if d.is_finite() => Some(d),
+            _ => None,
+        };
+        self.seen[here] = Some(Seen {
+            signal,
+            placed,
+            frame,
+        });
         if self.carried_at != Some(at) {
             self.carried_ev = 0.0;
             self.carried_at = Some(at);
@@ -257,6 +272,7 @@ impl LevelWalker {
         // Placed by the signals: the latest at `at` (this frame's, unless a
         // command is in flight), or this frame's where `at` has none.
         let (mut from, mut from_signal) = (at, self.seen[at].map_or(signal, |s| s.signal));
+        let mut from_placed = self.seen[at].map_or(placed, |s| s.placed);
         let mut rest = false;
         loop {
             let next = from as isize + dir;
@@ -268,7 +284,21 @@ impl LevelWalker {
             match self.seen[next].filter(|s| s.signal * wanted < 0.0) {
                 // The fixed point lies between the two: place it.
                 Some(s) => {
-                    let x = from_signal.abs() / (from_signal.abs() + s.signal.abs());
+                    // Where the darker of the two frames gives the
+                    // distance in EV, it places the fixed point: a linear
+                    // sensor's frame predicts brightening exactly, while
+                    // the brighter frame cannot see what darkening brings
+                    // back under its saturated pixels (its distance
+                    // overshoots). Otherwise the signals place it,
+                    // linearly.
+                    let darker_placed = if b > a { from_placed } else { s.placed };
+                    let x = match darker_placed {
+                        Some(d) => {
+                            let darker = if b > a { a } else { b };
+                            ((darker + d - a) / (b - a)).clamp(0.0, 1.0)
+                        }
+                        None => from_signal.abs() / (from_signal.abs() + s.signal.abs()),
+                    };
                     let margin = if from == at { SWITCH_MARGIN } else { 0.0 };
                     if x > 0.5 + margin {
                         from = next;
@@ -289,6 +319,7 @@ impl LevelWalker {
                 None if (goal - b).abs() < (goal - a).abs() => {
                     from = next;
                     from_signal = self.seen[next].map_or(signal, |s| s.signal);
+                    from_placed = self.seen[next].and_then(|s| s.placed);
                 }
                 None => break,
             }
@@ -385,6 +416,33 @@ mod tests {
             w.step(frame(3.0, 3.4), 8.0, 0.05, 0.05, Request::Placed(0.4)),
             8.0
         );
+    }
+
+    /// Between two levels that bracket the fixed point, the darker frame's
+    /// distance places it: from level 2 the fixed point is 0.7 EV up (2.7,
+    /// nearer 3), while level 3's frame, seeing less under its saturated
+    /// pixels, puts it 0.7 EV down (2.3). Weighing the two signals alike
+    /// would put it at the midpoint, where the walker stays wherever it is.
+    #[test]
+    fn the_darker_frames_distance_places_the_fixed_point() {
+        let mut w = walker();
+        let at = |l: f64| LevelFrame {
+            log2_e: l,
+            mean: 0.3,
+            saturated: 0.1,
+        };
+        // Level 3 seen first (the camera came from above), then level 2.
+        assert_eq!(w.step(at(3.0), 8.0, -0.7, -0.7, Request::Placed(-0.7)), 4.0);
+        assert_eq!(w.step(at(2.0), 4.0, 0.7, 0.7, Request::Placed(0.7)), 8.0);
+        // Back at 3 the brighter frame still says −0.7: the camera stays.
+        for _ in 0..5 {
+            assert_eq!(w.step(at(3.0), 8.0, -0.7, -0.7, Request::Placed(-0.7)), 8.0);
+        }
+        // Without distances (signals alone) the same requests leave the
+        // camera where it is, at the midpoint.
+        let mut w = walker();
+        assert_eq!(w.step(at(3.0), 8.0, -0.7, -0.7, Request::Incremental), 4.0);
+        assert_eq!(w.step(at(2.0), 4.0, 0.7, 0.7, Request::Incremental), 4.0);
     }
 
     #[test]
