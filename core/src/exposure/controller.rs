@@ -424,17 +424,15 @@ impl CameraController {
         // reacquisition: the camera probes with a ladder where it rests
         // again.
         let stats = metered.stats();
+        let saturated = f64::from(stats.saturated_fraction);
         let gradient = config.mode == ControlMode::Gradient && self.manual.is_none();
         let scale_clip = config.estimator.simulation == Simulation::ScaleClip;
+        // Scale-and-clip's probing beyond a camera alone: reacquisitions,
+        // and balanced cameras' probes (not on fixed levels).
+        let clip_probes = gradient && scale_clip && self.walker.is_none();
         self.probe_alone = false;
-        match config
-            .probe
-            .filter(|_| gradient && scale_clip && self.walker.is_none())
-        {
-            Some(p)
-                if hold.is_none()
-                    && f64::from(stats.saturated_fraction) >= p.reacquire_saturated =>
-            {
+        match config.probe.filter(|_| clip_probes) {
+            Some(p) if hold.is_none() && saturated >= p.reacquire_saturated => {
                 self.reacquiring = true;
             }
             Some(_) => {}
@@ -446,8 +444,7 @@ impl CameraController {
         // saturated pixels, and coming down from saturation (a brighter
         // light, a tunnel's exit) a balanced rig rests on a hump of `M(E)`
         // well below its best (docs/exposure-results.md).
-        let balanced_probe =
-            gradient && config.balancing.is_some() && scale_clip && self.walker.is_none();
+        let balanced_probe = clip_probes && config.balancing.is_some();
         let keeps_frames = own_law && scale_clip;
         if own_law != self.was_own_law {
             self.prober.reset();
@@ -619,12 +616,12 @@ impl CameraController {
                         ProbeInput {
                             taken,
                             m: e.m_current,
-                            saturated: f64::from(stats.saturated_fraction),
+                            saturated,
                             desired: asked,
                             wants_frame: keeps_frames,
                             read_probe_frame: e.declipped && read_probe,
                             rungs: if self.reacquiring { params.ladder } else { 1 },
-                            balanced: !own_law,
+                            balanced: balanced_probe,
                             relight: scale_clip,
                         },
                     );
@@ -639,13 +636,13 @@ impl CameraController {
                     if own_law || alone {
                         desired = d;
                     }
-                    self.probe_alone = alone && !own_law;
+                    self.probe_alone = alone && balanced_probe;
                     probe = event;
                     // A reacquisition ends where the camera rests: after
                     // its ladder, or settled with too little saturated to
                     // probe.
                     let settled = (asked / taken).log2().abs() <= params.settle_ev
-                        && f64::from(stats.saturated_fraction) < params.min_saturated;
+                        && saturated < params.min_saturated;
                     if self.prober.resting() || (settled && event.is_none()) {
                         self.reacquiring = false;
                     }
@@ -736,7 +733,7 @@ impl CameraController {
             let frame = LevelFrame {
                 log2_e: taken.log2(),
                 mean,
-                saturated: f64::from(stats.saturated_fraction),
+                saturated,
             };
             let signal = match (kind, &estimate) {
                 (Request::Incremental, Some(e)) if e.gamma_hat > 0.0 => Some(-e.gamma_hat.ln()),

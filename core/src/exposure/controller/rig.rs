@@ -257,18 +257,17 @@ impl RigController {
             .zip(&clipped)
             .map(|(r, &clipped)| {
                 let probe = probing(r.i) || probing(r.j);
-                (r, clipped || probe, r.r_ij.filter(|_| !probe))
-            })
-            .map(|(r, clipped, measured)| PairRatio {
-                r_ij: self.held.update(
-                    (r.i, r.j),
-                    measured,
-                    inputs[r.i].info.taken.exposure(),
-                    inputs[r.j].info.taken.exposure(),
-                    measure.hold_sets,
-                    clipped,
-                ),
-                ..*r
+                PairRatio {
+                    r_ij: self.held.update(
+                        (r.i, r.j),
+                        r.r_ij.filter(|_| !probe),
+                        inputs[r.i].info.taken.exposure(),
+                        inputs[r.j].info.taken.exposure(),
+                        measure.hold_sets,
+                        clipped || probe,
+                    ),
+                    ..*r
+                }
             })
             .collect();
         let mut steps = Vec::with_capacity(inputs.len());
