@@ -27,13 +27,14 @@ pub mod messages;
 pub mod panels;
 pub mod plots;
 pub mod recording;
+pub mod view_texture;
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use anyhow::Result;
-use egui::{Color32, ColorImage, TextureHandle, TextureOptions};
+use egui::{Color32, TextureHandle, TextureOptions};
 use rigview_core::pipeline::{
     Control, Notify, Output, PipelineOptions, PipelineStatus, ProcessingSettings,
 };
@@ -45,29 +46,12 @@ pub use self::messages::Message;
 use self::messages::Messages;
 pub use self::recording::recording_text;
 use self::recording::RecordButton;
+use self::view_texture::{GlTexture, ViewTexture};
 use crate::logging::{self, LogBuffer};
 use crate::report::CpuMeter;
 use crate::session::{self, Session, SourceSpec};
 use crate::session::{RecordSpec, ReplayControl, ReplaySpec};
 use crate::settings::{BowlRenderer, Settings, SettingsStore};
-
-/// Puts a composed view into its texture (made on first use).
-fn upload(
-    ctx: &egui::Context,
-    slot: &mut Option<TextureHandle>,
-    name: &str,
-    c: &rigview_core::surround::Canvas,
-) {
-    let image = if c.channels == 3 {
-        ColorImage::from_rgb([c.width, c.height], &c.data)
-    } else {
-        ColorImage::from_gray([c.width, c.height], &c.data)
-    };
-    match slot {
-        Some(t) => t.set(image, TextureOptions::LINEAR),
-        None => *slot = Some(ctx.load_texture(name, image, TextureOptions::LINEAR)),
-    }
-}
 
 /// The app's state.
 pub struct RigviewApp {
@@ -78,9 +62,9 @@ pub struct RigviewApp {
     latest: Option<Arc<Output>>,
     /// The pipeline's status, taken once per window frame.
     status: Option<PipelineStatus>,
-    canvas_tex: Option<TextureHandle>,
+    canvas_tex: ViewTexture,
     /// The bird's-eye view beside the bowl.
-    beside_tex: Option<TextureHandle>,
+    beside_tex: ViewTexture,
     thumb_tex: Vec<Option<TextureHandle>>,
     messages: Messages,
     background: Background,
@@ -92,6 +76,11 @@ pub struct RigviewApp {
     manual: Vec<(bool, f64)>,
     calibration: String,
     shown: u64,
+    /// Window frames laid out (and painted) since the start.
+    painted: u64,
+    /// Of them, frames no repaint request asked for (input or the
+    /// window system's own).
+    causeless: u64,
     displayed_trigger: Option<u64>,
     closing: Closing,
     cpu: CpuMeter,
@@ -194,8 +183,8 @@ impl RigviewApp {
             dirty: None,
             latest: None,
             status: None,
-            canvas_tex: None,
-            beside_tex: None,
+            canvas_tex: ViewTexture::default(),
+            beside_tex: ViewTexture::default(),
             thumb_tex: vec![None; n],
             messages,
             background: Background::default(),
@@ -207,6 +196,8 @@ impl RigviewApp {
             manual: vec![(false, start_level); n],
             calibration,
             shown: 0,
+            painted: 0,
+            causeless: 0,
             displayed_trigger: None,
             closing: Closing::new(options.quit_after, options.screenshot),
             cpu: CpuMeter::start(),
@@ -355,8 +346,8 @@ impl RigviewApp {
         };
         self.latest = None;
         self.status = None;
-        self.canvas_tex = None;
-        self.beside_tex = None;
+        self.canvas_tex.clear();
+        self.beside_tex.clear();
         self.thumb_tex = vec![None; n];
         let level = self.settings.processing.controller.fixed_exposure;
         self.manual = vec![(false, level); n];
@@ -546,12 +537,16 @@ impl RigviewApp {
         let Some(out) = self.session.as_ref().and_then(|s| s.pipeline.latest()) else {
             return;
         };
+        let mut failures = Vec::new();
         if let Some(c) = &out.canvas {
-            upload(ctx, &mut self.canvas_tex, "surround", c);
+            failures.extend(self.canvas_tex.upload(ctx, "surround", c));
         }
         match &out.beside {
-            Some(c) => upload(ctx, &mut self.beside_tex, "beside", c),
-            None => self.beside_tex = None,
+            Some(c) => failures.extend(self.beside_tex.upload(ctx, "beside", c)),
+            None => self.beside_tex.clear(),
+        }
+        for e in failures {
+            self.note(e, true);
         }
         if self.thumb_tex.len() != out.cameras.len() {
             self.thumb_tex = vec![None; out.cameras.len()];
@@ -572,6 +567,8 @@ impl RigviewApp {
     /// Draws the whole window into `ui`.
     pub fn show(&mut self, ui: &mut egui::Ui) {
         let ctx = ui.ctx().clone();
+        self.painted += 1;
+        self.causeless += u64::from(ctx.repaint_causes().is_empty());
         self.poll_background();
         self.record.poll(&mut self.messages);
         self.status = self.session.as_ref().map(|s| s.pipeline.status());
@@ -634,6 +631,12 @@ impl RigviewApp {
         if let Some(c) = self.cpu.cores() {
             summary += &format!("\nCPU use of the whole app: {c:.2} cores");
         }
+        summary += &format!(
+            "\nwindow frames painted: {} ({:.1} a second; {} not asked for by a repaint request)",
+            self.painted,
+            self.painted as f64 / self.cpu.seconds(),
+            self.causeless
+        );
         if let Some(g) = self.gpu_bowl.summary() {
             summary += &format!("\n{g}");
         }
@@ -646,7 +649,25 @@ impl RigviewApp {
 
 impl eframe::App for RigviewApp {
     fn ui(&mut self, ui: &mut egui::Ui, frame: &mut eframe::Frame) {
-        if let Some(gl) = frame.gl() {
+        if let Some(gl) = frame.gl().cloned() {
+            // The views go into textures of the window's own, their bytes
+            // as they are.
+            for t in [&mut self.canvas_tex, &mut self.beside_tex] {
+                if t.wants_gl() {
+                    match GlTexture::new(gl.clone()) {
+                        Ok(g) => {
+                            let id = frame.register_native_glow_texture(g.native());
+                            t.set_gl(g, id);
+                        }
+                        Err(e) => {
+                            let e =
+                                format!("a texture for the view: {e}; egui's textures take over");
+                            tracing::warn!("{e}");
+                            t.refuse_gl(e);
+                        }
+                    }
+                }
+            }
             self.gpu_bowl.available = true;
             if self.gpu_bowl.gl_renderer.is_none() {
                 use eframe::glow::HasContext;

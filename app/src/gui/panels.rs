@@ -496,9 +496,9 @@ pub(super) fn central(app: &mut RigviewApp, ui: &mut Ui) {
             Some((None, [w, h]))
         } else {
             app.canvas_tex
-                .as_ref()
+                .shown()
                 .filter(|_| shown == Some(Some(mode.kind())))
-                .map(|t| (Some(t.id()), t.size()))
+                .map(|(id, size)| (Some(id), size))
         };
         let Some((id, [w, h])) = picture else {
             let msg = match &app.latest {
@@ -537,9 +537,8 @@ pub(super) fn central(app: &mut RigviewApp, ui: &mut Ui) {
         // The bird's-eye view beside the bowl: its own share of the width.
         let beside = app
             .beside_tex
-            .as_ref()
-            .filter(|_| bowl)
-            .map(|b| (b.id(), b.size()));
+            .shown()
+            .filter(|_| bowl);
         let beside_share = beside.map(|(_, [bw, bh])| {
             let share = (avail.y * bw as f32 / bh as f32).min(0.4 * avail.x);
             avail.x -= share + gap;

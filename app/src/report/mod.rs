@@ -73,6 +73,11 @@ impl CpuMeter {
         }
     }
 
+    /// Seconds since the start.
+    pub fn seconds(&self) -> f64 {
+        self.wall.elapsed().as_secs_f64()
+    }
+
     /// CPU use since the start, in cores (1.0 = one core busy).
     pub fn cores(&self) -> Option<f64> {
         let wall = self.wall.elapsed().as_secs_f64();
