@@ -28,6 +28,7 @@ pub mod eval;
 pub mod gui;
 pub mod live;
 pub mod logging;
+pub mod memory;
 pub mod report;
 pub mod serve;
 pub mod session;

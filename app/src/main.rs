@@ -7,6 +7,9 @@ use rigview::cli::{self, Cli, Command, ProcessingArgs};
 use rigview::session::{SimSpec, SourceSpec};
 
 fn main() -> Result<()> {
+    // Before any thread starts: buffers freed at the frame rate are reused
+    // rather than faulted in again.
+    rigview::memory::keep_freed_memory();
     match run() {
         // The reader of the output went away (`rigview … | head`): what it
         // wanted was written, and there is nothing to report.
