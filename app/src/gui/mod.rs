@@ -53,6 +53,9 @@ use crate::session::{self, Session, SourceSpec};
 use crate::session::{RecordSpec, ReplayControl, ReplaySpec};
 use crate::settings::{BowlRenderer, Settings, SettingsStore};
 
+/// The start's share of a run that the steady CPU figure leaves out.
+const WARM_UP: Duration = Duration::from_secs(5);
+
 /// What the pipeline calls for each new output: one window frame.
 ///
 /// egui paints twice for every immediate request (`request_repaint`: "to
@@ -96,6 +99,9 @@ pub struct RigviewApp {
     displayed_trigger: Option<u64>,
     closing: Closing,
     cpu: CpuMeter,
+    /// CPU use from [`WARM_UP`] after the start on: without the start's
+    /// one-off work (the simulated scene's tracing, the first views).
+    steady_cpu: Option<CpuMeter>,
     bowl: bowl::BowlState,
     gpu_bowl: bowl_gpu::GpuBowl,
     /// The remote view's options, for each session (a replay opened in
@@ -212,6 +218,7 @@ impl RigviewApp {
             displayed_trigger: None,
             closing: Closing::new(options.quit_after, options.screenshot),
             cpu: CpuMeter::start(),
+            steady_cpu: None,
             bowl: bowl::BowlState::default(),
             gpu_bowl: bowl_gpu::GpuBowl::default(),
             serve: options.serve.clone(),
@@ -579,6 +586,9 @@ impl RigviewApp {
     pub fn show(&mut self, ui: &mut egui::Ui) {
         let ctx = ui.ctx().clone();
         self.painted += 1;
+        if self.steady_cpu.is_none() && self.cpu.seconds() >= WARM_UP.as_secs_f64() {
+            self.steady_cpu = Some(CpuMeter::start());
+        }
         self.causeless += u64::from(ctx.repaint_causes().is_empty());
         self.poll_background();
         self.record.poll(&mut self.messages);
@@ -641,6 +651,9 @@ impl RigviewApp {
         );
         if let Some(c) = self.cpu.cores() {
             summary += &format!("\nCPU use of the whole app: {c:.2} cores");
+            if let Some(steady) = self.steady_cpu.as_ref().and_then(CpuMeter::cores) {
+                summary += &format!(" ({steady:.2} after the first {} s)", WARM_UP.as_secs());
+            }
         }
         summary += &format!(
             "\nwindow frames painted: {} ({:.1} a second; {} not asked for by a repaint request)",
