@@ -291,12 +291,13 @@ impl LevelWalker {
                     // back under its saturated pixels (its distance
                     // overshoots). Otherwise the signals place it,
                     // linearly.
-                    let darker_placed = if b > a { from_placed } else { s.placed };
-                    let x = match darker_placed {
-                        Some(d) => {
-                            let darker = if b > a { a } else { b };
-                            ((darker + d - a) / (b - a)).clamp(0.0, 1.0)
-                        }
+                    let (darker, placed) = if b > a {
+                        (a, from_placed)
+                    } else {
+                        (b, s.placed)
+                    };
+                    let x = match placed {
+                        Some(d) => ((darker + d - a) / (b - a)).clamp(0.0, 1.0),
                         None => from_signal.abs() / (from_signal.abs() + s.signal.abs()),
                     };
                     let margin = if from == at { SWITCH_MARGIN } else { 0.0 };
