@@ -458,11 +458,10 @@ impl CameraController {
             self.passed = None;
         }
         // A uniform change of light measured against the reference frame
-        // (fast law): the best exposure is the reference's over the change,
-        // until a frame shows the camera there.
+        // (every gradient law): the best exposure is the reference's over
+        // the change, until a frame shows the camera there.
         let light = config.light.filter(|_| {
             config.mode == ControlMode::Gradient
-                && config.law.kind == LawKind::Fast
                 && self.manual.is_none()
                 && hold != Some(Hold::RepeatedFrame)
         });

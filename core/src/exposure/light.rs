@@ -45,8 +45,14 @@ pub struct LightParams {
     /// A uniform change of light of at least this (EV) is followed.
     pub min_change_ev: f64,
     /// Ratios spread wider than this (interquartile range, EV) mean the
-    /// scene changed, not only its light.
+    /// scene changed, not only its light...
     pub max_spread_ev: f64,
+    /// ...or wider than this fraction of the change itself, where that is
+    /// more. A large change leaves few pixels in range in both frames,
+    /// the darker of them noisier (a tunnel's frames carry the gain's
+    /// noise): 0.5 EV of spread says nothing against a change of 6 EV,
+    /// while a changed scene spreads its ratios about no change at all.
+    pub spread_per_ev: f64,
     /// Pixels well exposed in both frames needed for a measurement.
     pub min_pixels: usize,
     /// A pixel counts when its intensity lies in `[low, high]` in both
@@ -63,6 +69,7 @@ impl Default for LightParams {
         Self {
             min_change_ev: 0.25,
             max_spread_ev: 0.25,
+            spread_per_ev: 0.15,
             min_pixels: 100,
             low: 0.012,
             high: 0.9,
@@ -87,6 +94,13 @@ impl LightParams {
             0.001,
             5.0,
             "an EV in [0.001, 5]",
+        )?;
+        check_range(
+            "light.spread_per_ev",
+            self.spread_per_ev,
+            0.0,
+            0.5,
+            "a fraction in [0, 0.5]",
         )?;
         check_range(
             "light.min_pixels",
@@ -144,7 +158,10 @@ impl LightChange {
 
     /// Whether the pixels agree on one ratio (the scene is the reference's).
     pub fn uniform(&self, params: &LightParams) -> bool {
-        self.pixels >= params.min_pixels && self.spread_ev <= params.max_spread_ev
+        let allowed = params
+            .max_spread_ev
+            .max(params.spread_per_ev * self.ev.abs());
+        self.pixels >= params.min_pixels && self.spread_ev <= allowed
     }
 }
 
@@ -392,6 +409,63 @@ mod tests {
             .change(&p, &frame(160, 120, 1.0, 0.25, 0), 1.0)
             .expect("dark");
         assert!((c.ev + 2.0).abs() < 0.01 && c.follow(&p), "{c:?}");
+    }
+
+    /// [`frame`] with each pixel scaled by `2^n`, `n` uniform in
+    /// `[-a/2, a/2]` (a fixed sequence): the ratios' interquartile range
+    /// against a noiseless frame is about `a/2`.
+    fn noisy(w: usize, h: usize, e: f64, l: f64, a: f64) -> Metered {
+        let clean = frame(w, h, e * 1e-3, l, 0);
+        let mut state = 0x9e37_79b9_u32;
+        let luma = clean
+            .luma()
+            .iter()
+            .map(|&v| {
+                state ^= state << 13;
+                state ^= state >> 17;
+                state ^= state << 5;
+                let n = (f64::from(state) / f64::from(u32::MAX) - 0.5) * a;
+                ((f64::from(v) * 1e3 * n.exp2()) as f32).min(1.0)
+            })
+            .collect();
+        Metered::from_luma(w, h, luma, None).expect("metered")
+    }
+
+    #[test]
+    fn a_large_change_is_followed_through_noise_that_a_small_one_is_not() {
+        let p = LightParams::default();
+        let mut t = LightTracker::default();
+        t.set_reference(&p, &frame(160, 120, 0.5, 1.0, 0), 0.5, 0.5);
+        // +5 stops seen at 1/64 of the exposure, through noise of about
+        // 0.5 EV (interquartile range): the change dwarfs the spread.
+        let far = t
+            .change(&p, &noisy(160, 120, 0.5 / 64.0, 32.0, 1.0), 0.5 / 64.0)
+            .expect("far");
+        assert!(
+            (far.ev - 5.0).abs() < 0.1 && far.spread_ev > p.max_spread_ev && far.follow(&p),
+            "{far:?}"
+        );
+        // The same noise with a change of 1 stop: as likely a changed
+        // scene, not followed.
+        let near = t
+            .change(&p, &noisy(160, 120, 0.25, 2.0, 1.0), 0.25)
+            .expect("near");
+        assert!(
+            (near.ev - 1.0).abs() < 0.1 && !near.uniform(&p) && !near.follow(&p),
+            "{near:?}"
+        );
+        // With the fraction at 0 only the absolute spread counts.
+        let absolute = LightParams {
+            spread_per_ev: 0.0,
+            ..p
+        };
+        assert!(!far.follow(&absolute), "{far:?}");
+        assert!(LightParams {
+            spread_per_ev: 0.6,
+            ..p
+        }
+        .validate()
+        .is_err());
     }
 
     #[test]

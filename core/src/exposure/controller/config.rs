@@ -61,7 +61,7 @@ pub struct ControllerConfig {
     /// ([`super::bracket`]).
     pub bracket: BracketParams,
     /// Following a uniform change of light measured against a reference
-    /// frame ([`super::light`]), under the fast law (`None`: never).
+    /// frame ([`super::light`]), under every gradient law (`None`: never).
     #[serde(default = "default_light")]
     pub light: Option<LightParams>,
 }

@@ -300,12 +300,15 @@ impl RigController {
             let (target, alpha, damping) =
                 match balancing.filter(|_| !neighbour.is_empty() && u.light.is_none()) {
                     Some(params) => {
-                        // Under the fast law a change of light is measured
-                        // (the camera follows it, and the damping starts
-                        // again); the frames' means guess at it otherwise,
-                        // and frames that commands in flight leave at
-                        // several exposures would read as changes.
-                        // (A probe frame's mean is no change of light.)
+                        // A uniform change of light is measured under
+                        // every gradient law (the camera follows it, and
+                        // the damping starts again). The frames' means
+                        // also guess at changes the measurement leaves to
+                        // the law (not uniform over the image), except
+                        // under the fast law, whose jumps leave frames at
+                        // several exposures in flight that would read as
+                        // changes. (A probe frame's mean is no change of
+                        // light.)
                         if config.law.kind != LawKind::Fast && !u.probe_frame {
                             cam.damping.observe(
                                 input.info.taken.exposure().log2(),
