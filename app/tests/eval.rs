@@ -329,8 +329,8 @@ fn the_quick_evaluation_writes_sane_figures_data_and_report() {
         let panorama_run = [
             "fixed manual",
             "camera built-in AE (simulated)",
-            "gradient, nonlinear law",
-            "gradient balanced (multi)",
+            "gradient, nonlinear law, γ-mapping",
+            "gradient balanced (multi), γ-mapping",
         ]
         .contains(&cells[0]);
         assert_eq!(cells[8] != "·", panorama_run, "{line}");

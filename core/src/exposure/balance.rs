@@ -38,8 +38,9 @@
 //! follows the new light at the full step.
 //!
 //! Eq. 6's `α` can be a running mean over the camera's frames (weight
-//! `alpha_weight` below 1; 1, the default, is each frame's own `α`, as
-//! Eq. 6 is written). The loop gain above comes mostly from `α` moving with
+//! `alpha_weight` below 1; 1 is each frame's own `α`, as Eq. 6 is
+//! written; unset, the weight follows the exposure simulation: 1 under the
+//! γ-mapping, 1/8 under scale-and-clip). The loop gain above comes mostly from `α` moving with
 //! `R` (`dα/dR·(R − mean_j r_ij)`: 3.4 of the 4.3 at the balanced rest of a
 //! camera whose neighbours want it 2 EV brighter); with `α` averaged, a
 //! swing of `R` from frame to frame moves the balanced step by about `α`
@@ -47,7 +48,7 @@
 //! does); a change of light starts the mean again from the frame's own
 //! `α`, with `κ`. Under scale-and-clip a weight of 1/8 holds the simulated
 //! front camera still in real time where each frame's `α` lets it
-//! saw-tooth; under the γ-mapping (the default) it does not help
+//! saw-tooth; under the γ-mapping it does not help, and 1 is what holds it
 //! (docs/exposure-results.md). Taking the mean only while a camera is
 //! damped was tried: switching between the two made slow cycles of more
 //! than 1 EV on a model of a steep own law.
@@ -62,6 +63,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::bracket::same_scene;
+use super::estimator::Simulation;
 use crate::error::{check_range, Error, Result};
 use crate::stats::median;
 
@@ -324,12 +326,28 @@ pub struct DampingParams {
     pub recover_ev: f64,
     /// The weight of each frame's Eq. 6 `α` in its running mean over the
     /// camera's frames (1: every frame's own `α`, as Eq. 6 is written).
-    #[serde(default = "default_alpha_weight")]
-    pub alpha_weight: f64,
+    /// Unset, it follows the exposure simulation
+    /// ([`DampingParams::alpha_weight_under`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub alpha_weight: Option<f64>,
 }
 
-fn default_alpha_weight() -> f64 {
-    1.0
+/// [`DampingParams::alpha_weight`] unset, under scale-and-clip.
+pub const SCALE_CLIP_ALPHA_WEIGHT: f64 = 0.125;
+
+impl DampingParams {
+    /// The weight of each frame's `α` under `simulation`: the one set, or
+    /// by default 1 under the γ-mapping (Eq. 6 as written) and
+    /// [`SCALE_CLIP_ALPHA_WEIGHT`] under scale-and-clip, each the weight
+    /// that holds the simulated rig still in real time under its
+    /// simulation (the other saw-tooths by 0.036 EV or more; module
+    /// documentation).
+    pub fn alpha_weight_under(&self, simulation: Simulation) -> f64 {
+        self.alpha_weight.unwrap_or(match simulation {
+            Simulation::Gamma => 1.0,
+            Simulation::ScaleClip => SCALE_CLIP_ALPHA_WEIGHT,
+        })
+    }
 }
 
 fn default_recover_ev() -> f64 {
@@ -342,7 +360,7 @@ impl Default for DampingParams {
             dead_band_ev: 0.05,
             floor: 1.0 / 16.0,
             recover_ev: default_recover_ev(),
-            alpha_weight: default_alpha_weight(),
+            alpha_weight: None,
         }
     }
 }
@@ -371,13 +389,15 @@ impl DampingParams {
             20.0,
             "a distance in EV in [0, 20]",
         )?;
-        check_range(
-            "balance.damping.alpha_weight",
-            self.alpha_weight,
-            0.01,
-            1.0,
-            "a weight in [0.01, 1]",
-        )?;
+        if let Some(w) = self.alpha_weight {
+            check_range(
+                "balance.damping.alpha_weight",
+                w,
+                0.01,
+                1.0,
+                "a weight in [0.01, 1]",
+            )?;
+        }
         Ok(())
     }
 }
@@ -443,12 +463,12 @@ impl Damping {
     }
 
     /// Eq. 6's `α` for this frame, whose own `α` is `raw`: `raw` folded
-    /// into the running mean with weight `params.alpha_weight` (the first
+    /// into the running mean with weight `weight` (the first
     /// frame, and the first after a change of light, start the mean).
-    pub fn smooth_alpha(&mut self, raw: f64, params: &DampingParams) -> f64 {
+    pub fn smooth_alpha(&mut self, raw: f64, weight: f64) -> f64 {
         let a = match self.alpha {
             Some(a) if !raw.is_finite() => a,
-            Some(a) => a + params.alpha_weight * (raw - a),
+            Some(a) => a + weight * (raw - a),
             None => raw,
         };
         self.alpha = Some(a);

@@ -325,7 +325,12 @@ impl RigController {
                             } else if u.probe_frame {
                                 cam.damping.alpha_mean().unwrap_or(a)
                             } else {
-                                cam.damping.smooth_alpha(a, &params.damping)
+                                cam.damping.smooth_alpha(
+                                    a,
+                                    params
+                                        .damping
+                                        .alpha_weight_under(config.estimator.simulation),
+                                )
                             }
                         });
                         // On fixed levels the walker keeps a camera from

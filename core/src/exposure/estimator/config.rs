@@ -11,15 +11,20 @@ use crate::exposure::metric::{GradientMetric, MetricParams};
 pub const DEFAULT_ANCHORS: [f64; 7] = [1.0 / 1.9, 1.0 / 1.5, 1.0 / 1.2, 1.0, 1.2, 1.5, 1.9];
 
 /// How an exposure change is simulated on the current image.
+///
+/// Scale-and-clip is the default: GenICam cameras deliver linear frames,
+/// on which the paper's γ-mapping puts the optimum 1.7 EV or more below
+/// where `M` is highest (real 12-bit brackets), and the simulator's sensor
+/// is linear too (docs/exposure-results.md, *The default simulation*).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 #[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum Simulation {
     /// The paper's `I_out = I_in^γ`; γ > 1 darkens.
-    #[default]
     Gamma,
     /// `I_out = min(1, s·I_in)`, exact for a linear sensor below saturation;
     /// s > 1 brightens.
+    #[default]
     ScaleClip,
 }
 
@@ -80,7 +85,7 @@ pub const DEFAULT_PLATEAU: f64 = 0.02;
 impl Default for EstimatorConfig {
     fn default() -> Self {
         Self {
-            simulation: Simulation::Gamma,
+            simulation: Simulation::default(),
             anchors: DEFAULT_ANCHORS.to_vec(),
             degree: 5,
             metric: MetricParams::default(),
