@@ -12,7 +12,18 @@ use std::path::Path;
 
 use common::{csv, rigview};
 
-const STRATEGIES_STEPS: [&str; 6] = ["linear", "nonlinear", "fast", "pid", "mean", "camera-ae"];
+const STRATEGIES_STEPS: [&str; 10] = [
+    "linear",
+    "nonlinear",
+    "fast",
+    "pid",
+    "linear/scale-clip",
+    "nonlinear/scale-clip",
+    "fast/scale-clip",
+    "pid/scale-clip",
+    "mean",
+    "camera-ae",
+];
 const STRATEGIES_SETTLED: [&str; 12] = [
     "linear",
     "nonlinear",

@@ -65,12 +65,17 @@ impl EvalStrategy {
         Self::Fixed,
     ];
 
-    /// The strategies of the step responses (experiment 2).
-    pub const STEPS: [EvalStrategy; 6] = [
+    /// The strategies of the step responses (experiment 2): each camera
+    /// alone under both exposure simulations.
+    pub const STEPS: [EvalStrategy; 10] = [
         Self::Linear,
         Self::Nonlinear,
         Self::Fast,
         Self::Pid,
+        Self::LinearSc,
+        Self::NonlinearSc,
+        Self::FastSc,
+        Self::PidSc,
         Self::Mean,
         Self::CameraAe,
     ];
