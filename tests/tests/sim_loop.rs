@@ -428,8 +428,8 @@ fn tail_band(t: &[f64]) -> f64 {
 /// balancing over the rig's overlaps) on the reference preset at `scale`:
 /// balancing adds no cycle of its own. Every camera's last exposures lie in
 /// a band at most 0.15 EV wider than the same camera's alone. Under
-/// scale-and-clip (the default) balanced cameras probe darker too; the
-/// frames of probes they came back from are left out, alone and balanced.
+/// scale-and-clip balanced cameras probe darker too; the frames of probes
+/// they came back from are left out, alone and balanced.
 fn check_balancing_adds_no_cycle(scale: Res) {
     let render = render("reference", scale);
     let alone = run(&render, view(&render), Simulation::default());
