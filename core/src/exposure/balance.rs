@@ -40,9 +40,10 @@
 //! Eq. 6's `α` can be a running mean over the camera's frames (weight
 //! `alpha_weight` below 1; 1 is each frame's own `α`, as Eq. 6 is
 //! written; unset, the weight follows the exposure simulation: 1 under the
-//! γ-mapping, 1/8 under scale-and-clip). The loop gain above comes mostly from `α` moving with
-//! `R` (`dα/dR·(R − mean_j r_ij)`: 3.4 of the 4.3 at the balanced rest of a
-//! camera whose neighbours want it 2 EV brighter); with `α` averaged, a
+//! γ-mapping, 1/8 under scale-and-clip). The loop gain above comes mostly
+//! from `α` moving with `R` (`dα/dR·(R − mean_j r_ij)`: 3.4 of the 4.3 at
+//! the balanced rest of a camera whose neighbours want it 2 EV brighter);
+//! with `α` averaged, a
 //! swing of `R` from frame to frame moves the balanced step by about `α`
 //! times as much. The fixed points are Eq. 5's (`α` settles where `R`
 //! does); a change of light starts the mean again from the frame's own
