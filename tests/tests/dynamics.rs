@@ -546,12 +546,15 @@ fn the_balanced_rig_under_scale_and_clip_at_full_resolution_is_back_a_second_aft
     let render = SimRender::new(&config).unwrap();
     let view = rigview_tests::test_view(&render).unwrap();
     let options = dense_sweep();
-    let mut defaults = ProcessingSettings::default();
-    assert_eq!(defaults.strategy, Strategy::Multi);
-    defaults.controller.estimator.simulation = Simulation::ScaleClip;
-    let mut without = defaults.clone();
+    let mut scale_clip = ProcessingSettings::default();
+    assert_eq!(scale_clip.strategy, Strategy::Multi);
+    scale_clip.controller.estimator.simulation = Simulation::ScaleClip;
+    let mut without = scale_clip.clone();
     without.controller.light = None;
-    let (r, peer) = (run_config(&config, defaults), run_config(&config, without));
+    let (r, peer) = (
+        run_config(&config, scale_clip),
+        run_config(&config, without),
+    );
     let mut judged = 0;
     let mut worst = f64::INFINITY;
     let mut returned = 0;

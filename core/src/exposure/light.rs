@@ -415,6 +415,8 @@ mod tests {
     /// `[-a/2, a/2]` (a fixed sequence): the ratios' interquartile range
     /// against a noiseless frame is about `a/2`.
     fn noisy(w: usize, h: usize, e: f64, l: f64, a: f64) -> Metered {
+        // Rendered 1000× darker so that nothing clips before the noise,
+        // then scaled back and clipped.
         let clean = frame(w, h, e * 1e-3, l, 0);
         let mut state = 0x9e37_79b9_u32;
         let luma = clean
