@@ -345,7 +345,7 @@ fn bad_frames_reset_the_prober_and_pass_the_law_through() {
 
 #[test]
 fn bad_parameters_are_named() {
-    let cases: [(ProbeParams, &str); 5] = [
+    let cases: [(ProbeParams, &str); 6] = [
         (
             ProbeParams {
                 step_ev: 0.0,
@@ -380,6 +380,13 @@ fn bad_parameters_are_named() {
                 ..ProbeParams::default()
             },
             "controller.probe.relight_change",
+        ),
+        (
+            ProbeParams {
+                reacquire_start_saturated: 1.5,
+                ..ProbeParams::default()
+            },
+            "controller.probe.reacquire_start_saturated",
         ),
     ];
     for (params, name) in cases {

@@ -616,3 +616,79 @@ fn the_balanced_rig_under_scale_and_clip_at_full_resolution_is_back_a_second_aft
         100.0 * worst
     );
 }
+
+/// Under scale-and-clip, a rig that starts far above its best (the
+/// reference scene at full resolution from 10 000 µs, as the Aravis fake
+/// cameras start) comes
+/// down to where every camera measures at least 85 % of its best `M` (a
+/// dense sweep), alone and balanced. Coming down, a camera meets a plateau
+/// of `M(E)` 2–3 EV above its best, where the estimator, blind under the
+/// saturated pixels, sees its fixed point; the start's reacquisition
+/// (half the pixels saturated or more,
+/// [`ProbeParams::reacquire_start_saturated`]) probes below it with a ladder.
+/// The peer without it (printed) must rest on that plateau, or the scene no
+/// longer shows the trap.
+///
+/// [`ProbeParams::reacquire_start_saturated`]: rigview_core::exposure::ProbeParams::reacquire_start_saturated
+#[test]
+fn under_scale_and_clip_a_rig_that_starts_far_too_bright_comes_down_to_its_best() {
+    let mut config = SimConfig::preset("reference").unwrap();
+    config.start.shutter_us = 10_000.0;
+    let render = SimRender::new(&config).unwrap();
+    let view = rigview_tests::test_view(&render).unwrap();
+    let options = dense_sweep();
+    let sweeps: Vec<_> = (0..render.cameras().len())
+        .map(|cam| truth::sweep(&render, cam, 0.0, &options, view.ground_masks().get(cam)).unwrap())
+        .collect();
+    // Each camera's M over its best, from the median exposure of the last
+    // 10 frames (probe frames left out).
+    let settled = |r: &Run| -> Vec<f64> {
+        (0..r.cameras.len())
+            .map(|cam| {
+                let n = r.log2_e[cam].len();
+                let e = median(
+                    (n - 10..n)
+                        .filter(|&f| !r.probe[cam][f])
+                        .map(|f| r.log2_e[cam][f])
+                        .collect(),
+                );
+                sweeps[cam].score_at(e.exp2()) / sweeps[cam].best_score
+            })
+            .collect()
+    };
+    let mut peer_worst = f64::INFINITY;
+    for strategy in [Strategy::Single, Strategy::Multi] {
+        let mut s = ProcessingSettings {
+            strategy,
+            ..Default::default()
+        };
+        s.controller.estimator.simulation = Simulation::ScaleClip;
+        let mut without = s.clone();
+        if let Some(p) = without.controller.probe.as_mut() {
+            p.reacquire_start_saturated = 1.0;
+        }
+        let (r, peer) = (
+            settled(&run_config(&config, s)),
+            settled(&run_config(&config, without)),
+        );
+        for (cam, name) in render.cameras().iter().map(|c| &c.name).enumerate() {
+            println!(
+                "{} {name}: M / best {:.1} % (without the start's reacquisition {:.1} %)",
+                strategy.name(),
+                100.0 * r[cam],
+                100.0 * peer[cam]
+            );
+            assert!(
+                r[cam] >= 0.85,
+                "{} {name}: at {:.1} % of its best M",
+                strategy.name(),
+                100.0 * r[cam]
+            );
+            peer_worst = peer_worst.min(peer[cam]);
+        }
+    }
+    assert!(
+        peer_worst < 0.85,
+        "without the start's reacquisition every camera reached 85 % of its best M: the scene no longer shows the plateau"
+    );
+}

@@ -495,7 +495,7 @@ fn balancing_adds_no_cycle_in_the_default_mode_at_full_resolution() {
 /// camera ends with less `M` than without probes, every camera stops
 /// probing (at most three probe frames, none in the last 20 frames), and
 /// every probe frame is at most one anchor step (`1/1.9`) darker than the
-/// exposure it left.
+/// exposure it left (a ladder's rung: than the rung before).
 #[test]
 fn probing_darker_takes_a_camera_to_the_best_fixed_point() {
     for scale in [Res::Quarter, Res::Full] {
@@ -549,12 +549,21 @@ fn probing_darker_takes_a_camera_to_the_best_fixed_point() {
                 sent.iter().all(|&f| f < FRAMES - TAIL),
                 "{name}: probed in the last {TAIL} frames: {sent:?}"
             );
+            // A ladder's rungs (a reacquisition: here the start, with half
+            // the front camera's pixels saturated) each go one step darker
+            // than the rung before, from the same exposure.
+            let mut last: Option<(f64, f64)> = None;
             for (_, e) in &with.probes[cam] {
-                if let ProbeEvent::Sent { from, to } = e {
+                if let ProbeEvent::Sent { from, to } = *e {
+                    let above = match last {
+                        Some((home, rung)) if (home / from - 1.0).abs() < 1e-12 => rung,
+                        _ => from,
+                    };
                     assert!(
-                        (from / to).log2() <= 1.9f64.log2() + 1e-9,
-                        "{name}: probe {from} → {to}"
+                        (above / to).log2() <= 1.9f64.log2() + 1e-9,
+                        "{name}: probe {from} → {to}, one step below {above}"
                     );
+                    last = Some((from, to));
                 }
             }
             if b - best > 0.5 {

@@ -120,6 +120,17 @@ pub struct ProbeParams {
     /// tunnel's exit), a camera meets the highest hump of `M(E)` first,
     /// which need not be the best.
     pub reacquire_saturated: f64,
+    /// Under scale-and-clip, a camera's first frame under its gradient law
+    /// with at least this fraction of its metered pixels saturated starts
+    /// a reacquisition too. A camera that starts far above its best (a
+    /// GenICam camera's default exposure of 10 ms in daylight) comes down
+    /// onto the first hump of `M(E)` it meets, where the estimator, blind
+    /// under the saturated pixels, sees a fixed point
+    /// (docs/exposure-results.md, *The default simulation*). Below it the
+    /// ladder would cost three darker frames at every start for nothing,
+    /// and a ladder that straddles a change of light measures the wrong
+    /// thing. At 1 only the frames [`Self::reacquire_saturated`] names do.
+    pub reacquire_start_saturated: f64,
     /// The rungs of a reacquisition's probe: after a rung that measured no
     /// better, the next is `step_ev` darker again.
     pub ladder: u32,
@@ -144,6 +155,7 @@ impl Default for ProbeParams {
             cooldown_frames: 80,
             relight_change: 0.2,
             reacquire_saturated: 0.75,
+            reacquire_start_saturated: 0.5,
             ladder: 3,
             ladder_gain: 0.1,
         }
@@ -212,6 +224,13 @@ impl ProbeParams {
         check_range(
             "controller.probe.reacquire_saturated",
             self.reacquire_saturated,
+            0.0,
+            1.0,
+            "a fraction of pixels in [0, 1]",
+        )?;
+        check_range(
+            "controller.probe.reacquire_start_saturated",
+            self.reacquire_start_saturated,
             0.0,
             1.0,
             "a fraction of pixels in [0, 1]",
