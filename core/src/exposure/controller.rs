@@ -181,7 +181,9 @@ pub struct CameraController {
     /// default 322×241 with a mask and block saturation.)
     darker: Option<ProbeFrame>,
     /// The latest frame after which the camera's own law sent it brighter
-    /// (scale-and-clip): the frames that follow are brighter, and read
+    /// (scale-and-clip), or the frame of a probe (a ladder's rung) that
+    /// measured better, from which the law goes on: the frames that follow
+    /// are brighter, and read
     /// from it what their saturated pixels hide while it matches their
     /// scene. Kept only while the camera moves up, so a camera at rest
     /// copies nothing.
@@ -678,6 +680,15 @@ impl CameraController {
                             exposure: taken,
                             image: metered.clone(),
                         });
+                    } else if keeps_frames && matches!(event, Some(ProbeEvent::Taken { .. })) {
+                        // The law goes on from the probe: should it go
+                        // brighter, the probe's frame shows what the
+                        // saturated pixels hide.
+                        self.passed = Some(ProbeFrame {
+                            exposure: taken,
+                            image: metered.clone(),
+                        });
+                        self.darker = None;
                     } else if !self.prober.resting() {
                         self.darker = None;
                     }
