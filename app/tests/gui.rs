@@ -159,8 +159,8 @@ fn the_main_view_cameras_and_plots_show_data() {
             "no \"{label}\" in the window"
         );
     }
-    // The γ-mapping by default: the curve is M over γ.
-    assert!(h.query_by_label_contains("M(γ) of front").is_some());
+    // Scale-and-clip by default: the curve is M over the exposure scale.
+    assert!(h.query_by_label_contains("M(s) of front").is_some());
     assert_eq!(
         h.query_all_by_label_contains(" · gain ").count(),
         4,

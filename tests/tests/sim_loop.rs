@@ -428,7 +428,7 @@ fn tail_band(t: &[f64]) -> f64 {
 /// balancing over the rig's overlaps) on the reference preset at `scale`:
 /// balancing adds no cycle of its own. Every camera's last exposures lie in
 /// a band at most 0.15 EV wider than the same camera's alone. Under the
-/// γ-mapping balanced cameras never probe; under scale-and-clip they probe
+/// γ-mapping balanced cameras never probe; under scale-and-clip (the default) they probe
 /// darker too, and the frames of probes they came back from are left out,
 /// alone and balanced.
 fn check_balancing_adds_no_cycle(scale: Res) {

@@ -10,8 +10,8 @@
 //!
 //! | simulation | mapping | estimate > 1 means |
 //! | --- | --- | --- |
-//! | [`Simulation::Gamma`] (the paper's, default) | `I^γ` | darker is better |
-//! | [`Simulation::ScaleClip`] | `min(1, s·I)` | brighter is better |
+//! | [`Simulation::Gamma`] (the paper's) | `I^γ` | darker is better |
+//! | [`Simulation::ScaleClip`] (default) | `min(1, s·I)` | brighter is better |
 //!
 //! Scale-and-clip is exact for brightening (`s ≥ 1`) on a linear sensor,
 //! and for darkening the pixels that are not saturated. How far above

@@ -12,18 +12,19 @@ pub const DEFAULT_ANCHORS: [f64; 7] = [1.0 / 1.9, 1.0 / 1.5, 1.0 / 1.2, 1.0, 1.2
 
 /// How an exposure change is simulated on the current image.
 ///
-/// The γ-mapping is still the default, though scale-and-clip is what
-/// linear frames call for (docs/exposure-results.md, *The default
-/// simulation*: what still holds the switch back).
+/// Scale-and-clip is the default: GenICam cameras deliver linear frames,
+/// on which the paper's γ-mapping puts the optimum 1.7 EV or more below
+/// where `M` is highest (real 12-bit brackets), and the simulator's sensor
+/// is linear too (docs/exposure-results.md, *The default simulation*).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 #[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum Simulation {
     /// The paper's `I_out = I_in^γ`; γ > 1 darkens.
-    #[default]
     Gamma,
     /// `I_out = min(1, s·I_in)`, exact for a linear sensor below saturation;
     /// s > 1 brightens.
+    #[default]
     ScaleClip,
 }
 
