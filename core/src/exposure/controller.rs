@@ -183,10 +183,9 @@ pub struct CameraController {
     /// The latest frame after which the camera's own law sent it brighter
     /// (scale-and-clip), or the frame of a probe (a ladder's rung) that
     /// measured better, from which the law goes on: the frames that follow
-    /// are brighter, and read
-    /// from it what their saturated pixels hide while it matches their
-    /// scene. Kept only while the camera moves up, so a camera at rest
-    /// copies nothing.
+    /// are brighter, and read from it what their saturated pixels hide
+    /// while it matches their scene. Kept only while the camera moves up,
+    /// so a camera at rest copies nothing.
     passed: Option<ProbeFrame>,
     /// The bracket of the best exposure under the camera's own law.
     bracket: Bracket,
@@ -439,9 +438,10 @@ impl CameraController {
         // and balanced cameras' probes (not on fixed levels).
         let clip_probes = gradient && scale_clip && self.walker.is_none();
         self.probe_alone = false;
-        // So does a start with half the pixels saturated: a camera that
-        // starts far above its best comes down onto the first hump of
-        // `M(E)` it meets, as from saturation.
+        // So does a start with half the pixels saturated or more
+        // (`reacquire_start_saturated`): a camera that starts far above its
+        // best comes down onto the first hump of `M(E)` it meets, as from
+        // saturation.
         let starting = clip_probes && !self.was_clip_probing;
         if hold.is_none() {
             self.was_clip_probing = clip_probes;
