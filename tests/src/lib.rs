@@ -30,11 +30,23 @@ pub fn sim_loop(
     settings: ProcessingSettings,
     edges: &[(usize, usize)],
 ) -> std::result::Result<LockStep<SimRig>, SourceError> {
+    sim_loop_with(render, view, settings, edges, SimRigOptions::default())
+}
+
+/// [`sim_loop`] with the simulated rig's `options` (its cameras' latency,
+/// say).
+pub fn sim_loop_with(
+    render: &Arc<SimRender>,
+    view: SurroundView,
+    settings: ProcessingSettings,
+    edges: &[(usize, usize)],
+    options: SimRigOptions,
+) -> std::result::Result<LockStep<SimRig>, SourceError> {
     let cameras = render.cameras().to_vec();
     let graph = NeighbourGraph::new(cameras.len(), edges)?;
     let mut processor = Processor::new(cameras, Some(view.into()), graph, settings)?;
     processor.set_compose(false);
-    let source = SimRig::new(render.clone(), SimRigOptions::default())?;
+    let source = SimRig::new(render.clone(), options)?;
     LockStep::new(source, processor)
 }
 

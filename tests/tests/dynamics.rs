@@ -16,12 +16,10 @@
 use std::sync::Arc;
 
 use rigview_core::eval::dynamics::{constant_runs, std_dev, step_response, ResponseSpec};
-use rigview_core::exposure::{
-    ControllerConfig, EstimatorConfig, LawKind, LawParams, NeighbourGraph, Simulation,
-};
-use rigview_core::pipeline::{LockStep, ProcessingSettings, Processor, Strategy};
-use rigview_core::sim::truth::{self, FixedPointSearch, SweepOptions};
-use rigview_core::sim::{Event, Script, SimConfig, SimRender, SimRig, SimRigOptions};
+use rigview_core::exposure::{ControllerConfig, EstimatorConfig, LawKind, LawParams, Simulation};
+use rigview_core::pipeline::{ProcessingSettings, Strategy};
+use rigview_core::sim::truth::{self, FixedPointSearch, Sweep, SweepOptions};
+use rigview_core::sim::{Event, Script, SimConfig, SimRender, SimRigOptions};
 
 /// Frames of the constant-light tail judged.
 const TAIL: usize = 20;
@@ -101,22 +99,13 @@ fn run_with_latency(config: &SimConfig, settings: ProcessingSettings, latency: O
     };
     let render = Arc::new(SimRender::new(config).unwrap());
     let view = rigview_tests::test_view(&render).unwrap();
-    let n = render.cameras().len();
-    let graph = NeighbourGraph::new(n, &render.rig().neighbours).unwrap();
-    let mut processor = Processor::new(
-        render.cameras().to_vec(),
-        Some(view.into()),
-        graph,
-        settings,
-    )
-    .unwrap();
-    processor.set_compose(false);
+    let edges = render.rig().neighbours.clone();
     let options = SimRigOptions {
         latency,
         ..Default::default()
     };
-    let source = SimRig::new(render.clone(), options).unwrap();
-    let mut lp = LockStep::new(source, processor).unwrap();
+    let mut lp = rigview_tests::sim_loop_with(&render, view, settings, &edges, options).unwrap();
+    let n = render.cameras().len();
     let mut out = Run {
         cameras: render.cameras().iter().map(|c| c.name.clone()).collect(),
         log2_e: vec![Vec::new(); n],
@@ -413,6 +402,16 @@ fn dense_sweep() -> SweepOptions {
     }
 }
 
+/// Each camera's dense sweep of `M` at the start, metering the test view's
+/// ground.
+fn start_sweeps(render: &SimRender) -> Vec<Sweep> {
+    let view = rigview_tests::test_view(render).unwrap();
+    let options = dense_sweep();
+    (0..render.cameras().len())
+        .map(|cam| truth::sweep(render, cam, 0.0, &options, view.ground_masks().get(cam)).unwrap())
+        .collect()
+}
+
 fn median(mut v: Vec<f64>) -> f64 {
     if v.is_empty() {
         return 0.0;
@@ -437,11 +436,7 @@ fn every_strategy_measured_alike() {
         ..SimConfig::preset("reference").unwrap()
     };
     let render = SimRender::new(&reference).unwrap();
-    let view = rigview_tests::test_view(&render).unwrap();
-    let options = dense_sweep();
-    let sweeps: Vec<_> = (0..render.cameras().len())
-        .map(|cam| truth::sweep(&render, cam, 0.0, &options, view.ground_masks().get(cam)).unwrap())
-        .collect();
+    let sweeps = start_sweeps(&render);
     let mut failures = Vec::new();
     println!(
         "| strategy | law | simulation | frames to settle, median (max) | overshoot, max | jitter, median (max) | M / best, min | median abs(log2 r_ij) |"
@@ -659,11 +654,7 @@ fn under_scale_and_clip_a_rig_that_starts_far_too_bright_comes_down_to_its_best(
     let mut config = SimConfig::preset("reference").unwrap();
     config.start.shutter_us = 10_000.0;
     let render = SimRender::new(&config).unwrap();
-    let view = rigview_tests::test_view(&render).unwrap();
-    let options = dense_sweep();
-    let sweeps: Vec<_> = (0..render.cameras().len())
-        .map(|cam| truth::sweep(&render, cam, 0.0, &options, view.ground_masks().get(cam)).unwrap())
-        .collect();
+    let sweeps = start_sweeps(&render);
     // Each camera's M over its best, from the median exposure of the last
     // 10 frames (probe frames left out).
     let settled = |r: &Run| -> Vec<f64> {
