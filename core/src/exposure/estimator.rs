@@ -437,41 +437,47 @@ impl Estimator {
             return false;
         }
         let inv_r = (1.0 / r) as f32;
-        let blocks = image.saturated_samples();
-        let dark_blocks = d.saturated_samples();
-        let part = |blocks: Option<&[f32]>, luma: &[f32], i: usize| -> f32 {
-            match blocks {
-                Some(f) => f[i],
-                None => f32::from(luma[i] >= SATURATED_LEVEL),
-            }
-        };
+        let (luma, dark) = (image.luma(), &d.luma()[..n]);
         let Declip {
             unsaturated,
             saturated,
             hidden,
         } = &mut self.declip;
-        unsaturated.clear();
-        saturated.clear();
-        hidden.clear();
+        unsaturated.resize(n, 0.0);
+        saturated.resize(n, 0.0);
+        hidden.resize(n, 0.0);
+        let (u, f, h) = (&mut unsaturated[..n], &mut saturated[..n], &mut hidden[..n]);
+        // Pixel by pixel without a branch or a push, so that the loops
+        // vectorise; then the sums over the pixels unsaturated in both.
+        match image.saturated_samples().filter(|b| b.len() == n) {
+            Some(blocks) => {
+                for i in 0..n {
+                    f[i] = blocks[i];
+                    u[i] = (luma[i] - f[i]).max(0.0);
+                    h[i] = (dark[i] * inv_r - u[i]).max(f[i]);
+                }
+            }
+            None => {
+                for i in 0..n {
+                    f[i] = f32::from(luma[i] >= SATURATED_LEVEL);
+                    u[i] = luma[i] * (1.0 - f[i]);
+                    h[i] = (dark[i] * inv_r - u[i]).max(f[i]);
+                }
+            }
+        }
+        let dark_saturated = |i: usize| match d.saturated_samples() {
+            Some(b) => b.get(i).copied().unwrap_or(1.0),
+            None => f32::from(dark[i] >= SATURATED_LEVEL),
+        };
         let (mut now, mut then, mut apart) = (0.0f64, 0.0f64, 0.0f64);
         for i in 0..n {
-            let v = image.luma()[i];
-            let f = part(blocks, image.luma(), i);
-            let u = if blocks.is_some() {
-                (v - f).max(0.0)
-            } else {
-                v * (1.0 - f)
-            };
-            let dv = d.luma()[i] * inv_r;
             let counts = image.weight().map_or(1.0, |w| w[i]) > 0.0;
-            if counts && f == 0.0 && part(dark_blocks, d.luma(), i) == 0.0 {
+            if counts && f[i] == 0.0 && dark_saturated(i) == 0.0 {
+                let (v, dv) = (luma[i], dark[i] * inv_r);
                 now += f64::from(v);
                 then += f64::from(dv);
                 apart += f64::from((dv - v).abs());
             }
-            unsaturated.push(u);
-            saturated.push(f);
-            hidden.push((dv - u).max(f));
         }
         now > 0.0
             && (then / now - 1.0).abs() <= DARKER_LEVEL_TOLERANCE

@@ -118,27 +118,29 @@ impl Kernel for Saturation<'_> {
             let (ic, _) = inf.as_chunks::<L>();
             let (nc, _) = nmin.as_chunks::<L>();
             let (xc, _) = nmax.as_chunks::<L>();
+            // Each condition as a factor of 0 or 1 (exact: weights and
+            // information are finite and not negative), not a branch or a
+            // select: LLVM made the selects masked stores to the stack,
+            // which stall on every next load.
+            let one = |c: bool| f32::from(u8::from(c));
             for ((((v, wt), inf), mn), mx) in vc.iter().zip(wc).zip(ic).zip(nc).zip(xc) {
                 for l in 0..L {
-                    sat[l] += if v[l] >= level { wt[l] } else { 0.0 };
-                    let texture = mn[l] >= widest && mx[l] < level;
-                    tw[l] += if texture { wt[l] } else { 0.0 };
-                    ti[l] += if texture { inf[l] } else { 0.0 };
+                    sat[l] += wt[l] * one(v[l] >= level);
+                    let texture = one((mn[l] >= widest) & (mx[l] < level));
+                    tw[l] += wt[l] * texture;
+                    ti[l] += inf[l] * texture;
                 }
             }
             for (acc, &s) in bands.iter_mut().zip(levels) {
-                *acc = [0.0; L];
+                let mut a = [0.0f32; L];
                 if s < 1.0 {
                     for (v, wt) in vc.iter().zip(wc) {
                         for l in 0..L {
-                            acc[l] += if v[l] >= s && v[l] < level {
-                                wt[l]
-                            } else {
-                                0.0
-                            };
+                            a[l] += wt[l] * one((v[l] >= s) & (v[l] < level));
                         }
                     }
                 }
+                *acc = a;
             }
             // The row's last, partial vector.
             let tail = vc.len() * L..n;

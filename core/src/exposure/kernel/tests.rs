@@ -266,3 +266,99 @@ fn short_inputs_score_zero() {
         0.0
     );
 }
+
+/// [`saturation_sums`] in double precision, pixel by pixel.
+fn reference_saturation(
+    luma: &[f32],
+    weight: Option<&[f32]>,
+    info: &[f32],
+    (w, h): (usize, usize),
+    levels: &[f32],
+    (widest, level): (f32, f32),
+) -> SaturationSumsRef {
+    let mut out = SaturationSumsRef {
+        bands: vec![0.0; levels.len()],
+        ..Default::default()
+    };
+    for y in 1..h - 1 {
+        for x in 1..w - 1 {
+            let k = y * w + x;
+            let (v, wt) = (luma[k], weight.map_or(1.0, |wt| f64::from(wt[k])));
+            let around =
+                (y - 1..=y + 1).flat_map(|r| (x - 1..=x + 1).map(move |c| luma[r * w + c]));
+            let (lo, hi) = around.fold((f32::MAX, f32::MIN), |(lo, hi), v| (lo.min(v), hi.max(v)));
+            if v >= level {
+                out.saturated += wt;
+            }
+            if lo >= widest && hi < level {
+                out.texture_weight += wt;
+                out.texture_info += f64::from(info[k]);
+            }
+            for (b, &s) in out.bands.iter_mut().zip(levels) {
+                if s < 1.0 && v >= s && v < level {
+                    *b += wt;
+                }
+            }
+        }
+    }
+    out
+}
+
+#[derive(Debug, Default)]
+struct SaturationSumsRef {
+    saturated: f64,
+    bands: Vec<f64>,
+    texture_weight: f64,
+    texture_info: f64,
+}
+
+#[test]
+fn saturation_sums_match_double_precision_on_every_isa() {
+    // Widths with and without a partial last chunk of 16 lanes; a bright
+    // image so that every sum has pixels (saturated areas, bands, texture).
+    for (w, h) in [(37, 11), (64, 9), (3, 3), (130, 40)] {
+        let luma: Vec<f32> = textured(w, h, 3 + w as u64)
+            .iter()
+            .map(|&v| (v * 1.6).min(1.0))
+            .collect();
+        let info: Vec<f32> = (0..w * h).map(|i| (i % 11) as f32 * 0.25).collect();
+        let weight: Vec<f32> = (0..w * h).map(|i| (i % 7) as f32 / 6.0).collect();
+        let levels = [0.35f32, 0.5, 0.71, 1.0, 1.41];
+        for wt in [None, Some(weight.as_slice())] {
+            let want = reference_saturation(&luma, wt, &info, (w, h), &levels, (0.3, 0.98));
+            if w * h > 100 {
+                let nonzero = want.saturated > 0.0 && want.texture_weight > 0.0;
+                assert!(
+                    nonzero && want.bands.iter().take(3).all(|&b| b > 0.0),
+                    "{want:?}"
+                );
+            }
+            for isa in Isa::available() {
+                let got = saturation_sums(isa, &luma, wt, &info, w, h, &levels, 0.3, 0.98);
+                let close = |a: f64, b: f64| (a - b).abs() <= 1e-5 * b.abs().max(1.0);
+                let what = format!("{isa:?} {w}×{h} weighted={}", wt.is_some());
+                assert!(
+                    close(got.saturated, want.saturated),
+                    "{what}: {got:?} vs {want:?}"
+                );
+                assert!(
+                    close(got.texture_weight, want.texture_weight),
+                    "{what}: {got:?}"
+                );
+                assert!(
+                    close(got.texture_info, want.texture_info),
+                    "{what}: {got:?}"
+                );
+                assert_eq!(got.bands.len(), levels.len(), "{what}");
+                for (g, r) in got.bands.iter().zip(&want.bands) {
+                    assert!(
+                        close(*g, *r),
+                        "{what}: bands {:?} vs {:?}",
+                        got.bands,
+                        want.bands
+                    );
+                }
+            }
+        }
+    }
+}
