@@ -34,10 +34,13 @@
 //!   pixels either side of a seam show different things elsewhere
 //!   (parallax). Pixels either camera
 //!   clips are left out (Eq. 5's rule), so clipped areas do not pull the
-//!   gains, and the gains only brighten, so what a camera clipped stays
-//!   white; in the panorama, whose cameras see sky and shade side by side,
-//!   a gain may not push a camera's 90th percentile past 0.95 either, so
-//!   that evening out a seam does not wash out the brighter camera. The
+//!   gains. The gains brighten only (what a camera clipped stays white),
+//!   unless that would push a camera's 90th percentile past 0.95: then all
+//!   of them move down together by what that camera lacks, so that the
+//!   seams stay even and the cameras with room are shown darker instead
+//!   of the brighter camera washed out (the panorama's cameras see sky
+//!   and shade side by side, the surround view's front camera sunlit
+//!   ground beside shaded sides). The
 //!   gains move `smoothing` of the way to the
 //!   solution each set, and hold on a set with a probe frame (it sees
 //!   patches that its camera's normal frames saturate).
@@ -127,8 +130,7 @@ pub struct DisplayInput {
     pub probe_frame: bool,
     /// The [`BRIGHT_QUANTILE`]-quantile of its metered intensities in
     /// [0, 1] (the pixels the view shows, about): a seam gain brightens
-    /// this no further than [`CLIP_LEVEL`]. 0: no such limit (the
-    /// surround view).
+    /// this no further than [`CLIP_LEVEL`]. 0: no such limit.
     pub bright: f64,
 }
 
@@ -226,22 +228,29 @@ impl DisplayGains {
             let mut target = seam_gains(n, log2_r, &ease, settings.prior);
             // Brighten only: a gain below 1 would show the pixels a camera
             // clipped as grey (a probe frame, which clips fewer, would then
-            // show them brighter than its neighbours in time).
+            // show them brighter than its neighbours in time)...
             let lowest = target.iter().copied().fold(f64::INFINITY, f64::min);
             if lowest.is_finite() {
-                target
-                    .iter_mut()
-                    .for_each(|c| *c = (*c - lowest).min(MAX_SEAM_EV));
+                target.iter_mut().for_each(|c| *c -= lowest);
             }
-            // Nor may a gain wash a camera out: one whose bright pixels
-            // would clip keeps what it shows (a camera of the panorama
-            // seeing the sky, its neighbour a dark wall).
-            for ((c, f), a) in target.iter_mut().zip(frames).zip(&ease) {
-                if f.bright > 0.0 {
-                    let room = (CLIP_LEVEL / f.bright).log2() - a;
-                    *c = c.min(room.max(0.0));
-                }
-            }
+            // ...unless that washes a camera out: no gain may push a
+            // camera's bright pixels past `CLIP_LEVEL` (a camera of the
+            // panorama seeing the sky beside a dark wall; the surround
+            // view's front camera on sunlit ground beside shaded sides).
+            // Then every gain moves down by what the tightest camera
+            // lacks: the seams stay even, and the cameras with room are
+            // shown darker (what they clipped as light grey) rather than
+            // that camera white.
+            let excess = target
+                .iter()
+                .zip(frames)
+                .zip(&ease)
+                .filter(|((_, f), _)| f.bright > 0.0)
+                .map(|((c, f), a)| c - ((CLIP_LEVEL / f.bright).log2() - a).max(0.0))
+                .fold(0.0, f64::max);
+            target
+                .iter_mut()
+                .for_each(|c| *c = (*c - excess).min(MAX_SEAM_EV));
             for (c, t) in self.seam.iter_mut().zip(target) {
                 *c += settings.smoothing * (t - *c);
             }
@@ -418,10 +427,23 @@ mod tests {
         let g = d.update(&s, &frames, &r);
         let ev = |k: usize| f64::from(g[k].seam).log2();
         // Uncapped it would be brightened by 1 EV; its 90th percentile may
-        // reach 0.95 only.
-        assert!((ev(1) - (0.95f64 / 0.8).log2()).abs() < 1e-6, "{g:?}");
-        assert!(ev(0).abs() < 1e-6, "{g:?}");
-        // Without a percentile (the surround view), the full gain.
+        // reach 0.95 only, and camera 0 is darkened by the rest: the seam
+        // is even.
+        let room = (0.95f64 / 0.8).log2();
+        assert!((ev(1) - room).abs() < 1e-6, "{g:?}");
+        assert!((ev(0) - (room - 1.0)).abs() < 1e-3, "{g:?}");
+        // A camera already at the level (no room) is not darkened for it.
+        let full = [
+            frames[0],
+            DisplayInput {
+                bright: 0.97,
+                ..frames[1]
+            },
+        ];
+        let g = DisplayGains::default().update(&s, &full, &r);
+        assert!(f64::from(g[1].seam).log2().abs() < 1e-6, "{g:?}");
+        assert!((f64::from(g[0].seam).log2() + 1.0).abs() < 1e-3, "{g:?}");
+        // Without a percentile, the full gain.
         let plain = [frame(1000.0, 0.2, false), frame(1000.0, 0.5, false)];
         let g = DisplayGains::default().update(&s, &plain, &r);
         assert!((f64::from(g[1].seam).log2() - 1.0).abs() < 0.01, "{g:?}");

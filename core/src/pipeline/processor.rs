@@ -446,11 +446,6 @@ impl Processor {
                 } else {
                     1
                 };
-                // The panorama's cameras see sky and shade side by side: a
-                // seam gain may not wash out a camera's bright part there
-                // (the surround view shows the ground, which the gains
-                // rarely clip).
-                let capped = matches!(view, View::Panorama(_));
                 // The bowl shows its own picture (with the vehicle painted
                 // over it) at the gains of the bird's-eye view's seams.
                 let bowl = view.bowl().map(|b| b.shown().clone());
@@ -464,11 +459,14 @@ impl Processor {
                         taken: c.taken.exposure(),
                         mean: f64::from(c.mean),
                         probe_frame: c.probe_frame,
-                        bright: if capped {
-                            f64::from(histogram_quantile(&c.histogram, BRIGHT_QUANTILE))
-                        } else {
-                            0.0
-                        },
+                        // A seam gain may not wash out a camera's bright
+                        // part: the panorama's cameras see sky and shade
+                        // side by side, the surround view's sunlit ground
+                        // beside a shaded neighbour (the simulated rig's
+                        // front camera, brightened 0.6 EV to its shaded
+                        // neighbours at the seams, showed its sunlit
+                        // ground white).
+                        bright: f64::from(histogram_quantile(&c.histogram, BRIGHT_QUANTILE)),
                     })
                     .collect();
                 // The seam gains even out the ratios the view shows at its
