@@ -200,6 +200,28 @@ mod tests {
         assert_eq!(last.cameras[2].manual, Some(777.0));
     }
 
+    /// The thumbnail's bytes: intensities times 255, rounded, clamped.
+    #[test]
+    fn thumbnail_bytes_round_and_clamp() {
+        let cases = [
+            (0.0, 0),
+            (1.0, 255),
+            (100.0 / 255.0, 100),
+            (100.4 / 255.0, 100),
+            (100.6 / 255.0, 101),
+            (0.5, 128),
+            (-1.0, 0),
+            (2.0, 255),
+            (f32::NAN, 0),
+        ];
+        for (v, want) in cases {
+            assert_eq!(processor::thumb_byte(v), want, "{v}");
+        }
+        for k in 0..=255u8 {
+            assert_eq!(processor::thumb_byte(f32::from(k) / 255.0), k);
+        }
+    }
+
     /// A processor whose pictures are let go takes their canvases again
     /// (the same buffers), and its pictures are those of a processor whose
     /// pictures are all held (new canvases every set): a reused canvas is

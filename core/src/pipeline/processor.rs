@@ -631,6 +631,16 @@ impl Processor {
     }
 }
 
+/// The thumbnail's byte of an intensity: `v` (clamped to [0, 1], NaN as 0)
+/// times 255, rounded to the nearest (ties to even). Adding 1.5·2²³ leaves
+/// the rounded integer in the low bits of the mantissa: that vectorises,
+/// where the saturating `as u8` ran one value at a time (3 % of the
+/// processing thread).
+pub(super) fn thumb_byte(v: f32) -> u8 {
+    let rounded = v.max(0.0).min(1.0) * 255.0 + 12_582_912.0;
+    rounded.to_bits().to_le_bytes()[0]
+}
+
 fn camera_output(
     taken: ExposureSetting,
     m: &Metered,
@@ -640,11 +650,7 @@ fn camera_output(
     last_probe: Option<ProbeEvent>,
     probe_frame: bool,
 ) -> CameraOutput {
-    let thumb = m
-        .luma()
-        .iter()
-        .map(|&v| (v.clamp(0.0, 1.0) * 255.0 + 0.5) as u8)
-        .collect();
+    let thumb = m.luma().iter().map(|&v| thumb_byte(v)).collect();
     let metered_mask = m.weight().map(|w| w.iter().map(|&v| v > 0.0).collect());
     let stats = m.stats();
     CameraOutput {
