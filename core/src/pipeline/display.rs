@@ -114,9 +114,10 @@ const SAME_SCENE_EV: f64 = 0.15;
 /// The largest display gain either way (the composer takes 1/16 to 16).
 const MAX_GAIN_EV: f64 = 4.0;
 
-/// The largest seam gain (EV): compensation evens out the residual steps
-/// that balancing leaves (tenths of an EV to about one), not the stops
-/// between cameras each under its own law, which it would blow out.
+/// The largest seam gain (EV), either way: compensation evens out the
+/// residual steps that balancing leaves (tenths of an EV to about one), not
+/// the stops between cameras each under its own law, which it would blow
+/// out (or, moved down, black out).
 const MAX_SEAM_EV: f64 = 2.0;
 
 /// One camera's frame as the display sees it.
@@ -250,7 +251,7 @@ impl DisplayGains {
                 .fold(0.0, f64::max);
             target
                 .iter_mut()
-                .for_each(|c| *c = (*c - excess).min(MAX_SEAM_EV));
+                .for_each(|c| *c = (*c - excess).clamp(-MAX_SEAM_EV, MAX_SEAM_EV));
             for (c, t) in self.seam.iter_mut().zip(target) {
                 *c += settings.smoothing * (t - *c);
             }
