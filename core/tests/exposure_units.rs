@@ -421,13 +421,17 @@ fn the_information_weighted_intensity_comes_when_asked() {
     }
     let want = (num / den).exp2();
     assert!(close(mu, want, 1e-3 * want), "μ {mu} vs {want}");
-    // Scale-and-clip's information map gives it anyway.
+    // Scale-and-clip gives it when asked too, the same from its
+    // information map (which a plain estimate fills without it).
     let mut s = Estimator::new(EstimatorConfig {
         simulation: Simulation::ScaleClip,
         ..Default::default()
     })
     .unwrap();
-    assert!(s.estimate(&image).unwrap().info_intensity.is_some());
+    assert_eq!(s.estimate(&image).unwrap().info_intensity, None);
+    let mu_s = s.estimate_with_info(&image).unwrap().info_intensity;
+    let mu_s = mu_s.expect("asked for");
+    assert!(close(mu_s, want, 1e-3 * want), "μ {mu_s} vs {want}");
     // The fast law's controller asks for it.
     assert!(g
         .estimate_with_slope(&image)

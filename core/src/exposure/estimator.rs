@@ -152,10 +152,11 @@ pub struct Estimate {
     /// The information-weighted geometric mean intensity of the image as it
     /// is, `exp(Σ m̄·ln I / Σ m̄)`: the intensity where its gradient
     /// information lies (0.5 when there is none). Computed when asked for
-    /// ([`Estimator::estimate_with_info`], [`Estimator::estimate_with_slope`])
-    /// and for scale-and-clip, whose information map gives it at no cost; a
-    /// plain γ-mapping estimate leaves it out (it makes the γ = 1 pass about
-    /// 2.5 times as long, and only the fast law uses it).
+    /// ([`Estimator::estimate_with_info`], [`Estimator::estimate_with_slope`]);
+    /// a plain estimate leaves it out (only the fast law uses it: under the
+    /// γ-mapping it makes the γ = 1 pass about 2.5 times as long, under
+    /// scale-and-clip it needs `log₂ I` of every pixel, which the
+    /// estimate does not).
     pub info_intensity: Option<f64>,
     /// `dγ̂/d ln E` measured on the image itself, when asked for
     /// ([`Estimator::estimate_with_slope`]).
@@ -207,7 +208,7 @@ pub const DARKER_MISMATCH_TOLERANCE: f64 = 0.12;
 /// What an estimate computes besides the anchors and the fit.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct EstimateOptions<'a> {
-    /// [`Estimate::info_intensity`] (scale-and-clip has it anyway).
+    /// [`Estimate::info_intensity`].
     pub intensity: bool,
     /// [`Estimate::slope`] (and the intensity).
     pub slope: bool,
@@ -299,7 +300,7 @@ impl Estimator {
     /// `M` of the image after the simulated exposure change `x` (for
     /// scale-and-clip below 1, `M_sim` of the module documentation).
     pub fn score_at(&mut self, image: &Metered, x: f64) -> f64 {
-        self.prepare(image);
+        self.prepare(image, false);
         self.current_information(image, false);
         let held = self.held_weights(image);
         let recovered = if held {
@@ -310,9 +311,10 @@ impl Estimator {
         self.score_mapped(image, x, held) + recovered.first().copied().unwrap_or(0.0)
     }
 
-    /// `M` of the image as it is and, when `with_intensity` or for
-    /// scale-and-clip, the information-weighted geometric mean intensity;
-    /// fills the information map when scale-and-clip needs it.
+    /// `M` of the image as it is and, when `with_intensity`, the
+    /// information-weighted geometric mean intensity (needs the `log₂ I` of
+    /// [`Self::prepare`]); fills the information map when scale-and-clip
+    /// needs it.
     fn current_information(&mut self, image: &Metered, with_intensity: bool) -> (f64, Option<f64>) {
         let scale_clip = self.config.simulation == Simulation::ScaleClip;
         if !with_intensity && !scale_clip {
@@ -321,7 +323,7 @@ impl Estimator {
         let map = scale_clip.then_some(&mut self.info);
         let (m, m_log2_i) = self.metric.information_with_log2(
             image.luma(),
-            &self.logs,
+            with_intensity.then_some(&self.logs[..]),
             image.width(),
             image.height(),
             image.weight(),
@@ -329,7 +331,7 @@ impl Estimator {
             map,
         );
         let intensity = if m > 0.0 { (m_log2_i / m).exp2() } else { 0.5 };
-        (m, Some(intensity))
+        (m, with_intensity.then_some(intensity))
     }
 
     /// For scale-and-clip on an image with a saturated pixel: the weights of
@@ -361,8 +363,13 @@ impl Estimator {
     }
 
     /// `log₂ I` of every pixel, floored where the largest γ anchor maps
-    /// it to the smallest normal number (`I^γ ≈ 0` below).
-    fn prepare(&mut self, image: &Metered) {
+    /// it to the smallest normal number (`I^γ ≈ 0` below), where the
+    /// γ-mapping or the information-weighted intensity needs it
+    /// (scale-and-clip's passes scale `I` itself).
+    fn prepare(&mut self, image: &Metered, with_intensity: bool) {
+        if self.config.simulation == Simulation::ScaleClip && !with_intensity {
+            return;
+        }
         let gamma_max = self.anchors.iter().copied().fold(1.0, f64::max) as f32;
         kernel::log2_map(
             self.scratch.isa(),
@@ -598,7 +605,7 @@ impl Estimator {
         with_intensity: bool,
         darker: Option<Darker<'_>>,
     ) -> Result<Estimate> {
-        self.prepare(image);
+        self.prepare(image, with_intensity);
         let (m_current, info_intensity) = self.current_information(image, with_intensity);
         let declipped = self.config.simulation == Simulation::ScaleClip
             && darker.is_some_and(|d| self.declip(image, d));

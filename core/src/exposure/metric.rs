@@ -144,20 +144,21 @@ impl GradientMetric {
     }
 
     /// `M` of the image as it is, and `Σ m̄·log₂ I` from `log2` (`log₂ I`
-    /// per pixel); each pixel's `m̄` goes to `map` when given. Without a map
-    /// or weights, the second sum takes `m̄` to about 2e-5 absolute.
+    /// per pixel; 0 without it); each pixel's `m̄` goes to `map` when given.
+    /// Without a map or weights, the second sum takes `m̄` to about 2e-5
+    /// absolute.
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn information_with_log2(
         &self,
         image: &[f32],
-        log2: &[f32],
+        log2: Option<&[f32]>,
         w: usize,
         h: usize,
         weight: Option<&[f32]>,
         scratch: &mut Scratch,
         map: Option<&mut Vec<f32>>,
     ) -> (f64, f64) {
-        if map.is_none() && weight.is_none() {
+        if let (None, None, Some(log2)) = (&map, weight, log2) {
             let (sum, dot) = kernel::sum_ln_q_and_dot(
                 scratch.isa,
                 image,
@@ -173,7 +174,7 @@ impl GradientMetric {
         let (sum, sum_log2) = kernel::information(
             scratch.isa,
             image,
-            Some(log2),
+            log2,
             w,
             h,
             weight,
