@@ -429,8 +429,12 @@ mod tests {
         let s = server.stats();
         assert_eq!(s.clients, 1);
         assert!(s.dropped > 1000, "{s:?}");
-        // Every message was sent, is queued, or was dropped and counted.
-        assert!(s.dropped + s.sent + QUEUE as u64 >= 2000 + 2, "{s:?}");
+        // Every message was sent, is queued, is in flight, or was dropped
+        // and counted. In flight: the batch the client's thread drained
+        // from its queue (at most `QUEUE`) and is still writing into the
+        // full socket, counted as sent one by one (`.ci/run` once measured 29
+        // sent and 1936 dropped here).
+        assert!(s.dropped + s.sent + 2 * QUEUE as u64 >= 2000 + 2, "{s:?}");
         drop(ws);
     }
 
