@@ -135,7 +135,11 @@ impl<'a> FrameView<'a> {
     /// indices, `y · width + x`, in the frame), in order: the values of
     /// [`FrameView::luma_at`], with the format looked at once rather than
     /// per pixel for Mono8 and RGB8.
-    pub fn for_each_luma(&self, pixels: &[u32], mut f: impl FnMut(f32)) {
+    pub fn for_each_luma<'p>(
+        &self,
+        pixels: impl IntoIterator<Item = &'p u32>,
+        mut f: impl FnMut(f32),
+    ) {
         let (w, stride, data) = (self.width, self.stride, self.data);
         let bpp = self.format.bytes_per_pixel();
         // The pixel's first byte: in packed rows at its index, with no

@@ -945,7 +945,7 @@ fn observations(overlaps: &[Overlap], frames: &[FrameView<'_>]) -> Vec<PairObser
 /// canvas; every pixel's read was a tenth of the per-set processing, and
 /// the mean of a quarter of them differs by the noise's hundredths of a
 /// grey level.
-pub(crate) const PATCH_SAMPLES: usize = 64;
+const PATCH_SAMPLES: usize = 64;
 
 /// Mean intensity in [0, 1] and saturated fraction of the pixels `idx` of a
 /// frame (8-bit formats; others are read through their luminance row), from
@@ -954,21 +954,12 @@ fn patch_stats(frame: &FrameView<'_>, idx: &[u32]) -> (f32, f32) {
     if idx.is_empty() {
         return (0.0, 0.0);
     }
-    let mut samples = [0u32; PATCH_SAMPLES];
-    let mut n = 0;
-    for (s, &p) in samples
-        .iter_mut()
-        .zip(idx.iter().step_by(idx.len().div_ceil(PATCH_SAMPLES)))
-    {
-        *s = p;
-        n += 1;
-    }
-    let idx = &samples[..n];
-    let (mut sum, mut sat) = (0.0f64, 0usize);
-    frame.for_each_luma(idx, |v| {
+    let (mut sum, mut sat, mut n) = (0.0f64, 0usize, 0usize);
+    let samples = idx.iter().step_by(idx.len().div_ceil(PATCH_SAMPLES));
+    frame.for_each_luma(samples, |v| {
         sum += f64::from(v);
         sat += usize::from(v >= crate::exposure::metering::SATURATED_LEVEL);
+        n += 1;
     });
-    let n = idx.len() as f32;
-    ((sum / idx.len() as f64) as f32, sat as f32 / n)
+    ((sum / n as f64) as f32, sat as f32 / n as f32)
 }
