@@ -251,9 +251,11 @@ fn xorshift(mut state: u64) -> impl FnMut() -> u64 {
 /// sums of RGB rows) and a width that leaves a remainder.
 #[test]
 fn one_pass_8bit_metering_equals_the_two_pass_sums() {
-    let (w, h) = (203usize, 61usize);
+    let h = 61usize;
     let mut next = xorshift(0x2545_f491_4f6c_dd1d);
-    for (format, c) in [(PixelFormat::Mono8, 1), (PixelFormat::Rgb8, 3)] {
+    // Rows of whole and of partial 32-column steps (the Mono8 4×4 kernel).
+    let cases = [(PixelFormat::Mono8, 1, 203), (PixelFormat::Mono8, 1, 256)];
+    for (format, c, w) in cases.into_iter().chain([(PixelFormat::Rgb8, 3, 203)]) {
         // A third of the samples saturated (250–255), the rest anywhere.
         let data: Vec<u8> = (0..w * h * c)
             .map(|_| {
@@ -347,6 +349,38 @@ fn blocked_statistics_equal_the_one_by_one_sums() {
             assert!(whole.saturated_fraction > 0.1 && whole.dark_fraction > 0.1);
         }
     }
+}
+
+/// Values outside [0, 1] and at the bins' edges fall in the bins of the
+/// saturating conversion the histogram was first taken with.
+#[test]
+fn histogram_bins_of_edge_values() {
+    let edges = [
+        f32::NAN,
+        f32::NEG_INFINITY,
+        -0.5,
+        -0.0,
+        1.0 / 256.0 - f32::EPSILON / 4.0,
+        1.0 / 256.0,
+        0.5,
+        255.0 / 256.0,
+        1.0 - f32::EPSILON / 2.0,
+        1.0,
+        2.0,
+        f32::INFINITY,
+    ];
+    let values: Vec<f32> = edges
+        .iter()
+        .cycle()
+        .take(5 * edges.len() + 3)
+        .copied()
+        .collect();
+    let mut expected = vec![0u32; HISTOGRAM_BINS];
+    for &v in &values {
+        expected[((v * HISTOGRAM_BINS as f32) as usize).min(HISTOGRAM_BINS - 1)] += 1;
+    }
+    assert_eq!(ImageStats::from_slice(&values).histogram, expected);
+    assert!(expected[0] > 0 && expected[HISTOGRAM_BINS - 1] > 0 && expected[128] > 0);
 }
 
 /// Frames metered through the `f32` rows (Bayer mosaics, 12- and 16-bit
