@@ -119,6 +119,40 @@ fn a_headless_run_on_the_simulated_rig_writes_all_its_outputs() {
     );
 }
 
+/// `RIGVIEW_ISA` caps the kernels' instruction set (to measure what a
+/// narrower CPU runs), and the summary says which ran; a value that names
+/// no set is reported and ignored.
+#[test]
+fn the_instruction_set_can_be_capped_and_is_reported() {
+    let dir = tempfile::tempdir().unwrap();
+    let cap = |value: &str| {
+        let out = dir.path().join(value);
+        let o = Command::new(env!("CARGO_BIN_EXE_rigview"))
+            .args(["run", "--headless", "--scale", "0.25", "--frames", "3"])
+            .args(["--settings", dir.path().join("none.toml").to_str().unwrap()])
+            .args(["--out", out.to_str().unwrap()])
+            .env("RIGVIEW_ISA", value)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let summary = std::fs::read_to_string(out.join("summary.txt")).unwrap();
+        let kernels = summary
+            .lines()
+            .find_map(|l| l.strip_prefix("kernels: "))
+            .unwrap_or_else(|| panic!("{summary}"))
+            .to_owned();
+        (kernels, String::from_utf8_lossy(&o.stderr).into_owned())
+    };
+    let (kernels, _) = cap("baseline");
+    assert!(kernels.starts_with("baseline"), "{kernels}");
+    let (kernels, stderr) = cap("sse9");
+    assert!(!kernels.starts_with("baseline") || !cfg!(target_arch = "x86_64"));
+    assert!(
+        stderr.contains("RIGVIEW_ISA=\"sse9\" is not an instruction set"),
+        "{stderr}"
+    );
+}
+
 #[test]
 fn a_headless_run_is_repeatable_in_lock_step() {
     let a = tempfile::tempdir().unwrap();

@@ -20,6 +20,9 @@
 
 use std::sync::OnceLock;
 
+/// The environment variable that caps the detected set ([`Isa::detect`]).
+pub const ISA_VAR: &str = "RIGVIEW_ISA";
+
 /// A vector instruction set; narrower sets order first.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub enum Isa {
@@ -37,27 +40,67 @@ impl Isa {
     /// Every set, narrowest first.
     pub const ALL: [Isa; 4] = [Isa::Baseline, Isa::Bmi2, Isa::Avx2, Isa::Avx512];
 
-    /// The widest set this CPU supports (detected once).
+    /// The widest set this CPU supports (detected once), capped by the
+    /// environment variable `RIGVIEW_ISA` when it names a set (`baseline`,
+    /// `bmi2`, `avx2`, `avx512`): an AVX-512 machine then runs, and
+    /// measures, what an AVX2-only one would. Another value is reported
+    /// on standard error and ignored.
     pub fn detect() -> Self {
         static DETECTED: OnceLock<Isa> = OnceLock::new();
         *DETECTED.get_or_init(|| {
-            #[cfg(target_arch = "x86_64")]
-            {
-                use std::arch::is_x86_feature_detected as has;
-                let bmi2 = has!("bmi2");
-                let avx2 = bmi2 && has!("avx2") && has!("fma");
-                if avx2 && has!("avx512f") {
-                    return Isa::Avx512;
-                }
-                if avx2 {
-                    return Isa::Avx2;
-                }
-                if bmi2 {
-                    return Isa::Bmi2;
-                }
+            let cpu = Self::detect_cpu();
+            match std::env::var(ISA_VAR) {
+                Ok(v) => match Self::from_name(v.trim()) {
+                    Some(cap) => cpu.min(cap),
+                    None => {
+                        eprintln!(
+                            "rigview: {ISA_VAR}={v:?} is not an instruction set (baseline, bmi2, avx2 or avx512); using {}",
+                            cpu.name()
+                        );
+                        cpu
+                    }
+                },
+                Err(_) => cpu,
             }
-            Isa::Baseline
         })
+    }
+
+    /// The set named `name` ([`Isa::name`], any case).
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::ALL
+            .into_iter()
+            .find(|isa| isa.name().eq_ignore_ascii_case(name))
+    }
+
+    /// The widest set the CPU has, whatever `RIGVIEW_ISA` says.
+    pub fn detect_cpu() -> Self {
+        #[cfg(target_arch = "x86_64")]
+        {
+            use std::arch::is_x86_feature_detected as has;
+            let bmi2 = has!("bmi2");
+            let avx2 = bmi2 && has!("avx2") && has!("fma");
+            if avx2 && has!("avx512f") {
+                return Isa::Avx512;
+            }
+            if avx2 {
+                return Isa::Avx2;
+            }
+            if bmi2 {
+                return Isa::Bmi2;
+            }
+        }
+        Isa::Baseline
+    }
+
+    /// What the kernels run, for a report: the set, and the CPU's own
+    /// where `RIGVIEW_ISA` capped it.
+    pub fn describe() -> String {
+        let (isa, cpu) = (Self::detect(), Self::detect_cpu());
+        if isa == cpu {
+            isa.name().to_owned()
+        } else {
+            format!("{} (the CPU has {}; {ISA_VAR})", isa.name(), cpu.name())
+        }
     }
 
     /// Every set this CPU can run, narrowest first.
@@ -85,6 +128,18 @@ impl Isa {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn every_set_is_found_by_its_name_and_nothing_else_is() {
+        for isa in Isa::ALL {
+            assert_eq!(Isa::from_name(isa.name()), Some(isa));
+            assert_eq!(Isa::from_name(&isa.name().to_uppercase()), Some(isa));
+        }
+        for other in ["", "sse2", "avx", "avx-512", "neon"] {
+            assert_eq!(Isa::from_name(other), None, "{other:?}");
+        }
+        assert!(Isa::detect() <= Isa::detect_cpu());
+    }
 
     #[test]
     fn the_sets_form_a_ladder_capped_at_the_detected_one() {

@@ -198,6 +198,7 @@ pub fn run(
     if let Some(c) = cpu.cores() {
         summary += &format!("\nCPU use: {c:.2} cores");
     }
+    summary += &format!("\nkernels: {}", rigview_core::cpu::Isa::describe());
     if let Some(s) = &session.serving {
         let (server, published) = s.stats();
         summary += &format!(
