@@ -16,7 +16,9 @@
 //! asked for ([`Isa::supported`] caps the request at what the CPU has):
 //! the exposure kernels run `Bmi2` as `Baseline`, the remap runs `Avx512`
 //! as `Avx2`. Tests and benchmarks force a narrower set to compare the
-//! code of every set ([`Isa::available`]).
+//! code of every set ([`Isa::available`]); the environment variable
+//! `RIGVIEW_ISA` caps the set a whole process detects ([`Isa::detect`]),
+//! to measure on a wide machine what a narrower one runs.
 
 use std::sync::OnceLock;
 
