@@ -75,15 +75,16 @@ fn every_strategy_ends_on_the_level_nearest_its_fixed_point() {
     // weigh a rest that is not on the nearest level.
     let view = closed_loop::eval_view(&render).unwrap();
     let sweep = SweepOptions {
-        lo: spec.levels[0] / 2.0,
-        hi: spec.levels[spec.levels.len() - 1] * 2.0,
-        steps: 9,
+        lo: spec.levels[0],
+        hi: spec.levels[spec.levels.len() - 1],
+        steps: spec.levels.len(),
         ..Default::default()
     };
     let level_m: Vec<Vec<f64>> = (0..render.cameras().len())
         .map(|cam| {
-            let s = truth::sweep(&render, cam, 0.0, &sweep, view.ground_masks().get(cam)).unwrap();
-            spec.levels.iter().map(|&l| s.score_at(l)).collect()
+            truth::sweep(&render, cam, 0.0, &sweep, view.ground_masks().get(cam))
+                .unwrap()
+                .scores
         })
         .collect();
     let m_at = |cam: usize, log2_e: f64| {

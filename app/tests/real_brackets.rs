@@ -122,12 +122,11 @@ fn real_frames_under_balancing_neither_circle_nor_whiten_the_view() {
         .max()
         .unwrap();
     let canvas = image::open(&view).unwrap().to_luma8();
-    let lit: Vec<u8> = canvas.pixels().map(|p| p.0[0]).filter(|&v| v > 0).collect();
+    let mut lit: Vec<u8> = canvas.pixels().map(|p| p.0[0]).filter(|&v| v > 0).collect();
     let white = lit.iter().filter(|&&v| v >= WHITE).count() as f64 / lit.len() as f64;
     let mean = lit.iter().map(|&v| f64::from(v)).sum::<f64>() / lit.len() as f64;
-    let mut sorted = lit.clone();
-    sorted.sort_unstable();
-    let pct = |q: f64| sorted[((sorted.len() - 1) as f64 * q) as usize];
+    lit.sort_unstable();
+    let pct = |q: f64| lit[((lit.len() - 1) as f64 * q) as usize];
     println!(
         "view {}: mean {mean:.1}, 90th percentile {}, 99th {}; {:.2} % of the shown pixels near white, against {:.2} % of the frames' pixels",
         view.display(),

@@ -874,14 +874,10 @@ impl FusedScratch {
         #[cfg(target_arch = "x86_64")]
         if rows.c == 1 && rows.k == 4 && crate::cpu::Isa::detect() >= crate::cpu::Isa::Avx2 {
             let width = 4 * out.len();
-            let mut quad = rows.rows.clone().map(|y| rows.frame.row(y).get(..width));
-            if let (Some(Some(r0)), Some(Some(r1)), Some(Some(r2)), Some(Some(r3)), None) = (
-                quad.next(),
-                quad.next(),
-                quad.next(),
-                quad.next(),
-                quad.next(),
-            ) {
+            let row = |i: usize| rows.frame.row(rows.rows.start + i).get(..width);
+            if let (4, Some(r0), Some(r1), Some(r2), Some(r3)) =
+                (rows.rows.len(), row(0), row(1), row(2), row(3))
+            {
                 // SAFETY: `detect` reports AVX2 only when the CPU has it.
                 #[allow(unsafe_code)]
                 unsafe {
