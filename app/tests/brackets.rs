@@ -103,20 +103,7 @@ fn every_strategy_settles_on_brackets_where_it_settles_on_the_simulator() {
     // and every sweep's best is a bracket's level; balancing brings the
     // overlaps closer than each camera alone, as on the simulator.
     let out = dir.path().join("eval");
-    common::rigview(
-        &[
-            "eval",
-            "--preset",
-            "quick",
-            "--brackets",
-            dir.path().to_str().unwrap(),
-            "--bracket-mode",
-            "nearest",
-            "--out",
-            out.to_str().unwrap(),
-        ],
-        dir.path(),
-    );
+    eval_quick(dir.path(), &out, &["--bracket-mode", "nearest"], dir.path());
     let is_level = |v: f64| spec.levels.iter().any(|l| (l.log2() - v).abs() < 1e-3);
     let (h, rows) = common::csv(&out.join("fig3_settled.csv"));
     assert_eq!(rows.len(), 4 * 12, "{h:?}");
@@ -150,24 +137,34 @@ fn every_strategy_settles_on_brackets_where_it_settles_on_the_simulator() {
     emulated_evaluation(dir.path());
 }
 
+/// `rigview eval --preset quick --brackets folder --out out` with `extra`
+/// options, run in `cwd`.
+fn eval_quick(
+    folder: &std::path::Path,
+    out: &std::path::Path,
+    extra: &[&str],
+    cwd: &std::path::Path,
+) {
+    let mut args = vec![
+        "eval",
+        "--preset",
+        "quick",
+        "--brackets",
+        folder.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    args.extend_from_slice(extra);
+    common::rigview(&args, cwd);
+}
+
 /// `rigview eval --brackets DIR` in its default mode, emulation: M(E)
 /// swept densely (0.1 EV over the brackets' span widened by 1 EV each
 /// side), every strategy from the common start, with the frames it took
 /// to settle and its flicker at rest.
 fn emulated_evaluation(dir: &std::path::Path) {
     let out = dir.join("eval-emulated");
-    common::rigview(
-        &[
-            "eval",
-            "--preset",
-            "quick",
-            "--brackets",
-            dir.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-        ],
-        dir,
-    );
+    eval_quick(dir, &out, &[], dir);
     // 2^6 to 2^14 µs at 0.1 EV: 81 exposures per camera (fewer where the
     // last moment's radiance spans less).
     let (_, rows) = common::csv(&out.join("fig3_m_vs_exposure.csv"));
@@ -195,6 +192,90 @@ fn emulated_evaluation(dir: &std::path::Path) {
     }
     let html = std::fs::read_to_string(out.join("report.html")).unwrap();
     assert!(html.contains("From the start") && html.contains("emulated"));
+    // The surround rig has no stereo pair: no stereo file, no link to one.
+    assert!(!out.join("fig3_stereo.csv").exists());
+    assert!(!html.contains("fig3_stereo.csv"));
+}
+
+/// `rigview eval --brackets DIR` on a forward stereo pair (the lawn seen by
+/// `assets/stereo-front.rig.yaml`, brackets 1 EV apart from 2^8 to 2^14
+/// µs): the valid stereo disparities where each strategy settled are in
+/// `fig3_stereo.csv` and the summary. The fixed exposure, left where the
+/// sequence starts it (1.8 EV above the best M here), keeps fewer than
+/// every gradient law and mean AE.
+#[test]
+fn eval_on_a_stereo_pair_reports_its_disparities() {
+    let dir = tempfile::tempdir().unwrap();
+    let scenario = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../assets/sim/lawn-stereo.sim.yaml");
+    let folder = dir.path().join("brackets");
+    common::rigview(
+        &[
+            "eval",
+            "export-brackets",
+            "--scenario",
+            scenario.to_str().unwrap(),
+            "--frames",
+            "20",
+            "--exposures",
+            "7",
+            "--range-ev",
+            "8:14",
+            "--bits",
+            "12",
+            "--out",
+            folder.to_str().unwrap(),
+        ],
+        dir.path(),
+    );
+    let out = dir.path().join("eval");
+    eval_quick(&folder, &out, &[], dir.path());
+    let (h, rows) = common::csv(&out.join("fig3_stereo.csv"));
+    assert_eq!(
+        h,
+        [
+            "preset",
+            "strategy",
+            "camera_left",
+            "camera_right",
+            "density"
+        ]
+    );
+    assert_eq!(rows.len(), 12, "a row per strategy but the compensated one");
+    let density = |key: &str| -> f64 {
+        let r = rows.iter().find(|r| r[1] == key).unwrap();
+        assert_eq!(
+            (r[2].as_str(), r[3].as_str()),
+            ("stereo_left", "stereo_right")
+        );
+        r[4].parse().unwrap()
+    };
+    for r in &rows {
+        println!("{:>22}: {} of the view with a disparity", r[1], r[4]);
+    }
+    let fixed = density("fixed");
+    assert!(fixed > 0.0);
+    for key in [
+        "linear",
+        "nonlinear",
+        "fast",
+        "multi",
+        "linear/scale-clip",
+        "nonlinear/scale-clip",
+        "fast/scale-clip",
+        "multi/scale-clip",
+        "mean",
+    ] {
+        let d = density(key);
+        assert!(
+            d <= 1.0 && d > 1.5 * fixed,
+            "{key}: {d} against fixed {fixed}"
+        );
+    }
+    let headline = std::fs::read_to_string(out.join("headline.md")).unwrap();
+    assert!(headline.contains("valid stereo disparities"));
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert!(html.contains("fig3_stereo.csv"));
 }
 
 /// `rigview run --headless --source brackets:DIR` (emulated, the default)

@@ -15,10 +15,15 @@
 //! - **across overlaps**: per overlap, the inliers of the panorama's
 //!   matching ([`Panorama::match_pairs`]): corners both cameras see well
 //!   enough to match each other.
+//! - **stereo**: per stereo pair of the rig (two cameras side by side,
+//!   [`stereo_pairs`]), the share of the rectified view with a valid
+//!   disparity from OpenCV's `StereoSGBM` ([`StereoRectifier`]): what a
+//!   depth consumer gets. The reference surround rig has no pair.
 
 use anyhow::{Context, Result};
 use rigview_calib::rig::Rig;
 use rigview_calib::tools::corners::{harris_corners, HarrisParams};
+use rigview_calib::tools::stereo::{stereo_pairs, StereoRectifier};
 use rigview_core::features::{match_mutual_where, Descriptor, Smoothed};
 use rigview_core::image::FrameView;
 use rigview_core::panorama::{MatchOptions, Panorama, PanoramaOptions};
@@ -51,6 +56,9 @@ pub struct SetFeatures {
     /// Per overlap (the panorama's bands, in order): cameras `i`, `j` and
     /// RANSAC's inliers.
     pub overlaps: Vec<(usize, usize, usize)>,
+    /// Per stereo pair: left and right camera and the share of valid
+    /// disparities.
+    pub stereo: Vec<(usize, usize, f64)>,
 }
 
 /// Measures [`SetFeatures`] set after set (module documentation).
@@ -59,6 +67,7 @@ pub struct FeatureMeter {
     panorama: Panorama,
     params: HarrisParams,
     previous: Vec<Option<Described>>,
+    stereo: Vec<StereoRectifier>,
 }
 
 impl FeatureMeter {
@@ -73,10 +82,22 @@ impl FeatureMeter {
         };
         let panorama = Panorama::build(rig, &settings.spec(), &PanoramaOptions::default())
             .context("building the panorama whose overlaps are matched")?;
+        let stereo = stereo_pairs(rig)
+            .into_iter()
+            .map(|(l, r)| {
+                StereoRectifier::new(rig, l, r).with_context(|| {
+                    format!(
+                        "rectifying the stereo pair {} and {}",
+                        rig.cameras[l].name, rig.cameras[r].name
+                    )
+                })
+            })
+            .collect::<Result<_>>()?;
         Ok(Self {
             panorama,
             params: HarrisParams::default(),
             previous: Vec::new(),
+            stereo,
         })
     }
 
@@ -102,12 +123,18 @@ impl FeatureMeter {
         }
     }
 
+    /// The rig's stereo pairs (left, right camera).
+    pub fn stereo_pairs(&self) -> Vec<(usize, usize)> {
+        self.stereo.iter().map(|s| (s.left, s.right)).collect()
+    }
+
     /// Measures one complete set (one frame per camera, rig order).
     pub fn observe(&mut self, frames: &[FrameView<'_>]) -> Result<SetFeatures> {
         self.previous.resize_with(frames.len(), || None);
+        let greys: Vec<Vec<u8>> = frames.iter().map(grey).collect();
         let mut tracked = Vec::with_capacity(frames.len());
         for (k, frame) in frames.iter().enumerate() {
-            let now = describe(frame, &self.params)
+            let now = describe(frame, &greys[k], &self.params)
                 .with_context(|| format!("the corners of camera {k}'s frame"))?;
             tracked.push(
                 self.previous[k]
@@ -124,19 +151,35 @@ impl FeatureMeter {
                 &MatchOptions::default(),
             )
             .context("matching the overlaps")?;
+        let mut stereo = Vec::with_capacity(self.stereo.len());
+        for s in &self.stereo {
+            let (Some(l), Some(r)) = (greys.get(s.left), greys.get(s.right)) else {
+                anyhow::bail!(
+                    "a set of {} frames for a stereo pair of cameras {} and {}",
+                    frames.len(),
+                    s.left,
+                    s.right
+                );
+            };
+            let d = s.disparities(l, r).with_context(|| {
+                format!("the disparities of cameras {} and {}", s.left, s.right)
+            })?;
+            stereo.push((s.left, s.right, d.density()));
+        }
         Ok(SetFeatures {
             tracked,
             overlaps: pairs.iter().map(|p| (p.i, p.j, p.inliers)).collect(),
+            stereo,
         })
     }
 }
 
-/// The corners of `frame` and their descriptors.
-fn describe(frame: &FrameView<'_>, params: &HarrisParams) -> Result<Described> {
+/// The corners of `frame` (`gray`, as [`grey`] gives it) and their
+/// descriptors.
+fn describe(frame: &FrameView<'_>, gray: &[u8], params: &HarrisParams) -> Result<Described> {
     let (w, h) = (frame.width(), frame.height());
-    let gray = grey(frame);
-    let corners = harris_corners(&gray, w, h, None, params)?;
-    let smoothed = Smoothed::new(&gray, w, h)?;
+    let corners = harris_corners(gray, w, h, None, params)?;
+    let smoothed = Smoothed::new(gray, w, h)?;
     let (points, descriptors) = corners
         .iter()
         .zip(smoothed.describe_all(&corners))
@@ -178,6 +221,37 @@ impl OverlapFeatures {
     }
 }
 
+/// The valid stereo disparities of one pair where a strategy settled.
+#[derive(Clone, Debug, PartialEq)]
+pub struct StereoDensity {
+    /// The preset.
+    pub preset: String,
+    /// The strategy.
+    pub strategy: EvalStrategy,
+    /// The pair's cameras' names, left and right.
+    pub cameras: (String, String),
+    /// The share of the rectified view with a valid disparity, mean per
+    /// set.
+    pub density: f64,
+}
+
+impl StereoDensity {
+    /// The CSV header.
+    pub const HEADER: &'static str = "preset,strategy,camera_left,camera_right,density";
+
+    /// A CSV line.
+    pub fn csv(&self) -> String {
+        format!(
+            "{},{},{},{},{:.4}",
+            self.preset,
+            self.strategy.key(),
+            self.cameras.0,
+            self.cameras.1,
+            self.density
+        )
+    }
+}
+
 /// The downstream measures of a run's measured sets.
 #[derive(Debug)]
 pub struct Downstream<'a>(&'a [SetFeatures]);
@@ -200,6 +274,29 @@ impl<'a> Downstream<'a> {
         mean(&v)
     }
 
+    /// Per pair of cameras that `of` lists for a set (in the same order
+    /// every set), the cameras' names and the mean of its figure over the
+    /// sets.
+    fn per_pair(
+        &self,
+        names: &[String],
+        of: impl Fn(&SetFeatures) -> Vec<(usize, usize, f64)>,
+    ) -> Vec<((String, String), f64)> {
+        let Some(first) = self.0.first() else {
+            return Vec::new();
+        };
+        let name = |k: usize| names.get(k).cloned().unwrap_or_else(|| k.to_string());
+        let sets: Vec<_> = self.0.iter().map(&of).collect();
+        of(first)
+            .iter()
+            .enumerate()
+            .map(|(p, &(i, j, _))| {
+                let v: Vec<f64> = sets.iter().filter_map(|s| s.get(p)).map(|x| x.2).collect();
+                ((name(i), name(j)), mean(&v))
+            })
+            .collect()
+    }
+
     /// Inliers across each overlap, mean per set, for the rows of
     /// `preset` under `strategy`; `names` are the cameras'.
     pub fn overlaps(
@@ -208,27 +305,37 @@ impl<'a> Downstream<'a> {
         strategy: EvalStrategy,
         names: &[String],
     ) -> Vec<OverlapFeatures> {
-        let Some(first) = self.0.first() else {
-            return Vec::new();
-        };
-        let name = |k: usize| names.get(k).cloned().unwrap_or_else(|| k.to_string());
-        first
-            .overlaps
-            .iter()
-            .enumerate()
-            .map(|(o, &(i, j, _))| {
-                let inliers: Vec<f64> = self
-                    .0
-                    .iter()
-                    .filter_map(|m| m.overlaps.get(o))
-                    .map(|x| x.2 as f64)
-                    .collect();
-                OverlapFeatures {
-                    preset: preset.to_string(),
-                    strategy,
-                    cameras: (name(i), name(j)),
-                    inliers: mean(&inliers),
-                }
+        self.per_pair(names, |m| {
+            m.overlaps
+                .iter()
+                .map(|&(i, j, n)| (i, j, n as f64))
+                .collect()
+        })
+        .into_iter()
+        .map(|(cameras, inliers)| OverlapFeatures {
+            preset: preset.to_string(),
+            strategy,
+            cameras,
+            inliers,
+        })
+        .collect()
+    }
+
+    /// The valid stereo disparities of each pair, mean per set, for the
+    /// rows of `preset` under `strategy`; `names` are the cameras'.
+    pub fn stereo(
+        &self,
+        preset: &str,
+        strategy: EvalStrategy,
+        names: &[String],
+    ) -> Vec<StereoDensity> {
+        self.per_pair(names, |m| m.stereo.clone())
+            .into_iter()
+            .map(|(cameras, density)| StereoDensity {
+                preset: preset.to_string(),
+                strategy,
+                cameras,
+                density,
             })
             .collect()
     }
@@ -283,7 +390,7 @@ mod tests {
 
     fn described(data: &[u8], w: usize, h: usize) -> Described {
         let frame = FrameView::new(PixelFormat::Mono8, w, h, data).unwrap();
-        describe(&frame, &HarrisParams::default()).unwrap()
+        describe(&frame, &grey(&frame), &HarrisParams::default()).unwrap()
     }
 
     #[test]

@@ -521,6 +521,10 @@ pub fn report(r: &Results, out: &Path) -> Result<String> {
     for f in files::ALL.iter().filter(|f| f.ends_with(".csv")) {
         let _ = write!(h, "<a href=\"{f}\">{f}</a> ");
     }
+    if !r.sweep.stereo.is_empty() {
+        let f = files::STEREO_CSV;
+        let _ = write!(h, "<a href=\"{f}\">{f}</a> ");
+    }
     h += "</p>\n</body></html>\n";
     Ok(h)
 }

@@ -248,6 +248,10 @@ pub mod files {
     /// Experiment 3's features matched across the overlaps where each
     /// strategy settled.
     pub const OVERLAP_FEATURES_CSV: &str = "fig3_overlap_features.csv";
+    /// Experiment 3's valid stereo disparities of each stereo pair where
+    /// each strategy settled (not in [`ALL`]: written only for a rig with
+    /// a pair).
+    pub const STEREO_CSV: &str = "fig3_stereo.csv";
     /// Experiment 4's histograms.
     pub const HIST_PNG: &str = "fig4_seam_histograms.png";
     /// Experiment 4's histograms, data.

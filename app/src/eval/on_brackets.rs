@@ -7,8 +7,8 @@
 //!   frames every [`SWEEP_STEP_EV`] over the exposures the source offers,
 //!   in `nearest` mode the brackets themselves; where each strategy settles
 //!   (the median log2 E of its last frames) marked, with the corners it
-//!   keeps tracked and matched across the overlaps there
-//!   ([`super::downstream`]).
+//!   keeps tracked and matched across the overlaps there, and the valid
+//!   disparities of any stereo pair of the rig ([`super::downstream`]).
 //! - **From the start** ([`super::start`]): frames to settle from the
 //!   common start, the overshoot on the way, and the flicker at rest.
 //! - **Experiments 4 and 6**: the closed loop on the sequence with the view
@@ -153,6 +153,7 @@ pub fn run(plan: &Plan, dir: &Path, mode: BracketMode, out: &Path) -> Result<Res
     let mut settled = Vec::new();
     let mut start = Vec::new();
     let mut overlaps = Vec::new();
+    let mut stereo = Vec::new();
     let mut runs = Vec::new();
     let mut meter = FeatureMeter::new(&rig, plan.sweep.canvas)?;
     for strategy in STRATEGIES {
@@ -189,6 +190,7 @@ pub fn run(plan: &Plan, dir: &Path, mode: BracketMode, out: &Path) -> Result<Res
         }
         if strategy != EvalStrategy::MultiComp {
             overlaps.extend(downstream.overlaps(NAME, strategy, &names));
+            stereo.extend(downstream.stereo(NAME, strategy, &names));
         }
         start.extend(StartRow::of(strategy, &trace, &names));
         let canvas = trace
@@ -211,6 +213,7 @@ pub fn run(plan: &Plan, dir: &Path, mode: BracketMode, out: &Path) -> Result<Res
             sweeps,
             settled,
             overlaps,
+            stereo,
         },
         seams: SeamsResult {
             runs,

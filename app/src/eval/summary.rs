@@ -9,12 +9,13 @@ use super::strategy::EvalStrategy;
 use super::Results;
 
 /// The columns: what each figure is, with its unit.
-pub const COLUMNS: [&str; 8] = [
+pub const COLUMNS: [&str; 9] = [
     "steps of light: frames to settle (median)",
     "steps of light: largest overshoot (EV)",
     "settled M / best (mean)",
     "settled: corners tracked frame to frame (mean per camera)",
     "settled: corners matched across an overlap (mean)",
+    "settled: valid stereo disparities (share, mean over pairs)",
     "surround: mean abs log2 r_ij in the images (EV)",
     "surround: as the view shows it (EV)",
     "panorama: mean abs log2 r_ij, matched patches (EV)",
@@ -50,6 +51,7 @@ pub fn rows(r: &Results) -> Vec<(EvalStrategy, Vec<String>)> {
             let m = Some(r.sweep.mean_fraction(s));
             let tracked = Some(r.sweep.mean_tracked(s));
             let inliers = Some(r.sweep.mean_inliers(s));
+            let stereo = Some(r.sweep.mean_stereo(s));
             let seams: Vec<_> = r
                 .seams
                 .runs
@@ -68,6 +70,7 @@ pub fn rows(r: &Results) -> Vec<(EvalStrategy, Vec<String>)> {
                 cell(m, &|v| format!("{:.1} %", 100.0 * v)),
                 cell(tracked, &|v| format!("{v:.0}")),
                 cell(inliers, &|v| format!("{v:.0}")),
+                cell(stereo, &|v| format!("{:.1} %", 100.0 * v)),
                 cell(mean(|x| x.mean_images), &|v| format!("{v:.2}")),
                 cell(mean(|x| x.mean_view), &|v| format!("{v:.2}")),
                 cell(panorama, &|v| format!("{v:.2}")),

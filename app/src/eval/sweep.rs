@@ -13,7 +13,7 @@ use rigview_core::sim::truth::{self, Sweep, SweepOptions};
 use rigview_core::sim::{SimConfig, SimRender};
 
 use super::closed_loop;
-use super::downstream::{Downstream, FeatureMeter, OverlapFeatures};
+use super::downstream::{Downstream, FeatureMeter, OverlapFeatures, StereoDensity};
 use super::strategy::EvalStrategy;
 use crate::report::mean;
 
@@ -105,6 +105,9 @@ pub struct SweepResult {
     pub settled: Vec<Settled>,
     /// Features matched across each overlap over the tail.
     pub overlaps: Vec<OverlapFeatures>,
+    /// Valid disparities of each stereo pair over the tail (none on a rig
+    /// without a pair).
+    pub stereo: Vec<StereoDensity>,
 }
 
 /// Work units of one preset (sweep levels and closed-loop sets).
@@ -166,6 +169,8 @@ pub fn run(
             let downstream = Downstream::of(&measured);
             out.overlaps
                 .extend(downstream.overlaps(preset, strategy, &names));
+            out.stereo
+                .extend(downstream.stereo(preset, strategy, &names));
             for (cam, s) in out.sweeps[first..].iter().enumerate() {
                 let log2_e = trace.settled(cam, plan.tail);
                 let m = s.sweep.score_at(log2_e.exp2());
@@ -217,6 +222,18 @@ impl SweepResult {
             .iter()
             .filter(|o| o.strategy == strategy)
             .map(|o| o.inliers)
+            .collect();
+        mean(&v)
+    }
+
+    /// The share of valid stereo disparities where `strategy` settled,
+    /// mean over every pair and preset (NaN on a rig without a pair).
+    pub fn mean_stereo(&self, strategy: EvalStrategy) -> f64 {
+        let v: Vec<f64> = self
+            .stereo
+            .iter()
+            .filter(|o| o.strategy == strategy)
+            .map(|o| o.density)
             .collect();
         mean(&v)
     }

@@ -250,6 +250,14 @@ fn write_sweep(r: &Results, out: &Path) -> Result<()> {
         downstream::OverlapFeatures::HEADER,
         sw.overlaps.iter().map(downstream::OverlapFeatures::csv),
     )?;
+    if !sw.stereo.is_empty() {
+        write_csv(
+            out,
+            files::STEREO_CSV,
+            downstream::StereoDensity::HEADER,
+            sw.stereo.iter().map(downstream::StereoDensity::csv),
+        )?;
+    }
     let panels: Vec<Panel> = sw
         .sweeps
         .iter()

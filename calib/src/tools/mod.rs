@@ -7,6 +7,7 @@ pub mod corners;
 pub mod ground;
 pub mod intrinsics;
 pub mod render;
+pub mod stereo;
 
 use std::path::Path;
 
