@@ -240,11 +240,12 @@ pub fn report(r: &Results, out: &Path) -> Result<String> {
     // Headline table.
     h += "<h2>Headline figures</h2>\n<h3>Summary: one row per strategy (· where an experiment \
           did not run it; the tables below break each figure down)</h3>\n<table><tr><th>strategy</th>";
-    for c in summary::COLUMNS {
+    let (columns, rows) = summary::shown(r);
+    for c in columns {
         let _ = write!(h, "<th>{}</th>", escape(c));
     }
     h += "</tr>\n";
-    for (s, cells) in summary::rows(r) {
+    for (s, cells) in rows {
         let _ = write!(h, "<tr><td>{}</td>", swatch(s));
         for c in cells {
             let _ = write!(h, "<td>{}</td>", escape(&c));

@@ -80,16 +80,44 @@ pub fn rows(r: &Results) -> Vec<(EvalStrategy, Vec<String>)> {
         .collect()
 }
 
-/// The summary as a Markdown table.
+/// The summary as shown: the columns with a figure for some strategy (a
+/// rig without a stereo pair has no stereo column, a bracket sequence no
+/// panorama column) and every row's cells in them.
+pub fn shown(r: &Results) -> (Vec<&'static str>, Vec<(EvalStrategy, Vec<String>)>) {
+    let rows = rows(r);
+    let keep: Vec<bool> = (0..COLUMNS.len())
+        .map(|c| rows.iter().any(|(_, cells)| cells[c] != NOT_RUN))
+        .collect();
+    let columns = COLUMNS
+        .iter()
+        .zip(&keep)
+        .filter_map(|(c, &k)| k.then_some(*c))
+        .collect();
+    let rows = rows
+        .into_iter()
+        .map(|(s, cells)| {
+            let cells = cells
+                .into_iter()
+                .zip(&keep)
+                .filter_map(|(c, &k)| k.then_some(c))
+                .collect();
+            (s, cells)
+        })
+        .collect();
+    (columns, rows)
+}
+
+/// The summary as a Markdown table ([`shown`]'s columns).
 pub fn markdown(r: &Results) -> String {
+    let (columns, rows) = shown(r);
     let mut m = String::from("| strategy |");
-    for c in COLUMNS {
+    for c in &columns {
         let _ = write!(m, " {c} |");
     }
     m += "\n| --- |";
-    m += &" ---: |".repeat(COLUMNS.len());
+    m += &" ---: |".repeat(columns.len());
     m.push('\n');
-    for (s, cells) in rows(r) {
+    for (s, cells) in rows {
         let _ = writeln!(m, "| {} | {} |", s.label(), cells.join(" | "));
     }
     m
