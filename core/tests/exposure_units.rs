@@ -153,6 +153,51 @@ fn maxima_of_nearly_equal_height_are_blended_continuously() {
     assert_eq!(p.argmax_within(0.0), p.argmax());
 }
 
+/// The anchors of a real frame (the surround-nz front camera's ground,
+/// emulated at 3350 µs from its 2 ms frame, 26 % saturated, under
+/// scale-and-clip): two humps, the sampled one at s = 1.2 the highest. The
+/// 5th-order fit puts a hump between the two darkest anchors, 300 above
+/// both, and its plain maximiser (and the blended one) goes there; the
+/// supported maximiser stays at the hump the anchors show, and is the
+/// blended one where a maximum is as high as its anchors.
+#[test]
+fn a_hump_the_anchors_do_not_show_does_not_win() {
+    let m = [13747.4, 13170.3, 12527.2, 13293.7, 14056.0, 12364.3, 8733.5];
+    let anchors: Vec<AnchorScore> = DEFAULT_ANCHORS
+        .iter()
+        .zip(m)
+        .map(|(&x, m)| AnchorScore { x, m })
+        .collect();
+    let p = fit_in(&anchors, 5, FitVariable::Log).unwrap();
+    let tol = 0.02 * (14056.0 - 8733.5);
+    // The fit's hump between the two darkest anchors: above both by more
+    // than the band, and above the bright hump's fit.
+    assert!(p.eval(0.56) > 13747.4 + tol, "the fit's overshoot");
+    assert!(p.eval(0.56) > p.eval(1.2));
+    let plain = p.argmax_within(tol);
+    assert!(plain < 0.7, "the fit alone goes darker: {plain}");
+    let supported = p.argmax_supported(&anchors, tol);
+    assert!(
+        (1.1..1.3).contains(&supported),
+        "the anchors' hump: {supported}"
+    );
+    // With the darkest anchor clearly the highest, darker wins again.
+    let mut darker = anchors.clone();
+    darker[0].m = 14600.0;
+    let p = fit_in(&darker, 5, FitVariable::Log).unwrap();
+    assert!(p.argmax_supported(&darker, tol) < 0.7);
+    // A single hump: the same as the plain maximiser.
+    let one: Vec<AnchorScore> = DEFAULT_ANCHORS
+        .iter()
+        .map(|&x| AnchorScore {
+            x,
+            m: 5.0 - (x.ln() - 0.2).powi(2),
+        })
+        .collect();
+    let p = fit_in(&one, 5, FitVariable::Log).unwrap();
+    assert_eq!(p.argmax_supported(&one, 0.02), p.argmax_within(0.02));
+}
+
 #[test]
 fn the_log_fit_recovers_a_maximum_in_ln_x_and_reports_anchor_values() {
     let anchors: Vec<AnchorScore> = DEFAULT_ANCHORS

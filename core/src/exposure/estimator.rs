@@ -638,9 +638,10 @@ impl Estimator {
         let (x_hat, at_bound) = if flat {
             (1.0, None)
         } else {
-            // Maxima of nearly equal height are blended, near or far.
+            // Maxima of nearly equal height are blended, near or far; no
+            // maximum is higher than the anchors around it show.
             let (lo, hi) = poly.range();
-            let x = poly.argmax_within(self.config.plateau * (m_max - m_min));
+            let x = poly.argmax_supported(&anchors, self.config.plateau * (m_max - m_min));
             let tol = 1e-9 * (hi - lo);
             let bound = if x <= lo + tol {
                 Some(Bound::Lower)

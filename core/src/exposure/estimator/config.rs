@@ -67,8 +67,9 @@ pub struct EstimatorConfig {
     pub metric: MetricParams,
     /// Maxima of the fit within this fraction of the anchors' spread of
     /// `M` of the highest are blended, near or far, and γ̂ is their
-    /// weighted mean ([`Polynomial::argmax_within`]), so that it moves
-    /// continuously as their heights cross; 0: the highest alone.
+    /// weighted mean, so that it moves continuously as their heights
+    /// cross; 0: the highest alone. No maximum counts higher than this band
+    /// above the anchors around it ([`Polynomial::argmax_supported`]).
     #[serde(default = "default_plateau")]
     pub plateau: f64,
 }

@@ -150,8 +150,52 @@ impl Polynomial {
     ///   taken alone, so a camera settles on one of them, not in the
     ///   valley.
     pub fn argmax_within(&self, tolerance: f64) -> f64 {
+        self.blend(&self.maxima(), tolerance)
+    }
+
+    /// As [`Self::argmax_within`], with each local maximum no higher than
+    /// the anchors around it show, plus `tolerance`: its height is at most
+    /// `tolerance` above the larger score of the two anchors that bracket
+    /// it (of the anchor itself where it sits on one). Where it lies, the
+    /// fit says; which hump is highest, the anchors say.
+    ///
+    /// A least-squares polynomial through a score with two humps can
+    /// overshoot between two anchors: on a real frame a quarter saturated
+    /// it put a hump between the two darkest anchors 300 above both of
+    /// them (2 % of M) and above the hump the anchors showed at the bright
+    /// side, and the estimate jumped by 0.9 EV while the exposure moved by
+    /// 0.01 EV (`docs/exposure-results.md`). `anchors` are those the
+    /// polynomial was fitted to.
+    pub fn argmax_supported(&self, anchors: &[AnchorScore], tolerance: f64) -> f64 {
+        let t_of = |a: &AnchorScore| (self.variable.forward(a.x) - self.centre) / self.half_width;
+        let mut points: Vec<[f64; 2]> = anchors
+            .iter()
+            .filter(|a| a.m.is_finite())
+            .map(|a| [t_of(a), a.m])
+            .filter(|p| p[0].is_finite())
+            .collect();
+        points.sort_by(|a, b| a[0].total_cmp(&b[0]));
+        let capped: Vec<[f64; 2]> = self
+            .maxima()
+            .into_iter()
+            .map(|[t, v]| {
+                let below = points.iter().rev().find(|p| p[0] <= t + 1e-12);
+                let above = points.iter().find(|p| p[0] >= t - 1e-12);
+                let support = match (below, above) {
+                    (Some(b), Some(a)) => b[1].max(a[1]),
+                    (Some(p), None) | (None, Some(p)) => p[1],
+                    (None, None) => return [t, v],
+                };
+                [t, v.min(support + tolerance.max(0.0))]
+            })
+            .collect();
+        self.blend(&capped, tolerance)
+    }
+
+    /// The maximiser among `maxima` (`[t, height]`), those within
+    /// `tolerance` of the highest blended ([`Self::argmax_within`]).
+    fn blend(&self, maxima: &[[f64; 2]], tolerance: f64) -> f64 {
         let at = |t: f64| self.variable.inverse(self.centre + t * self.half_width);
-        let maxima = self.maxima();
         let top =
             maxima.iter().copied().fold(
                 [0.0, f64::MIN],
