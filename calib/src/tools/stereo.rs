@@ -28,6 +28,11 @@ pub const MAX_PAIR_ANGLE_DEG: f64 = 30.0;
 /// The shortest baseline of a pair (metres).
 pub const MIN_BASELINE_M: f64 = 0.01;
 
+/// The widest rectified view, pixels: wider cameras are rectified at a
+/// smaller scale (the matcher's time and memory grow with the width times
+/// the disparity range; a 1288-pixel pair took half a second a set).
+pub const MAX_WIDTH: usize = 640;
+
 /// The matcher's block side (pixels).
 pub const BLOCK: i32 = 5;
 
@@ -108,7 +113,8 @@ pub struct StereoRectifier {
     pub baseline_m: f64,
     /// The rectified views' focal length, pixels.
     pub focal_px: f64,
-    /// The rectified views' width (the left camera's), pixels.
+    /// The rectified views' width (the left camera's, at most
+    /// [`MAX_WIDTH`]), pixels.
     pub width: usize,
     /// Their height, pixels.
     pub height: usize,
@@ -145,9 +151,10 @@ impl std::fmt::Debug for StereoRectifier {
 impl StereoRectifier {
     /// Rectifies cameras `left` and `right` of `rig` (as [`stereo_pairs`]
     /// orders them). The rectified views share the left camera's image size
-    /// and the mean of the two cameras' focal lengths, their principal
-    /// point at the image centre; their z axis is the mean of the optical
-    /// axes, their x axis the baseline.
+    /// and the mean of the two cameras' focal lengths (both scaled down to
+    /// [`MAX_WIDTH`] where the camera is wider), their principal point at
+    /// the image centre; their z axis is the mean of the optical axes,
+    /// their x axis the baseline.
     pub fn new(rig: &Rig, left: usize, right: usize) -> Result<Self> {
         let camera = |k: usize| {
             rig.cameras.get(k).ok_or_else(|| {
@@ -192,9 +199,15 @@ impl StereoRectifier {
             })?;
         let y = z.cross(&x);
         let rotation = Matrix3::from_rows(&[x.transpose(), y.transpose(), z.transpose()]);
-        let (width, height) = (a.intrinsics.width as usize, a.intrinsics.height as usize);
+        // The left camera's size and the mean focal length, scaled down to
+        // at most MAX_WIDTH.
+        let scale = (MAX_WIDTH as f64 / f64::from(a.intrinsics.width)).min(1.0);
+        let (width, height) = (
+            (f64::from(a.intrinsics.width) * scale).round() as usize,
+            (f64::from(a.intrinsics.height) * scale).round() as usize,
+        );
         let focal_px =
-            0.25 * (a.intrinsics.fx + a.intrinsics.fy + b.intrinsics.fx + b.intrinsics.fy);
+            0.25 * scale * (a.intrinsics.fx + a.intrinsics.fy + b.intrinsics.fx + b.intrinsics.fy);
         if width < 2 || height < 2 || !(focal_px.is_finite() && focal_px > 0.0) {
             return Err(CalibError::Argument(format!(
                 "stereo pair \"{}\"–\"{}\": a {width}×{height} image with focal length {focal_px} px cannot be rectified",
@@ -482,10 +495,14 @@ mod tests {
     /// (right camera on the −y side), toed in and rolled a little, and a
     /// third looking left.
     fn rig(baseline: f64) -> Rig {
+        rig_of(baseline, 320, 240)
+    }
+
+    fn rig_of(baseline: f64, width: u32, height: u32) -> Rig {
         let cam = |name: &str, ypr: [f64; 3], t: [f64; 3]| Camera {
             name: name.into(),
             device: None,
-            intrinsics: fisheye(320, 240),
+            intrinsics: fisheye(width, height),
             pose: Some(Pose::from_ypr_deg(ypr, Vector3::from(t)).unwrap()),
         };
         Rig::new(
@@ -510,8 +527,17 @@ mod tests {
 
     #[test]
     fn the_maps_send_a_scene_point_to_both_cameras_on_one_row() {
-        let rig = rig(0.3);
+        maps_match_the_cameras(320, 240);
+        // Wider cameras are rectified at a smaller scale.
+        maps_match_the_cameras(1288, 964);
+    }
+
+    fn maps_match_the_cameras(width: u32, height: u32) {
+        let rig = rig_of(0.3, width, height);
         let s = StereoRectifier::new(&rig, 2, 1).unwrap();
+        let scale = (MAX_WIDTH as f64 / f64::from(width)).min(1.0);
+        assert_eq!(s.width, (f64::from(width) * scale).round() as usize);
+        assert_eq!(s.height, (f64::from(height) * scale).round() as usize);
         assert!((s.baseline_m - 0.3).abs() < 1e-3, "{}", s.baseline_m);
         let (mut checked, mut worst) = (0, 0.0f64);
         for k in 0..200 {
@@ -552,8 +578,9 @@ mod tests {
         }
         assert!(checked > 100, "{checked} points checked");
         // (Rounding moves a rectified pixel by up to 0.71 px, which the
-        // lens shrinks away from the centre.)
-        assert!(worst < 0.75, "maps off by {worst} px");
+        // lens shrinks away from the centre, and a scaled-down view
+        // stretches by 1 / scale.)
+        assert!(worst < 0.75 / scale, "maps off by {worst} px");
     }
 
     #[test]
