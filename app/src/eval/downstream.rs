@@ -23,7 +23,7 @@
 use anyhow::{Context, Result};
 use rigview_calib::rig::Rig;
 use rigview_calib::tools::corners::{harris_corners, HarrisParams};
-use rigview_calib::tools::stereo::{stereo_pairs, StereoRectifier};
+use rigview_calib::tools::stereo::{stereo_pairs, Disparities, StereoRectifier};
 use rigview_core::features::{match_mutual_where, Descriptor, Smoothed};
 use rigview_core::image::FrameView;
 use rigview_core::panorama::{MatchOptions, Panorama, PanoramaOptions};
@@ -68,6 +68,8 @@ pub struct FeatureMeter {
     params: HarrisParams,
     previous: Vec<Option<Described>>,
     stereo: Vec<StereoRectifier>,
+    /// The last set's disparities, per pair.
+    last_stereo: Vec<Disparities>,
 }
 
 impl FeatureMeter {
@@ -98,6 +100,7 @@ impl FeatureMeter {
             params: HarrisParams::default(),
             previous: Vec::new(),
             stereo,
+            last_stereo: Vec::new(),
         })
     }
 
@@ -128,6 +131,13 @@ impl FeatureMeter {
         self.stereo.iter().map(|s| (s.left, s.right)).collect()
     }
 
+    /// The rectified views and disparities of each stereo pair (in
+    /// [`Self::stereo_pairs`] order) in the last set observed; empty
+    /// before the first, or on a rig without a pair.
+    pub fn last_stereo(&self) -> &[Disparities] {
+        &self.last_stereo
+    }
+
     /// Measures one complete set (one frame per camera, rig order).
     pub fn observe(&mut self, frames: &[FrameView<'_>]) -> Result<SetFeatures> {
         self.previous.resize_with(frames.len(), || None);
@@ -152,6 +162,7 @@ impl FeatureMeter {
             )
             .context("matching the overlaps")?;
         let mut stereo = Vec::with_capacity(self.stereo.len());
+        self.last_stereo.clear();
         for s in &self.stereo {
             let (Some(l), Some(r)) = (greys.get(s.left), greys.get(s.right)) else {
                 anyhow::bail!(
@@ -165,6 +176,7 @@ impl FeatureMeter {
                 format!("the disparities of cameras {} and {}", s.left, s.right)
             })?;
             stereo.push((s.left, s.right, d.density()));
+            self.last_stereo.push(d);
         }
         Ok(SetFeatures {
             tracked,
@@ -250,6 +262,151 @@ impl StereoDensity {
             self.density
         )
     }
+}
+
+/// One pair's rectified views and disparities in the last set a strategy
+/// was measured on, for the report's figure.
+#[derive(Clone, Debug)]
+pub struct StereoView {
+    /// The preset.
+    pub preset: String,
+    /// The strategy.
+    pub strategy: EvalStrategy,
+    /// The pair's cameras' names, left and right.
+    pub cameras: (String, String),
+    /// The views and the disparities.
+    pub disparities: Disparities,
+}
+
+/// The strategies whose stereo views the report shows: the fixed exposure,
+/// mean AE, the paper's nonlinear law under both simulations and
+/// rigview's default (balanced, scale-and-clip).
+pub const STEREO_FIGURE: [EvalStrategy; 5] = [
+    EvalStrategy::Fixed,
+    EvalStrategy::Mean,
+    EvalStrategy::Nonlinear,
+    EvalStrategy::NonlinearSc,
+    EvalStrategy::MultiSc,
+];
+
+impl FeatureMeter {
+    /// The views of [`Self::last_stereo`] as [`StereoView`]s of `preset`
+    /// under `strategy` (none unless `strategy` is one of
+    /// [`STEREO_FIGURE`]); `names` are the cameras'.
+    pub fn stereo_views(
+        &self,
+        preset: &str,
+        strategy: EvalStrategy,
+        names: &[String],
+    ) -> Vec<StereoView> {
+        if !STEREO_FIGURE.contains(&strategy) {
+            return Vec::new();
+        }
+        let name = |k: usize| names.get(k).cloned().unwrap_or_else(|| k.to_string());
+        self.stereo
+            .iter()
+            .zip(&self.last_stereo)
+            .map(|(s, d)| StereoView {
+                preset: preset.to_string(),
+                strategy,
+                cameras: (name(s.left), name(s.right)),
+                disparities: d.clone(),
+            })
+            .collect()
+    }
+}
+
+/// Writes the report's figure of `views` to `path` (PNG): a row per view,
+/// its rectified left and right frames and its disparities (near red, far
+/// blue, none black; the search range is the scale), labelled with the strategy, the pair and the share
+/// of valid disparities.
+pub fn write_stereo_views(views: &[StereoView], path: &std::path::Path) -> Result<()> {
+    use crate::report::glyphs::{register_font, FONT};
+    use plotters::prelude::*;
+    register_font()?;
+    let (tw, th) = views
+        .iter()
+        .map(|v| (v.disparities.width, v.disparities.height))
+        .fold((0, 0), |a, b| (a.0.max(b.0), a.1.max(b.1)));
+    anyhow::ensure!(tw > 0 && th > 0, "stereo views: nothing to draw");
+    let (left, top, gap) = (230usize, 30usize, 6usize);
+    let w = left + 3 * (tw + gap);
+    let h = top + views.len() * (th + gap);
+    let mut buf = vec![255u8; w * h * 3];
+    for (row, v) in views.iter().enumerate() {
+        let d = &v.disparities;
+        let y0 = top + row * (th + gap);
+        // (One scale for every row: the search range.)
+        let max = d.max_disparity.max(1) as f32;
+        for y in 0..d.height {
+            for x in 0..d.width {
+                let k = y * d.width + x;
+                let grey = |img: &[u8]| img.get(k).copied().unwrap_or(0);
+                let disparity = d.values.get(k).copied().unwrap_or(f32::NAN);
+                let cells = [
+                    [grey(&d.rectified[0]); 3],
+                    [grey(&d.rectified[1]); 3],
+                    ramp(disparity / max),
+                ];
+                for (col, rgb) in cells.iter().enumerate() {
+                    let q = ((y0 + y) * w + left + col * (tw + gap) + x) * 3;
+                    buf[q..q + 3].copy_from_slice(rgb);
+                }
+            }
+        }
+    }
+    {
+        let root = crate::report::glyphs::Glyphs::new(BitMapBackend::with_buffer(
+            &mut buf,
+            (w as u32, h as u32),
+        ))
+        .into_drawing_area();
+        let style = TextStyle::from((FONT, 14)).color(&BLACK);
+        let draw = |text: &str, at: (usize, usize)| {
+            root.draw_text(text, &style, (at.0 as i32, at.1 as i32))
+                .map_err(|e| anyhow::anyhow!("stereo views: {e}"))
+        };
+        for (col, title) in [
+            "left, rectified",
+            "right, rectified",
+            "disparity (near red, far blue, none black)",
+        ]
+        .iter()
+        .enumerate()
+        {
+            draw(title, (left + col * (tw + gap), 8))?;
+        }
+        for (row, v) in views.iter().enumerate() {
+            let y = top + row * (th + gap) + th / 2 - 20;
+            draw(v.strategy.label(), (6, y))?;
+            draw(&format!("{} – {}", v.cameras.0, v.cameras.1), (6, y + 18))?;
+            draw(
+                &format!("{:.1} % valid", 100.0 * v.disparities.density()),
+                (6, y + 36),
+            )?;
+        }
+        root.present()
+            .map_err(|e| anyhow::anyhow!("stereo views: {e}"))?;
+    }
+    let img =
+        image::RgbImage::from_raw(w as u32, h as u32, buf).context("stereo views: buffer size")?;
+    crate::report::plot::save_png(&img, path)
+        .with_context(|| format!("writing the stereo views {}", path.display()))
+}
+
+/// A disparity's colour: `t` in [0, 1] from blue (far) through green to
+/// red (near); black where it is not a number.
+fn ramp(t: f32) -> [u8; 3] {
+    if !t.is_finite() {
+        return [0, 0, 0];
+    }
+    let t = t.clamp(0.0, 1.0);
+    let up = |x: f32| (255.0 * x.clamp(0.0, 1.0)).round() as u8;
+    [
+        up(2.0 * t - 1.0),
+        up(1.0 - (2.0 * t - 1.0).abs()),
+        up(1.0 - 2.0 * t),
+    ]
 }
 
 /// The downstream measures of a run's measured sets.

@@ -437,6 +437,17 @@ pub fn report(r: &Results, out: &Path) -> Result<String> {
         files::SWEEP_PNG,
         "M(E) per camera and preset, with each strategy's settled exposure",
     )?;
+    if !r.sweep.stereo_views.is_empty() {
+        h += "<p>Each stereo pair of the rig (two cameras side by side), rectified through its \
+              lens models, and the disparities OpenCV's <code>StereoSGBM</code> finds where a few \
+              strategies settled (the last set measured): the share of valid disparities is in the \
+              summary and <code>fig3_stereo.csv</code>.</p>\n";
+        h += &figure(
+            out,
+            files::STEREO_PNG,
+            "stereo pairs, rectified, with their disparities",
+        )?;
+    }
     h += "<h2>4. Surround seams (Figs. 18, 19)</h2>\n<p>Each scenario under each strategy, the view \
           composed every set (display gains only where the strategy has them). The histograms hold \
           log2 r_ij of every overlap and set after the warm-up, as the view shows it (the display \

@@ -252,6 +252,9 @@ pub mod files {
     /// each strategy settled (not in [`ALL`]: written only for a rig with
     /// a pair).
     pub const STEREO_CSV: &str = "fig3_stereo.csv";
+    /// Experiment 3's stereo pairs, rectified, with their disparities, where
+    /// a few strategies settled (not in [`ALL`], as [`STEREO_CSV`]).
+    pub const STEREO_PNG: &str = "fig3_stereo.png";
     /// Experiment 4's histograms.
     pub const HIST_PNG: &str = "fig4_seam_histograms.png";
     /// Experiment 4's histograms, data.

@@ -154,6 +154,7 @@ pub fn run(plan: &Plan, dir: &Path, mode: BracketMode, out: &Path) -> Result<Res
     let mut start = Vec::new();
     let mut overlaps = Vec::new();
     let mut stereo = Vec::new();
+    let mut stereo_views = Vec::new();
     let mut runs = Vec::new();
     let mut meter = FeatureMeter::new(&rig, plan.sweep.canvas)?;
     for strategy in STRATEGIES {
@@ -191,6 +192,7 @@ pub fn run(plan: &Plan, dir: &Path, mode: BracketMode, out: &Path) -> Result<Res
         if strategy != EvalStrategy::MultiComp {
             overlaps.extend(downstream.overlaps(NAME, strategy, &names));
             stereo.extend(downstream.stereo(NAME, strategy, &names));
+            stereo_views.extend(meter.stereo_views(NAME, strategy, &names));
         }
         start.extend(StartRow::of(strategy, &trace, &names));
         let canvas = trace
@@ -214,6 +216,7 @@ pub fn run(plan: &Plan, dir: &Path, mode: BracketMode, out: &Path) -> Result<Res
             settled,
             overlaps,
             stereo,
+            stereo_views,
         },
         seams: SeamsResult {
             runs,

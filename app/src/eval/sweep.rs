@@ -13,7 +13,7 @@ use rigview_core::sim::truth::{self, Sweep, SweepOptions};
 use rigview_core::sim::{SimConfig, SimRender};
 
 use super::closed_loop;
-use super::downstream::{Downstream, FeatureMeter, OverlapFeatures, StereoDensity};
+use super::downstream::{Downstream, FeatureMeter, OverlapFeatures, StereoDensity, StereoView};
 use super::strategy::EvalStrategy;
 use crate::report::mean;
 
@@ -108,6 +108,9 @@ pub struct SweepResult {
     /// Valid disparities of each stereo pair over the tail (none on a rig
     /// without a pair).
     pub stereo: Vec<StereoDensity>,
+    /// The last views and disparities of each stereo pair under the
+    /// strategies of the report's figure.
+    pub stereo_views: Vec<StereoView>,
 }
 
 /// Work units of one preset (sweep levels and closed-loop sets).
@@ -171,6 +174,8 @@ pub fn run(
                 .extend(downstream.overlaps(preset, strategy, &names));
             out.stereo
                 .extend(downstream.stereo(preset, strategy, &names));
+            out.stereo_views
+                .extend(meter.stereo_views(preset, strategy, &names));
             for (cam, s) in out.sweeps[first..].iter().enumerate() {
                 let log2_e = trace.settled(cam, plan.tail);
                 let m = s.sweep.score_at(log2_e.exp2());

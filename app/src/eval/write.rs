@@ -250,6 +250,9 @@ fn write_sweep(r: &Results, out: &Path) -> Result<()> {
         downstream::OverlapFeatures::HEADER,
         sw.overlaps.iter().map(downstream::OverlapFeatures::csv),
     )?;
+    if !sw.stereo_views.is_empty() {
+        downstream::write_stereo_views(&sw.stereo_views, &out.join(files::STEREO_PNG))?;
+    }
     if !sw.stereo.is_empty() {
         write_csv(
             out,
