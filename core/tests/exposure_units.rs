@@ -159,7 +159,9 @@ fn maxima_of_nearly_equal_height_are_blended_continuously() {
 /// 5th-order fit puts a hump between the two darkest anchors, 300 above
 /// both, and its plain maximiser (and the blended one) goes there; the
 /// supported maximiser stays at the hump the anchors show, and is the
-/// blended one where a maximum is as high as its anchors.
+/// blended one where a maximum is as high as its anchors. Only the end
+/// intervals are capped: a true peak between two interior anchors stays
+/// the fit's.
 #[test]
 fn a_hump_the_anchors_do_not_show_does_not_win() {
     let m = [13747.4, 13170.3, 12527.2, 13293.7, 14056.0, 12364.3, 8733.5];
@@ -186,6 +188,27 @@ fn a_hump_the_anchors_do_not_show_does_not_win() {
     darker[0].m = 14600.0;
     let p = fit_in(&darker, 5, FitVariable::Log).unwrap();
     assert!(p.argmax_supported(&darker, tol) < 0.7);
+    // A hump between two interior anchors higher than both (and than the
+    // darkest anchor, which is higher than both of them) is the fit's to
+    // find: only the end intervals are capped. (A quartic in the
+    // normalised ln x, which the 5th-order fit reproduces.)
+    let half = 0.5 * (DEFAULT_ANCHORS[6].ln() - DEFAULT_ANCHORS[0].ln());
+    let centre = 0.5 * (DEFAULT_ANCHORS[6].ln() + DEFAULT_ANCHORS[0].ln());
+    let g =
+        |t: f64| 10.0 - 6.0 * (t - 0.14).powi(2) * (t + 1.0).powi(2) - 0.05 * (t - 0.14).powi(2);
+    let interior: Vec<AnchorScore> = DEFAULT_ANCHORS
+        .iter()
+        .map(|&x| AnchorScore {
+            x,
+            m: g((x.ln() - centre) / half),
+        })
+        .collect();
+    assert!(interior[0].m > interior[3].m.max(interior[4].m));
+    let p = fit_in(&interior, 5, FitVariable::Log).unwrap();
+    let peak = (centre + 0.14 * half).exp();
+    let x = p.argmax_supported(&interior, 0.0);
+    assert!((x - peak).abs() < 1e-3, "{x} against the peak at {peak}");
+    assert_eq!(x, p.argmax_within(0.0));
     // A single hump: the same as the plain maximiser.
     let one: Vec<AnchorScore> = DEFAULT_ANCHORS
         .iter()

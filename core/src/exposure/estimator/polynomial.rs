@@ -153,19 +153,21 @@ impl Polynomial {
         self.blend(&self.maxima(), tolerance)
     }
 
-    /// As [`Self::argmax_within`], with each local maximum no higher than
-    /// the anchors around it show, plus `tolerance`: its height is at most
-    /// `tolerance` above the larger score of the two anchors that bracket
-    /// it (of the anchor itself where it sits on one). Where it lies, the
-    /// fit says; which hump is highest, the anchors say.
+    /// As [`Self::argmax_within`], with a local maximum in either end
+    /// interval (between the two lowest or the two highest anchors) no
+    /// higher than `tolerance` above the larger score of those two anchors.
+    /// Where it lies, the fit says; whether it beats the other humps, its
+    /// anchors do.
     ///
-    /// A least-squares polynomial through a score with two humps can
-    /// overshoot between two anchors: on a real frame a quarter saturated
+    /// A least-squares polynomial overshoots at the ends of its range,
+    /// where one side holds no anchor: on a real frame a quarter saturated
     /// it put a hump between the two darkest anchors 300 above both of
     /// them (2 % of M) and above the hump the anchors showed at the bright
     /// side, and the estimate jumped by 0.9 EV while the exposure moved by
-    /// 0.01 EV (`docs/exposure-results.md`). `anchors` are those the
-    /// polynomial was fitted to.
+    /// 0.01 EV (`docs/exposure-results.md`). Interior maxima are not
+    /// capped: a true peak between two anchors lies above both, and
+    /// capping it made the γ-mapping's linear law rest 0.45 EV off after a
+    /// step of light. `anchors` are those the polynomial was fitted to.
     pub fn argmax_supported(&self, anchors: &[AnchorScore], tolerance: f64) -> f64 {
         let t_of = |a: &AnchorScore| (self.variable.forward(a.x) - self.centre) / self.half_width;
         let mut points: Vec<[f64; 2]> = anchors
@@ -175,18 +177,27 @@ impl Polynomial {
             .filter(|p| p[0].is_finite())
             .collect();
         points.sort_by(|a, b| a[0].total_cmp(&b[0]));
+        // Only the two end intervals: a least-squares polynomial overshoots
+        // at the ends of its range, where one side holds no anchor.
+        let n = points.len();
         let capped: Vec<[f64; 2]> = self
             .maxima()
             .into_iter()
             .map(|[t, v]| {
-                let below = points.iter().rev().find(|p| p[0] <= t + 1e-12);
-                let above = points.iter().find(|p| p[0] >= t - 1e-12);
-                let support = match (below, above) {
-                    (Some(b), Some(a)) => b[1].max(a[1]),
-                    (Some(p), None) | (None, Some(p)) => p[1],
-                    (None, None) => return [t, v],
+                let Some(above) = points.iter().position(|p| p[0] >= t - 1e-12) else {
+                    return [t, v];
                 };
-                [t, v.min(support + tolerance.max(0.0))]
+                let below = points
+                    .iter()
+                    .rposition(|p| p[0] <= t + 1e-12)
+                    .unwrap_or(above);
+                if n < 3 || (below > 0 && above + 1 < n) {
+                    return [t, v];
+                }
+                [
+                    t,
+                    v.min(points[below][1].max(points[above][1]) + tolerance.max(0.0)),
+                ]
             })
             .collect();
         self.blend(&capped, tolerance)
