@@ -593,46 +593,61 @@ mod tests {
         assert!(worst < 0.75 / scale, "maps off by {worst} px");
     }
 
-    #[test]
-    fn a_textured_plane_gives_dense_disparities_at_its_depth_and_a_blank_one_none() {
-        let rig = rig(0.3);
-        let s = StereoRectifier::new(&rig, 2, 1).unwrap();
-        // A vertical wall 6 m ahead, textured with a pattern of its own
-        // coordinates, seen by each camera.
-        let wall_x = 8.3;
+    /// Camera `index` of `rig` seeing a wall (the plane `n·p = c`, rig
+    /// frame) textured with a pattern of its own coordinates, or blank.
+    fn wall_image(rig: &Rig, index: usize, n: Vector3<f64>, c: f64, textured: bool) -> Vec<u8> {
         let texture = |p: &Vector3<f64>| {
-            let (a, b) = (p.y * 9.0, p.z * 11.0);
-            let n = ((a.floor() as i64 * 7919 + b.floor() as i64 * 104_729) % 251 + 251) % 251;
-            (40 + n * 3 / 4) as u8
-        };
-        let image = |index: usize, textured: bool| -> Vec<u8> {
-            let c = &rig.cameras[index];
-            let pose = c.pose.unwrap();
-            let (w, h) = (c.intrinsics.width as usize, c.intrinsics.height as usize);
-            let mut out = vec![0u8; w * h];
-            for v in 0..h {
-                for u in 0..w {
-                    let Some(r) = c.intrinsics.unproject(&Point2::new(u as f64, v as f64)) else {
-                        continue;
-                    };
-                    let d = pose.rotation_matrix() * r.into_inner();
-                    if d.x <= 1e-6 {
-                        continue;
-                    }
-                    let t = (wall_x - pose.translation().x) / d.x;
-                    let p = pose.translation() + d * t;
-                    out[v * w + u] = if textured { texture(&p) } else { 128 };
-                }
+            // Two coordinates across the wall.
+            let e1 = if n.z.abs() < 0.9 {
+                Vector3::z().cross(&n)
+            } else {
+                Vector3::x().cross(&n)
             }
-            out
+            .normalize();
+            let e2 = n.cross(&e1);
+            let (a, b) = (p.dot(&e1) * 9.0, p.dot(&e2) * 11.0);
+            let k = ((a.floor() as i64 * 7919 + b.floor() as i64 * 104_729) % 251 + 251) % 251;
+            (40 + k * 3 / 4) as u8
         };
-        let got = s.disparities(&image(2, true), &image(1, true)).unwrap();
+        let cam = &rig.cameras[index];
+        let pose = cam.pose.unwrap();
+        let (w, h) = (
+            cam.intrinsics.width as usize,
+            cam.intrinsics.height as usize,
+        );
+        let mut out = vec![0u8; w * h];
+        for v in 0..h {
+            for u in 0..w {
+                let Some(r) = cam.intrinsics.unproject(&Point2::new(u as f64, v as f64)) else {
+                    continue;
+                };
+                let d = pose.rotation_matrix() * r.into_inner();
+                if n.dot(&d) <= 1e-6 {
+                    continue;
+                }
+                let t = (c - n.dot(pose.translation())) / n.dot(&d);
+                let p = pose.translation() + d * t;
+                out[v * w + u] = if textured { texture(&p) } else { 128 };
+            }
+        }
+        out
+    }
+
+    /// The disparities of pair `s` of `rig` on the wall `n·p = c`: their
+    /// density and median |error| against the wall's geometry.
+    fn on_the_wall(rig: &Rig, s: &StereoRectifier, n: Vector3<f64>, c: f64) -> (f64, f64) {
+        let got = s
+            .disparities(
+                &wall_image(rig, s.left, n, c, true),
+                &wall_image(rig, s.right, n, c, true),
+            )
+            .unwrap();
         // The true disparity of each rectified pixel: f·b over the depth
         // (along the rectified axis, which the ray has at 1) of the wall
         // point its ray meets.
         let truth = |k: usize| {
             let (o, ray) = s.ray((k % s.width) as f64, (k / s.width) as f64);
-            let t = (wall_x - o.x) / ray.x;
+            let t = (c - n.dot(&o)) / n.dot(&ray);
             s.focal_px * s.baseline_m / t
         };
         let mut errors: Vec<f64> = got
@@ -643,16 +658,47 @@ mod tests {
             .map(|(k, &d)| (f64::from(d) - truth(k)).abs())
             .collect();
         errors.sort_by(f64::total_cmp);
-        let median = errors[errors.len() / 2];
-        println!(
-            "wall: density {:.3}, median |error| {median:.3} px",
-            got.density()
-        );
-        assert!(got.density() > 0.5, "density {}", got.density());
+        (got.density(), errors[errors.len() / 2])
+    }
+
+    #[test]
+    fn a_textured_plane_gives_dense_disparities_at_its_depth_and_a_blank_one_none() {
+        let rig = rig(0.3);
+        let s = StereoRectifier::new(&rig, 2, 1).unwrap();
+        // A vertical wall 6 m ahead.
+        let (n, c) = (Vector3::x(), 8.3);
+        let (density, median) = on_the_wall(&rig, &s, n, c);
+        println!("wall: density {density:.3}, median |error| {median:.3} px");
+        assert!(density > 0.5, "density {density}");
         assert!(median < 0.5, "median error {median} px");
-        let blank = s.disparities(&image(2, false), &image(1, false)).unwrap();
+        let blank = s
+            .disparities(
+                &wall_image(&rig, 2, n, c, false),
+                &wall_image(&rig, 1, n, c, false),
+            )
+            .unwrap();
         assert!(blank.density() < 0.05, "blank density {}", blank.density());
         // Wrong sizes are refused.
-        assert!(s.disparities(&[0u8; 10], &image(1, true)).is_err());
+        assert!(s
+            .disparities(&[0u8; 10], &wall_image(&rig, 1, n, c, true))
+            .is_err());
+    }
+
+    /// A stereo camera's Kalibr camchain (poses relative to cam0, cam1
+    /// 11 cm to its right and rolled 0.8°, pinhole with radial-tangential
+    /// distortion, as in public stereo datasets): the pair is found and
+    /// matches a wall 4 m ahead.
+    #[test]
+    fn a_kalibr_stereo_camchain_is_a_pair() {
+        let text = "cam0:\n  camera_model: pinhole\n  intrinsics: [458.7, 457.3, 367.2, 248.4]\n  distortion_model: radtan\n  distortion_coeffs: [-0.2834, 0.07396, 0.0001936, 1.762e-05]\n  resolution: [752, 480]\n  cam_overlaps: [1]\ncam1:\n  T_cn_cnm1:\n  - [1.0, 0.0, 0.0, -0.11007]\n  - [0.0, 0.9999020016006562, -0.013999542671148512, 0.0004]\n  - [0.0, 0.013999542671148512, 0.9999020016006562, -0.00085]\n  - [0.0, 0.0, 0.0, 1.0]\n  camera_model: pinhole\n  intrinsics: [457.6, 456.1, 379.9, 255.2]\n  distortion_model: radtan\n  distortion_coeffs: [-0.2837, 0.07451, -0.0001048, -3.555e-05]\n  resolution: [752, 480]\n  cam_overlaps: [0]\n";
+        let rig = crate::formats::kalibr::parse(text, "camchain.yaml").unwrap();
+        assert_eq!(stereo_pairs(&rig), vec![(0, 1)]);
+        let s = StereoRectifier::new(&rig, 0, 1).unwrap();
+        assert!((s.baseline_m - 0.110).abs() < 1e-3, "{}", s.baseline_m);
+        assert_eq!((s.width, s.height), (640, 409));
+        let (density, median) = on_the_wall(&rig, &s, Vector3::z(), 4.0);
+        println!("camchain wall: density {density:.3}, median |error| {median:.3} px");
+        assert!(density > 0.5, "density {density}");
+        assert!(median < 0.5, "median error {median} px");
     }
 }
