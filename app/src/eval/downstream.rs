@@ -126,13 +126,8 @@ impl FeatureMeter {
         }
     }
 
-    /// The rig's stereo pairs (left, right camera).
-    pub fn stereo_pairs(&self) -> Vec<(usize, usize)> {
-        self.stereo.iter().map(|s| (s.left, s.right)).collect()
-    }
-
-    /// The rectified views and disparities of each stereo pair (in
-    /// [`Self::stereo_pairs`] order) in the last set observed; empty
+    /// The rectified views and disparities of each stereo pair (in the
+    /// order of `stereo_pairs`) in the last set observed; empty
     /// before the first, or on a rig without a pair.
     pub fn last_stereo(&self) -> &[Disparities] {
         &self.last_stereo

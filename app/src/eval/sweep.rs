@@ -195,51 +195,42 @@ pub fn run(
     Ok(out)
 }
 
-impl SweepResult {
-    /// The mean of `of` over the settled rows of `strategy`, every camera
-    /// and preset (NaN without one).
-    fn mean_settled(&self, strategy: EvalStrategy, of: fn(&Settled) -> f64) -> f64 {
-        let v: Vec<f64> = self
-            .settled
-            .iter()
-            .filter(|s| s.strategy == strategy)
-            .map(of)
-            .collect();
-        mean(&v)
-    }
+/// The mean of `of` over the `rows` of `strategy` (NaN without one).
+fn mean_of<T>(
+    rows: &[T],
+    strategy: EvalStrategy,
+    strategy_of: fn(&T) -> EvalStrategy,
+    of: fn(&T) -> f64,
+) -> f64 {
+    let v: Vec<f64> = rows
+        .iter()
+        .filter(|r| strategy_of(r) == strategy)
+        .map(of)
+        .collect();
+    mean(&v)
+}
 
+impl SweepResult {
     /// The mean of `M/M_best` of `strategy` over every camera and preset.
     pub fn mean_fraction(&self, strategy: EvalStrategy) -> f64 {
-        self.mean_settled(strategy, |s| s.fraction)
+        mean_of(&self.settled, strategy, |s| s.strategy, |s| s.fraction)
     }
 
     /// Corners `strategy` kept tracked from frame to frame, mean per
     /// camera over every camera and preset.
     pub fn mean_tracked(&self, strategy: EvalStrategy) -> f64 {
-        self.mean_settled(strategy, |s| s.tracked)
+        mean_of(&self.settled, strategy, |s| s.strategy, |s| s.tracked)
     }
 
     /// Inliers matched across an overlap where `strategy` settled, mean
     /// per overlap over every overlap and preset.
     pub fn mean_inliers(&self, strategy: EvalStrategy) -> f64 {
-        let v: Vec<f64> = self
-            .overlaps
-            .iter()
-            .filter(|o| o.strategy == strategy)
-            .map(|o| o.inliers)
-            .collect();
-        mean(&v)
+        mean_of(&self.overlaps, strategy, |o| o.strategy, |o| o.inliers)
     }
 
     /// The share of valid stereo disparities where `strategy` settled,
     /// mean over every pair and preset (NaN on a rig without a pair).
     pub fn mean_stereo(&self, strategy: EvalStrategy) -> f64 {
-        let v: Vec<f64> = self
-            .stereo
-            .iter()
-            .filter(|o| o.strategy == strategy)
-            .map(|o| o.density)
-            .collect();
-        mean(&v)
+        mean_of(&self.stereo, strategy, |o| o.strategy, |o| o.density)
     }
 }

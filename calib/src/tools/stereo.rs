@@ -18,6 +18,7 @@ use opencv::core::{Mat, MatTraitConst, Scalar, BORDER_CONSTANT, CV_16S};
 use opencv::prelude::{MatTraitConstManual, StereoMatcherTrait};
 
 use crate::error::{cv, CalibError, Result};
+use crate::pose::Pose;
 use crate::rig::Rig;
 
 /// The largest angle between two cameras' optical axes, and between
@@ -222,15 +223,24 @@ impl StereoRectifier {
             )));
         }
         let max_disparity = (width / 4).div_ceil(16).clamp(1, 16) * 16;
-        let (cx, cy) = (0.5 * (width as f64 - 1.0), 0.5 * (height as f64 - 1.0));
+        let (cx, cy) = centre(width, height);
+        let rows = i32::try_from(height)
+            .map_err(|_| CalibError::Argument("stereo pair: image too tall".into()))?;
+        let wrap = |m: &[f32]| -> Result<Mat> {
+            cv(
+                "wrapping a rectification map",
+                Mat::new_rows_cols_with_data(rows, width as i32, m),
+            )?
+            .try_clone()
+            .map_err(|source| CalibError::OpenCv {
+                context: "copying a rectification map".into(),
+                source,
+            })
+        };
         let mut seen = vec![true; width * height];
-        let mut maps = Vec::with_capacity(2);
-        for c in [a, b] {
+        let mut map_of = |c: &crate::rig::Camera, pose: &Pose| -> Result<(Mat, Mat)> {
             let projector = c.intrinsics.projector();
-            let to_camera = c
-                .pose
-                .map(|p| p.rotation_matrix().transpose() * rotation.transpose())
-                .unwrap_or_else(Matrix3::identity);
+            let to_camera = pose.rotation_matrix().transpose() * rotation.transpose();
             let (cw, ch) = (
                 f64::from(c.intrinsics.width),
                 f64::from(c.intrinsics.height),
@@ -253,26 +263,9 @@ impl StereoRectifier {
                     }
                 }
             }
-            let rows = i32::try_from(height)
-                .map_err(|_| CalibError::Argument("stereo pair: image too tall".into()))?;
-            let wrap = |m: &[f32]| -> Result<Mat> {
-                cv(
-                    "wrapping a rectification map",
-                    Mat::new_rows_cols_with_data(rows, width as i32, m),
-                )?
-                .try_clone()
-                .map_err(|source| CalibError::OpenCv {
-                    context: "copying a rectification map".into(),
-                    source,
-                })
-            };
-            maps.push((wrap(&mx)?, wrap(&my)?));
-        }
-        let right_map = maps.pop();
-        let left_map = maps.pop();
-        let (Some(l), Some(r)) = (left_map, right_map) else {
-            return Err(CalibError::Argument("stereo pair: maps missing".into()));
+            Ok((wrap(&mx)?, wrap(&my)?))
         };
+        let (l, r) = (map_of(a, &pa)?, map_of(b, &pb)?);
         Ok(Self {
             left,
             right,
@@ -300,10 +293,7 @@ impl StereoRectifier {
         if q.z <= 1e-9 {
             return None;
         }
-        let (cx, cy) = (
-            0.5 * (self.width as f64 - 1.0),
-            0.5 * (self.height as f64 - 1.0),
-        );
+        let (cx, cy) = centre(self.width, self.height);
         Some((
             self.focal_px * q.x / q.z + cx,
             self.focal_px * q.y / q.z + cy,
@@ -314,10 +304,7 @@ impl StereoRectifier {
     /// The ray (rig frame, from the left camera's centre) of a rectified
     /// left-view pixel.
     pub fn ray(&self, x: f64, y: f64) -> (Vector3<f64>, Vector3<f64>) {
-        let (cx, cy) = (
-            0.5 * (self.width as f64 - 1.0),
-            0.5 * (self.height as f64 - 1.0),
-        );
+        let (cx, cy) = centre(self.width, self.height);
         let r = Vector3::new((x - cx) / self.focal_px, (y - cy) / self.focal_px, 1.0);
         (self.origin, self.rotation.transpose() * r)
     }
@@ -337,12 +324,6 @@ impl StereoRectifier {
 
     /// Camera `camera`'s (`0` left, `1` right) 8-bit grey image, rectified
     /// (0 where the camera does not see).
-    pub fn rectify(&self, camera: usize, grey: &[u8]) -> Result<Vec<u8>> {
-        let m = self.rectify_mat(camera, grey)?;
-        let bytes = cv("reading a rectified image", m.data_bytes())?;
-        Ok(bytes.to_vec())
-    }
-
     fn rectify_mat(&self, camera: usize, grey: &[u8]) -> Result<Mat> {
         let ((w, h), (mx, my)) = self
             .sizes
@@ -442,6 +423,11 @@ impl StereoRectifier {
             rectified: [left_bytes, right_bytes],
         })
     }
+}
+
+/// The principal point of a `width × height` rectified view: its centre.
+fn centre(width: usize, height: usize) -> (f64, f64) {
+    (0.5 * (width as f64 - 1.0), 0.5 * (height as f64 - 1.0))
 }
 
 /// Per pixel of a `width × height` grey image: whether the
