@@ -68,6 +68,24 @@ fn repaint_on_output(ctx: &egui::Context) -> Notify {
     Arc::new(move || ctx.request_repaint_after(Duration::from_millis(1)))
 }
 
+/// Panels without a fill: the window is cleared to the panels' colour
+/// instead ([`panel_colour`]). With Mesa's software GL each pixel painted
+/// costs the rasteriser its time, and every pixel of the window was
+/// painted twice, by the clear and by a panel's fill, and the views' pixels
+/// a third time.
+fn unfilled_panels(ctx: &egui::Context) {
+    ctx.all_styles_mut(|s| s.visuals.panel_fill = egui::Color32::TRANSPARENT);
+}
+
+/// The panels' colour of the theme of `visuals`.
+fn panel_colour(visuals: &egui::Visuals) -> egui::Color32 {
+    if visuals.dark_mode {
+        egui::Visuals::dark().panel_fill
+    } else {
+        egui::Visuals::light().panel_fill
+    }
+}
+
 /// The app's state.
 pub struct RigviewApp {
     session: Option<Session>,
@@ -155,6 +173,7 @@ impl RigviewApp {
         // The window's view choice is the view the pipeline composes.
         settings.processing.view = settings.window.view.kind();
         let notify = repaint_on_output(ctx);
+        unfilled_panels(ctx);
         let start = |record| {
             session::start_recording(
                 &options.source,
@@ -707,6 +726,12 @@ impl eframe::App for RigviewApp {
         }
     }
 
+    /// The panels' colour of the theme: the panels paint no fill of
+    /// their own ([`unfilled_panels`]).
+    fn clear_color(&self, visuals: &egui::Visuals) -> [f32; 4] {
+        panel_colour(visuals).to_normalized_gamma_f32()
+    }
+
     fn on_exit(&mut self, _gl: Option<&eframe::glow::Context>) {
         let summary = self.finish();
         tracing::info!(target: logging::NOTE, "{summary}");
@@ -816,5 +841,49 @@ mod tests {
         let c = ctx.clone();
         let immediate: Notify = Arc::new(move || c.request_repaint());
         assert_eq!(frames_after(&ctx, &immediate), 2);
+    }
+
+    /// The pixels a frame with side and central panels fills with the
+    /// panels' colour, in both themes.
+    fn panel_fill_area(ctx: &egui::Context) -> f32 {
+        let mut area = 0.0;
+        for theme in [egui::Theme::Dark, egui::Theme::Light] {
+            ctx.set_theme(theme);
+            let colour = panel_colour(&ctx.style_of(theme).visuals);
+            let out = ctx.run_ui(egui::RawInput::default(), |ui| {
+                egui::Panel::left("l").show(ui, |ui| ui.label("controls"));
+                egui::Panel::bottom("b").show(ui, |ui| ui.label("cameras"));
+                egui::CentralPanel::default_margins().show(ui, |ui| ui.label("view"));
+            });
+            for clipped in &out.shapes {
+                if let egui::Shape::Rect(r) = &clipped.shape {
+                    if r.fill == colour {
+                        area += r.rect.area();
+                    }
+                }
+            }
+        }
+        area
+    }
+
+    #[test]
+    fn panels_paint_no_fill_over_the_clear_colour() {
+        // egui's own panels fill their rectangles (the test's check can
+        // fail).
+        assert!(panel_fill_area(&egui::Context::default()) > 10_000.0);
+        let ctx = egui::Context::default();
+        unfilled_panels(&ctx);
+        let filled = panel_fill_area(&ctx);
+        assert!(filled <= 0.0, "{filled} px² filled");
+        // The window behind them is cleared to the theme's panel colour.
+        for (theme, visuals) in [
+            (egui::Theme::Dark, egui::Visuals::dark()),
+            (egui::Theme::Light, egui::Visuals::light()),
+        ] {
+            ctx.set_theme(theme);
+            let style = ctx.style_of(theme);
+            assert_eq!(style.visuals.panel_fill, egui::Color32::TRANSPARENT);
+            assert_eq!(panel_colour(&style.visuals), visuals.panel_fill);
+        }
     }
 }
