@@ -197,6 +197,36 @@ fn emulated_evaluation(dir: &std::path::Path) {
     assert!(!html.contains("fig3_stereo.csv"));
 }
 
+/// `moments` of the simulated lawn seen by a forward stereo pair
+/// (`assets/sim/lawn-stereo.sim.yaml`), brackets 1 EV apart from 2^8 to
+/// 2^14 µs in 12 bits, exported into `dir/brackets`.
+fn lawn_pair(dir: &std::path::Path, moments: usize) -> std::path::PathBuf {
+    let scenario = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../assets/sim/lawn-stereo.sim.yaml");
+    let folder = dir.join("brackets");
+    let moments = moments.to_string();
+    common::rigview(
+        &[
+            "eval",
+            "export-brackets",
+            "--scenario",
+            scenario.to_str().unwrap(),
+            "--frames",
+            &moments,
+            "--exposures",
+            "7",
+            "--range-ev",
+            "8:14",
+            "--bits",
+            "12",
+            "--out",
+            folder.to_str().unwrap(),
+        ],
+        dir,
+    );
+    folder
+}
+
 /// `rigview eval --brackets DIR` on a forward stereo pair (the lawn seen by
 /// `assets/stereo-front.rig.yaml`, brackets 1 EV apart from 2^8 to 2^14
 /// µs): the valid stereo disparities where each strategy settled are in
@@ -207,28 +237,7 @@ fn emulated_evaluation(dir: &std::path::Path) {
 #[test]
 fn eval_on_a_stereo_pair_reports_its_disparities() {
     let dir = tempfile::tempdir().unwrap();
-    let scenario = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../assets/sim/lawn-stereo.sim.yaml");
-    let folder = dir.path().join("brackets");
-    common::rigview(
-        &[
-            "eval",
-            "export-brackets",
-            "--scenario",
-            scenario.to_str().unwrap(),
-            "--frames",
-            "20",
-            "--exposures",
-            "7",
-            "--range-ev",
-            "8:14",
-            "--bits",
-            "12",
-            "--out",
-            folder.to_str().unwrap(),
-        ],
-        dir.path(),
-    );
+    let folder = lawn_pair(dir.path(), 20);
     let out = dir.path().join("eval");
     eval_quick(&folder, &out, &[], dir.path());
     let (h, rows) = common::csv(&out.join("fig3_stereo.csv"));
@@ -295,6 +304,108 @@ fn eval_on_a_stereo_pair_reports_its_disparities() {
     // The figure: a row for each of five strategies.
     let png = image::open(out.join("fig3_stereo.png")).unwrap();
     assert!(png.height() > 5 * 161, "{}×{}", png.width(), png.height());
+}
+
+/// `rigview eval --brackets DIR` on a rig posed relative to a camera, as
+/// public stereo datasets give it (the lawn pair's rig converted to a
+/// Kalibr camchain, cameras `cam0` and `cam1`): no ground and no surround
+/// view, so the cameras are metered over their whole frames and the seams
+/// and views are left out, while M, the tracked corners and the stereo
+/// disparities are measured. Scale-and-clip's laws settle near the best M
+/// of the whole frames, above mean AE, which the sky in the frame pulls
+/// down, and mean AE above the fixed exposure.
+#[test]
+fn eval_on_a_camera_frame_rig_meters_whole_frames() {
+    let dir = tempfile::tempdir().unwrap();
+    let folder = lawn_pair(dir.path(), 12);
+    let rig = folder.join("rig.yaml");
+    let camchain = dir.path().join("camchain.yaml");
+    common::rigview(
+        &[
+            "calib",
+            "convert",
+            rig.to_str().unwrap(),
+            camchain.to_str().unwrap(),
+            "--to",
+            "kalibr",
+        ],
+        dir.path(),
+    );
+    std::fs::copy(&camchain, &rig).unwrap();
+    let manifest = folder.join("brackets.csv");
+    let renamed: String = std::fs::read_to_string(&manifest)
+        .unwrap()
+        .lines()
+        .map(|l| {
+            let l = l
+                .strip_prefix("stereo_left,")
+                .map_or(l.to_string(), |rest| format!("cam0,{rest}"));
+            let l = l
+                .strip_prefix("stereo_right,")
+                .map_or(l.clone(), |rest| format!("cam1,{rest}"));
+            l + "\n"
+        })
+        .collect();
+    std::fs::write(&manifest, renamed).unwrap();
+
+    let out = dir.path().join("eval");
+    eval_quick(&folder, &out, &[], dir.path());
+    for absent in [
+        "fig4_seams.csv",
+        "fig4_seam_histograms.csv",
+        "fig6_views.png",
+    ] {
+        assert!(!out.join(absent).exists(), "{absent} without a view");
+    }
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert!(html.contains("posed relative to one of its cameras"));
+    assert!(html.contains("whole frames metered, no surround view"));
+    let (_, overlaps) = common::csv(&out.join("fig3_overlap_features.csv"));
+    assert!(overlaps.is_empty(), "no panorama, no overlaps matched");
+    let (_, stereo) = common::csv(&out.join("fig3_stereo.csv"));
+    assert_eq!(
+        stereo.len(),
+        12,
+        "a row per strategy but the compensated one"
+    );
+    assert!(stereo
+        .iter()
+        .all(|r| (r[2].as_str(), r[3].as_str()) == ("cam0", "cam1")));
+    // Per strategy, M where it settled over the best, mean of the cameras.
+    let (h, settled) = common::csv(&out.join("fig3_settled.csv"));
+    let col = |name: &str| h.iter().position(|c| c == name).unwrap();
+    let (strategy, fraction, tracked) =
+        (col("strategy"), col("m_fraction_of_best"), col("tracked"));
+    let mean = |key: &str, c: usize| -> f64 {
+        let v: Vec<f64> = settled
+            .iter()
+            .filter(|r| r[strategy] == key)
+            .map(|r| r[c].parse().unwrap())
+            .collect();
+        assert_eq!(v.len(), 2, "{key}: both cameras");
+        v.iter().sum::<f64>() / 2.0
+    };
+    let mut keys: Vec<&str> = settled.iter().map(|r| r[strategy].as_str()).collect();
+    keys.dedup();
+    for key in keys {
+        println!(
+            "{key:>22}: M / best {:.3}, {:.0} corners tracked",
+            mean(key, fraction),
+            mean(key, tracked)
+        );
+    }
+    let (ae, fixed) = (mean("mean", fraction), mean("fixed", fraction));
+    assert!(ae > fixed, "mean AE {ae} against fixed {fixed}");
+    for key in [
+        "linear/scale-clip",
+        "nonlinear/scale-clip",
+        "fast/scale-clip",
+        "multi/scale-clip",
+    ] {
+        let m = mean(key, fraction);
+        assert!(m >= 0.95 && m > ae, "{key}: {m} against mean AE {ae}");
+        assert!(mean(key, tracked) > 0.0);
+    }
 }
 
 /// `rigview run --headless --source brackets:DIR` (emulated, the default)

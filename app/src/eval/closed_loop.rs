@@ -6,7 +6,7 @@
 use std::sync::Arc;
 
 use anyhow::{Context, Result};
-use rigview_calib::rig::Rig;
+use rigview_calib::rig::{Frame, Rig};
 use rigview_core::exposure::FrameView;
 use rigview_core::exposure::NeighbourGraph;
 use rigview_core::pipeline::{LockStep, ProcessingSettings, Processor};
@@ -36,6 +36,17 @@ pub fn rig_view(rig: &Rig) -> Result<SurroundView> {
     build_view(rig, &eval_spec())?
         .into_surround()
         .context("the evaluation's view is the surround view")
+}
+
+/// [`rig_view`] of a rig posed in the vehicle frame; `None` for a rig posed
+/// relative to one of its cameras (a Kalibr camchain), whose ground is not
+/// known: its cameras are metered over their whole frames and no view is
+/// composed.
+pub fn ground_view(rig: &Rig) -> Result<Option<SurroundView>> {
+    match rig.frame {
+        Frame::Vehicle => rig_view(rig).map(Some),
+        Frame::Camera(_) => Ok(None),
+    }
 }
 
 /// How far (canvas pixels) from a seam its step is measured.
@@ -160,8 +171,13 @@ pub fn run_observed<S: FrameSource>(
     let cameras = source.cameras().to_vec();
     let n = cameras.len();
     let graph = NeighbourGraph::new(n, &rig.neighbours)?;
-    let view = build_view(rig, &eval_spec())?;
-    let mut processor = Processor::new(cameras, Some(view), graph, settings)?;
+    // Without a ground (a camera-frame rig) the processor meters whole
+    // frames and composes nothing.
+    let view = match rig.frame {
+        Frame::Vehicle => Some(build_view(rig, &eval_spec())?),
+        Frame::Camera(_) => None,
+    };
+    let mut processor = Processor::new(cameras, view, graph, settings)?;
     processor.set_compose(options.view);
     let seams = match (options.view, processor.view()) {
         (true, Some(v)) => Some(SeamBands::new(v, SEAM_BAND_PX)),

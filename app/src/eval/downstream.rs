@@ -21,7 +21,7 @@
 //!   depth consumer gets. The reference surround rig has no pair.
 
 use anyhow::{Context, Result};
-use rigview_calib::rig::Rig;
+use rigview_calib::rig::{Frame, Rig};
 use rigview_calib::tools::corners::{harris_corners, HarrisParams};
 use rigview_calib::tools::stereo::{stereo_pairs, Disparities, StereoRectifier};
 use rigview_core::features::{match_mutual_where, Descriptor, Smoothed};
@@ -64,7 +64,7 @@ pub struct SetFeatures {
 /// Measures [`SetFeatures`] set after set (module documentation).
 #[derive(Debug)]
 pub struct FeatureMeter {
-    panorama: Panorama,
+    panorama: Option<Panorama>,
     params: HarrisParams,
     previous: Vec<Option<Described>>,
     stereo: Vec<StereoRectifier>,
@@ -82,8 +82,15 @@ impl FeatureMeter {
             height: canvas.1,
             ..PanoramaSettings::default()
         };
-        let panorama = Panorama::build(rig, &settings.spec(), &PanoramaOptions::default())
-            .context("building the panorama whose overlaps are matched")?;
+        // A rig posed relative to one of its cameras has no panorama around
+        // the vehicle: its overlaps are not matched.
+        let panorama = match rig.frame {
+            Frame::Vehicle => Some(
+                Panorama::build(rig, &settings.spec(), &PanoramaOptions::default())
+                    .context("building the panorama whose overlaps are matched")?,
+            ),
+            Frame::Camera(_) => None,
+        };
         let stereo = stereo_pairs(rig)
             .into_iter()
             .map(|(l, r)| {
@@ -148,14 +155,19 @@ impl FeatureMeter {
             );
             self.previous[k] = Some(now);
         }
-        let (pairs, _) = self
-            .panorama
-            .match_pairs(
-                frames,
-                &crate::session::view::detect,
-                &MatchOptions::default(),
-            )
-            .context("matching the overlaps")?;
+        let pairs = match &self.panorama {
+            Some(panorama) => {
+                panorama
+                    .match_pairs(
+                        frames,
+                        &crate::session::view::detect,
+                        &MatchOptions::default(),
+                    )
+                    .context("matching the overlaps")?
+                    .0
+            }
+            None => Vec::new(),
+        };
         let mut stereo = Vec::with_capacity(self.stereo.len());
         self.last_stereo.clear();
         for s in &self.stereo {

@@ -61,6 +61,12 @@ fn swatch(s: EvalStrategy) -> String {
     )
 }
 
+/// Experiment 4's section for a rig without a surround view.
+const NO_VIEW_SEAMS: &str = "<h2>4. Surround seams (Figs. 18, 19)</h2>\n<p>Not measured: the rig \
+     is posed relative to one of its cameras (a Kalibr camchain), so its ground and the surround \
+     view are not known. Its cameras were metered over their whole frames. <code>rigview calib \
+     ground</code> poses such a rig on the ground (docs/calibration.md).</p>\n";
+
 /// The headline of experiment 4: per strategy, over the scenarios.
 fn seams_headline(r: &Results) -> String {
     let warmup = r.plan.seams.warmup;
@@ -392,7 +398,9 @@ pub fn report(r: &Results, out: &Path) -> Result<String> {
     if !r.start.is_empty() {
         h += &start_headline(r);
     }
-    h += &seams_headline(r);
+    if !r.seams.runs.is_empty() {
+        h += &seams_headline(r);
+    }
     if !r.panorama.runs.is_empty() {
         h += &panorama_headline(r);
     }
@@ -448,21 +456,25 @@ pub fn report(r: &Results, out: &Path) -> Result<String> {
             "stereo pairs, rectified, with their disparities",
         )?;
     }
-    h += "<h2>4. Surround seams (Figs. 18, 19)</h2>\n<p>Each scenario under each strategy, the view \
-          composed every set (display gains only where the strategy has them). The histograms hold \
-          log2 r_ij of every overlap and set after the warm-up, as the view shows it (the display \
-          gains applied); the profiles follow the last view along a circle around the car that \
-          crosses every seam (grey lines).</p>\n";
-    h += &figure(
-        out,
-        files::HIST_PNG,
-        "histograms of log2 r_ij per scenario and strategy",
-    )?;
-    h += &figure(
-        out,
-        files::PROFILE_PNG,
-        "intensity profiles across the seams",
-    )?;
+    if r.seams.runs.is_empty() {
+        h += NO_VIEW_SEAMS;
+    } else {
+        h += "<h2>4. Surround seams (Figs. 18, 19)</h2>\n<p>Each scenario under each strategy, the view \
+              composed every set (display gains only where the strategy has them). The histograms hold \
+              log2 r_ij of every overlap and set after the warm-up, as the view shows it (the display \
+              gains applied); the profiles follow the last view along a circle around the car that \
+              crosses every seam (grey lines).</p>\n";
+        h += &figure(
+            out,
+            files::HIST_PNG,
+            "histograms of log2 r_ij per scenario and strategy",
+        )?;
+        h += &figure(
+            out,
+            files::PROFILE_PNG,
+            "intensity profiles across the seams",
+        )?;
+    }
     h += "<h2>5. Panorama seams</h2>\n";
     if r.panorama.runs.is_empty() {
         h += "<p>Not measured here: the panorama's closed loop runs on the simulated rig only.</p>\n";
@@ -489,9 +501,13 @@ pub fn report(r: &Results, out: &Path) -> Result<String> {
             "histograms of log2 r_ij from matched patches per scenario and strategy",
         )?;
     }
-    h += "<h2>6. Visual comparison</h2>\n<p>The last view of each scenario under each strategy \
-          (the exposures it was taken with: <code>fig6_views.csv</code>).</p>\n";
-    h += &figure(out, files::VIEWS_PNG, "the bird's-eye views side by side")?;
+    if r.seams.runs.is_empty() {
+        h += "<h2>6. Visual comparison</h2>\n<p>Not shown: no surround view (above).</p>\n";
+    } else {
+        h += "<h2>6. Visual comparison</h2>\n<p>The last view of each scenario under each \
+              strategy (the exposures it was taken with: <code>fig6_views.csv</code>).</p>\n";
+        h += &figure(out, files::VIEWS_PNG, "the bird's-eye views side by side")?;
+    }
 
     // Settings.
     let ae = CameraAeParams::default();

@@ -19,6 +19,12 @@
 //! exposure; known steps of light) and are left out, as is the cameras'
 //! own AE, which needs the simulated camera. Experiment 5, the panorama's
 //! closed loop, runs on the simulated rig only.
+//!
+//! A rig posed relative to one of its cameras (a Kalibr camchain, as
+//! public stereo datasets give it) has no ground: its cameras are metered
+//! over their whole frames, and what needs the view (experiments 4 and 6,
+//! the overlaps' matches, the compensated strategy) is left out; M, the
+//! tracked corners, the stereo disparities and the start are measured.
 
 use std::path::Path;
 use std::time::Instant;
@@ -69,7 +75,7 @@ pub fn run(plan: &Plan, dir: &Path, mode: BracketMode, out: &Path) -> Result<Res
     let options = BracketOptions::new(BRACKETS_START, mode);
     let (probe, rig) = brackets::open_with_rig(dir, None, &options)?;
     let moments = probe.manifest().moments.len();
-    let view = closed_loop::rig_view(&rig)?;
+    let view = closed_loop::ground_view(&rig)?;
     let names: Vec<String> = rig.cameras.iter().map(|c| c.name.clone()).collect();
     let mut plan = plan.clone();
     plan.scenario = dir.display().to_string();
@@ -100,7 +106,8 @@ pub fn run(plan: &Plan, dir: &Path, mode: BracketMode, out: &Path) -> Result<Res
         let mut score = |d: &brackets::Decoded, e: f64| -> Result<()> {
             let frame =
                 rigview_core::exposure::FrameView::new(d.format, d.width, d.height, &d.data)?;
-            let m = meter.meter(&frame, view.ground_masks().get(cam))?;
+            let mask = view.as_ref().and_then(|v| v.ground_masks().get(cam));
+            let m = meter.meter(&frame, mask)?;
             // (An exposure clamped to the moment's span repeats the last.)
             if exposures.last().is_none_or(|&l: &f64| e > l * (1.0 + 1e-9)) {
                 exposures.push(e);
@@ -148,7 +155,12 @@ pub fn run(plan: &Plan, dir: &Path, mode: BracketMode, out: &Path) -> Result<Res
     let t_sweep = started.elapsed().as_secs_f64();
 
     let t = Instant::now();
-    let bar = super::progress_bar((STRATEGIES.len() * moments) as u64)?;
+    // The compensated strategy differs from multi only in the view.
+    let strategies: Vec<EvalStrategy> = STRATEGIES
+        .into_iter()
+        .filter(|&s| view.is_some() || s != EvalStrategy::MultiComp)
+        .collect();
+    let bar = super::progress_bar((strategies.len() * moments) as u64)?;
     bar.set_message("closed loops on the brackets");
     let mut settled = Vec::new();
     let mut start = Vec::new();
@@ -157,7 +169,7 @@ pub fn run(plan: &Plan, dir: &Path, mode: BracketMode, out: &Path) -> Result<Res
     let mut stereo_views = Vec::new();
     let mut runs = Vec::new();
     let mut meter = FeatureMeter::new(&rig, plan.sweep.canvas)?;
-    for strategy in STRATEGIES {
+    for strategy in strategies {
         let (source, _) = brackets::open_with_rig(dir, None, &options)?;
         let from = moments.saturating_sub(plan.seams.tail + 1);
         let mut measured = Vec::new();
@@ -165,7 +177,9 @@ pub fn run(plan: &Plan, dir: &Path, mode: BracketMode, out: &Path) -> Result<Res
             source,
             &rig,
             strategy.settings(),
-            LoopOptions { view: true },
+            LoopOptions {
+                view: view.is_some(),
+            },
             &mut meter.from_set(from, &mut measured),
             &mut || bar.inc(1),
         )?;
@@ -195,17 +209,19 @@ pub fn run(plan: &Plan, dir: &Path, mode: BracketMode, out: &Path) -> Result<Res
             stereo_views.extend(meter.stereo_views(NAME, strategy, &names));
         }
         start.extend(StartRow::of(strategy, &trace, &names));
-        let canvas = trace
-            .canvas
-            .clone()
-            .context("the closed loop composed no view")?;
-        runs.push(SeamRun {
-            scenario: NAME.into(),
-            strategy,
-            profile: seams::profile(&view, &canvas),
-            trace,
-            m_fraction,
-        });
+        if let Some(view) = &view {
+            let canvas = trace
+                .canvas
+                .clone()
+                .context("the closed loop composed no view")?;
+            runs.push(SeamRun {
+                scenario: NAME.into(),
+                strategy,
+                profile: seams::profile(view, &canvas),
+                trace,
+                m_fraction,
+            });
+        }
     }
     bar.finish_and_clear();
     let results = Results {
@@ -220,7 +236,10 @@ pub fn run(plan: &Plan, dir: &Path, mode: BracketMode, out: &Path) -> Result<Res
         },
         seams: SeamsResult {
             runs,
-            seam_angles: vec![(NAME.into(), seams::seam_angles(&view))],
+            seam_angles: view
+                .iter()
+                .map(|v| (NAME.into(), seams::seam_angles(v)))
+                .collect(),
         },
         panorama: Default::default(),
         start,
@@ -232,9 +251,14 @@ pub fn run(plan: &Plan, dir: &Path, mode: BracketMode, out: &Path) -> Result<Res
             ),
         ],
         source: format!(
-            "the bracket sequence {} ({moments} moments, {} cameras; {})",
+            "the bracket sequence {} ({moments} moments, {} cameras{}; {})",
             dir.display(),
             names.len(),
+            if view.is_some() {
+                ""
+            } else {
+                ", posed relative to a camera: whole frames metered, no surround view"
+            },
             match mode {
                 BracketMode::Emulate =>
                     "frames emulated at the exposure asked, M(E) swept at 0.1 EV",

@@ -44,7 +44,10 @@ pub fn write_all(r: &Results, out: &Path) -> Result<()> {
         write_steps(r, out)?;
     }
     write_sweep(r, out)?;
-    write_seams(r, out)?;
+    // (No seams without a surround view: a rig posed relative to a camera.)
+    if !r.seams.runs.is_empty() {
+        write_seams(r, out)?;
+    }
     if !r.panorama.runs.is_empty() {
         write_panorama(r, out)?;
     }
