@@ -17,7 +17,7 @@ use crate::exposure::{
 };
 use crate::image::scale_8bit;
 use crate::source::{CameraInfo, ExposureCommand, FrameSet};
-use crate::surround::{Canvas, Composer, Mosaic, PatchBlocks, SeamBands, SurroundView};
+use crate::surround::{Canvas, Composer, Mosaic, SeamBands, SurroundView};
 
 /// How far (canvas pixels) from a seam the seam gains compare the cameras.
 const SEAM_BAND_PX: usize = 3;
@@ -87,10 +87,6 @@ pub struct Processor {
     scaled: Vec<Vec<u8>>,
     /// The view's seam bands, for the seam gains (built when first needed).
     seams: Option<SeamBands>,
-    /// The view's overlap patches counted per metered block, for the
-    /// balancing's patch means (made when the view or the metering grid
-    /// changes).
-    patch_blocks: Option<PatchBlocks>,
     /// The canvases handed out last ([`CANVASES`]), taken again for a new
     /// set once nothing else holds them.
     canvases: Vec<Arc<Canvas>>,
@@ -148,7 +144,6 @@ impl Processor {
             scaled: Vec::new(),
             canvases: Vec::new(),
             seams: None,
-            patch_blocks: None,
             cameras,
             shared_settings: Arc::new(settings.clone()),
             settings,
@@ -325,7 +320,6 @@ impl Processor {
         ));
         self.view = view;
         self.seams = None;
-        self.patch_blocks = None;
         self.update_masks();
         Ok(())
     }
@@ -380,18 +374,7 @@ impl Processor {
         let metered = self.masks.meter(&self.meter, &views)?;
         let (observations, report) = match (&self.view, panorama) {
             (_, Some((observations, report))) => (observations, Some(report)),
-            (Some(v), None) => {
-                v.mosaic().check_frames(&views)?;
-                if !self.patch_blocks.as_ref().is_some_and(|b| b.fits(&metered)) {
-                    self.patch_blocks = Some(v.mosaic().patch_blocks(&metered)?);
-                }
-                let observations = self
-                    .patch_blocks
-                    .as_ref()
-                    .map(|b| b.observations(&metered))
-                    .unwrap_or_default();
-                (observations, None)
-            }
+            (Some(v), None) => (v.mosaic().pair_observations(&views)?, None),
             (None, None) => (Vec::new(), None),
         };
         let t1 = Instant::now();

@@ -61,7 +61,7 @@ use serde::{Deserialize, Serialize};
 use rigview_calib::rig::Rig;
 
 pub use compose::{Canvas, Composer};
-pub use mosaic::{CameraLayer, Mosaic, PatchBlocks};
+pub use mosaic::{CameraLayer, Mosaic};
 pub(crate) use remap::Plan;
 pub use seams::{SeamBands, SeamStep};
 

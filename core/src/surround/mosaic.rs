@@ -27,7 +27,7 @@ use super::remap;
 use super::{BlendMode, Overlap, OverlapPatch};
 use crate::error::{Error, Result};
 use crate::exposure::controller::PairObservation;
-use crate::exposure::{Metered, PatchPair};
+use crate::exposure::PatchPair;
 use crate::image::{distance_to_zero, FrameView, RoiMask};
 
 /// One camera's part of the canvas.
@@ -379,23 +379,17 @@ impl Mosaic {
         layer.weights[mode.index()][(row - r0) * rw + col - c0]
     }
 
-    /// An error unless `n` (of `what`) is the number of cameras.
-    fn one_per_camera(&self, what: &'static str, n: usize) -> Result<()> {
-        if n == self.layers.len() {
-            return Ok(());
-        }
-        Err(Error::invalid(
-            self.what,
-            what,
-            format!("one for each of {} cameras", self.layers.len()),
-            n,
-        ))
-    }
-
     /// Checks that there is one frame per camera, of its calibrated size;
     /// an error names the camera.
     pub fn check_frames(&self, frames: &[FrameView<'_>]) -> Result<()> {
-        self.one_per_camera("frames", frames.len())?;
+        if frames.len() != self.layers.len() {
+            return Err(Error::invalid(
+                self.what,
+                "frames",
+                format!("one for each of {} cameras", self.layers.len()),
+                frames.len(),
+            ));
+        }
         self.layers
             .iter()
             .zip(frames)
@@ -932,142 +926,18 @@ fn observations(overlaps: &[Overlap], frames: &[FrameView<'_>]) -> Vec<PairObser
                 .patches
                 .iter()
                 .map(|p| {
-                    patch_pair(
-                        patch_stats(&frames[o.i], &p.pixels_i),
-                        patch_stats(&frames[o.j], &p.pixels_j),
-                    )
+                    let (mean_i, saturated_i) = patch_stats(&frames[o.i], &p.pixels_i);
+                    let (mean_j, saturated_j) = patch_stats(&frames[o.j], &p.pixels_j);
+                    PatchPair {
+                        mean_i,
+                        saturated_i,
+                        mean_j,
+                        saturated_j,
+                    }
                 })
                 .collect(),
         })
         .collect()
-}
-
-/// A patch pair from each camera's (mean, saturated share).
-fn patch_pair((mean_i, saturated_i): (f32, f32), (mean_j, saturated_j): (f32, f32)) -> PatchPair {
-    PatchPair {
-        mean_i,
-        saturated_i,
-        mean_j,
-        saturated_j,
-    }
-}
-
-/// A patch's metered blocks in one camera and how many of its pixels each
-/// holds.
-type PatchSide = Vec<(u32, u32)>;
-
-/// The overlap patches' pixels counted per metered block of each camera:
-/// the patch means of the balancing read from the metered luminance (a few
-/// hundred kilobytes a set, in the caches) instead of the frames (scattered
-/// reads of cache lines that metering has already passed). A patch's mean
-/// is then the mean of its pixels' blocks, weighted by how many of its
-/// pixels each holds: the blocks at its edge reach a few pixels past it.
-#[derive(Debug)]
-pub struct PatchBlocks {
-    /// Per camera, the metered grid the blocks are of: scale, width,
-    /// height.
-    grids: Vec<(usize, usize, usize)>,
-    /// Per overlap: the cameras `i`, `j`, and per patch, per side, the
-    /// blocks (row-major index in the metered grid) and how many of the
-    /// patch's pixels each holds.
-    overlaps: Vec<(usize, usize, Vec<[PatchSide; 2]>)>,
-}
-
-impl Mosaic {
-    /// The overlap patches of the view counted per block of `metered` (one
-    /// per camera, as [`crate::exposure::Meter`] makes them from this
-    /// view's cameras' frames).
-    pub fn patch_blocks(&self, metered: &[Metered]) -> Result<PatchBlocks> {
-        self.one_per_camera("metered frames", metered.len())?;
-        let grids: Vec<_> = metered
-            .iter()
-            .map(|m| (m.scale().max(1), m.width(), m.height()))
-            .collect();
-        let blocks = |camera: usize, pixels: &[u32]| -> PatchSide {
-            let (k, ow, oh) = grids[camera];
-            let w = self.layers[camera].source.0.max(1);
-            let mut b: Vec<u32> = pixels
-                .iter()
-                .map(|&p| {
-                    let (x, y) = (p as usize % w, p as usize / w);
-                    let (bx, by) = (
-                        (x / k).min(ow.saturating_sub(1)),
-                        (y / k).min(oh.saturating_sub(1)),
-                    );
-                    (by * ow + bx) as u32
-                })
-                .collect();
-            b.sort_unstable();
-            let mut out: PatchSide = Vec::new();
-            for v in b {
-                match out.last_mut() {
-                    Some((last, n)) if *last == v => *n += 1,
-                    _ => out.push((v, 1)),
-                }
-            }
-            out
-        };
-        let overlaps = self
-            .overlaps
-            .iter()
-            .map(|o| {
-                let patches = o
-                    .patches
-                    .iter()
-                    .map(|p| [blocks(o.i, &p.pixels_i), blocks(o.j, &p.pixels_j)])
-                    .collect();
-                (o.i, o.j, patches)
-            })
-            .collect();
-        Ok(PatchBlocks { grids, overlaps })
-    }
-}
-
-impl PatchBlocks {
-    /// Whether `metered` has the grids these blocks were counted on.
-    pub fn fits(&self, metered: &[Metered]) -> bool {
-        metered.len() == self.grids.len()
-            && metered
-                .iter()
-                .zip(&self.grids)
-                .all(|(m, &g)| (m.scale().max(1), m.width(), m.height()) == g)
-    }
-
-    /// The patch means of every overlap in `metered` (which
-    /// [`PatchBlocks::fits`]), for the balancing (Eq. 5): a patch's mean
-    /// luminance and its saturated share, each its blocks' weighted by the
-    /// patch's pixels in them.
-    pub fn observations(&self, metered: &[Metered]) -> Vec<PairObservation> {
-        let side = |m: Option<&Metered>, blocks: &[(u32, u32)]| -> (f32, f32) {
-            let Some(m) = m else { return (0.0, 0.0) };
-            let (luma, saturated) = (m.luma(), m.saturated_samples());
-            let (mut sum, mut sat, mut n) = (0.0f64, 0.0f64, 0u64);
-            for &(b, c) in blocks {
-                let b = b as usize;
-                let c64 = f64::from(c);
-                sum += c64 * f64::from(luma.get(b).copied().unwrap_or(0.0));
-                sat += c64 * f64::from(saturated.and_then(|s| s.get(b)).copied().unwrap_or(0.0));
-                n += u64::from(c);
-            }
-            if n == 0 {
-                return (0.0, 0.0);
-            }
-            ((sum / n as f64) as f32, (sat / n as f64) as f32)
-        };
-        self.overlaps
-            .iter()
-            .map(|(i, j, patches)| PairObservation {
-                i: *i,
-                j: *j,
-                patches: patches
-                    .iter()
-                    .map(|[bi, bj]| {
-                        patch_pair(side(metered.get(*i), bi), side(metered.get(*j), bj))
-                    })
-                    .collect(),
-            })
-            .collect()
-    }
 }
 
 /// At most this many pixels of a patch are read for its statistics, evenly
