@@ -9,7 +9,7 @@ use anyhow::{Context, Result};
 use rigview_calib::rig::{Frame, Rig};
 use rigview_core::exposure::FrameView;
 use rigview_core::exposure::NeighbourGraph;
-use rigview_core::pipeline::{LockStep, ProcessingSettings, Processor};
+use rigview_core::pipeline::{LockStep, ProcessingSettings, Processor, View};
 use rigview_core::sim::{SimRender, SimRig, SimRigOptions};
 use rigview_core::source::{FrameSet, FrameSource};
 use rigview_core::surround::{Canvas, CanvasSpec, SeamBands, SurroundView};
@@ -43,8 +43,19 @@ pub fn rig_view(rig: &Rig) -> Result<SurroundView> {
 /// known: its cameras are metered over their whole frames and no view is
 /// composed.
 pub fn ground_view(rig: &Rig) -> Result<Option<SurroundView>> {
+    grounded_view(rig)?
+        .map(|v| {
+            v.into_surround()
+                .context("the evaluation's view is the surround view")
+        })
+        .transpose()
+}
+
+/// The view the evaluation's processor composes of `rig`, as
+/// [`ground_view`] decides it: `None` without a ground.
+fn grounded_view(rig: &Rig) -> Result<Option<View>> {
     match rig.frame {
-        Frame::Vehicle => rig_view(rig).map(Some),
+        Frame::Vehicle => build_view(rig, &eval_spec()).map(Some),
         Frame::Camera(_) => Ok(None),
     }
 }
@@ -173,11 +184,7 @@ pub fn run_observed<S: FrameSource>(
     let graph = NeighbourGraph::new(n, &rig.neighbours)?;
     // Without a ground (a camera-frame rig) the processor meters whole
     // frames and composes nothing.
-    let view = match rig.frame {
-        Frame::Vehicle => Some(build_view(rig, &eval_spec())?),
-        Frame::Camera(_) => None,
-    };
-    let mut processor = Processor::new(cameras, view, graph, settings)?;
+    let mut processor = Processor::new(cameras, grounded_view(rig)?, graph, settings)?;
     processor.set_compose(options.view);
     let seams = match (options.view, processor.view()) {
         (true, Some(v)) => Some(SeamBands::new(v, SEAM_BAND_PX)),
