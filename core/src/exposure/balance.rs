@@ -64,7 +64,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::bracket::same_scene;
-use super::estimator::Simulation;
+use super::estimator::{AnchorScore, Estimate, Simulation};
 use crate::error::{check_range, Error, Result};
 use crate::stats::median;
 
@@ -87,11 +87,23 @@ pub struct BalanceParams {
     /// clipped ([`HeldRatios`]; 0: never).
     #[serde(default = "default_hold_sets")]
     pub hold_sets: u32,
+    /// The largest share of its own best `M` that balancing may cost a
+    /// camera, as its estimate predicts it under scale-and-clip
+    /// ([`guard_m`]; 1: no limit, Eq. 5 as written).
+    #[serde(default = "default_max_m_loss")]
+    pub max_m_loss: f64,
 }
 
 fn default_hold_sets() -> u32 {
     DEFAULT_HOLD_SETS
 }
+
+fn default_max_m_loss() -> f64 {
+    DEFAULT_MAX_M_LOSS
+}
+
+/// [`BalanceParams::max_m_loss`] by default: 5 %.
+pub const DEFAULT_MAX_M_LOSS: f64 = 0.05;
 
 /// Sets a scene ratio is held by default: 5 s at 20 Hz.
 pub const DEFAULT_HOLD_SETS: u32 = 100;
@@ -105,6 +117,7 @@ impl Default for BalanceParams {
             min_patches: 1,
             damping: DampingParams::default(),
             hold_sets: DEFAULT_HOLD_SETS,
+            max_m_loss: DEFAULT_MAX_M_LOSS,
         }
     }
 }
@@ -132,6 +145,13 @@ impl BalanceParams {
             0.0,
             0.5,
             "a mean in [0, 0.5]",
+        )?;
+        check_range(
+            "balance.max_m_loss",
+            self.max_m_loss,
+            0.0,
+            1.0,
+            "a fraction in [0, 1]",
         )?;
         if self.min_patches == 0 {
             return Err(Error::InvalidParameter {
@@ -311,6 +331,106 @@ pub fn balance_with(
         alpha: a,
         mean_ratio,
     }
+}
+
+/// Where balancing may take a camera: the balanced `target`, moved back
+/// towards the camera's own `unary` exposure until its estimate predicts at
+/// least `1 − max_loss` of the best `M` its anchors show.
+///
+/// Eq. 5 weighs the neighbours as much as the camera's own law at rest
+/// (`α = ½`), whatever that costs the camera. Where neighbours see their
+/// overlap very differently (snow lit on one side of the vehicle, shade on
+/// the other), a chain of cameras pulls one of them far from its own best:
+/// the simulated `snow` preset's back camera rested 0.9 EV under its best
+/// with 81 % of its `M`. Under scale-and-clip the anchors' scores are the
+/// `M` of the frame as the sensor would give it at `s` times the exposure
+/// (exact below saturation), so they say what a balanced exposure costs:
+/// `M̂(s)` interpolates them in `ln s`. When `M̂` at the target falls under
+/// the floor, the target moves from there towards the best anchor to the
+/// first exposure that reaches the floor, but not past the unary (the law
+/// keeps its own pace). A target beyond the anchors' span is judged by
+/// the nearest end. The γ-mapping's scores are not exposures' and the
+/// target stands; so it does for a flat estimate and for `max_loss ≥ 1`.
+pub fn guard_m(target: f64, unary: f64, taken: f64, estimate: &Estimate, max_loss: f64) -> f64 {
+    if estimate.simulation != Simulation::ScaleClip || estimate.flat {
+        return target;
+    }
+    guard_m_by(target, unary, taken, &estimate.anchors, max_loss)
+}
+
+/// [`guard_m`] on scale-and-clip's anchor scores, ascending in `s`.
+pub fn guard_m_by(
+    target: f64,
+    unary: f64,
+    taken: f64,
+    anchors: &[AnchorScore],
+    max_loss: f64,
+) -> f64 {
+    let usable = max_loss < 1.0
+        && anchors.len() >= 2
+        && anchors.windows(2).all(|w| w[0].x < w[1].x)
+        && taken > 0.0
+        && target > 0.0
+        && unary > 0.0
+        && target.is_finite()
+        && unary.is_finite()
+        && anchors
+            .iter()
+            .all(|a| a.x > 0.0 && a.x.is_finite() && a.m.is_finite());
+    if !usable {
+        return target;
+    }
+    let Some(best) = anchors.iter().max_by(|a, b| a.m.total_cmp(&b.m)) else {
+        return target;
+    };
+    if best.m <= 0.0 {
+        return target;
+    }
+    let floor = (1.0 - max_loss.max(0.0)) * best.m;
+    let lo = anchors[0].x.ln();
+    let hi = anchors[anchors.len() - 1].x.ln();
+    let m_at = |u: f64| -> f64 {
+        let u = u.clamp(lo, hi);
+        let k = anchors
+            .windows(2)
+            .position(|w| u <= w[1].x.ln())
+            .unwrap_or(anchors.len() - 2);
+        let (a, b) = (&anchors[k], &anchors[k + 1]);
+        let (ua, ub) = (a.x.ln(), b.x.ln());
+        if ub - ua <= 0.0 {
+            return a.m.max(b.m);
+        }
+        let f = ((u - ua) / (ub - ua)).clamp(0.0, 1.0);
+        a.m + f * (b.m - a.m)
+    };
+    let u_target = (target / taken).ln();
+    if m_at(u_target) >= floor {
+        return target;
+    }
+    let u_best = best.x.ln();
+    let u_unary = (unary / taken).ln();
+    // The unary must lie on the best anchor's side of the target: the
+    // guard only gives back what the neighbours' pull took.
+    let toward = (u_best - u_target.clamp(lo, hi)).signum();
+    if toward == 0.0 || (u_unary - u_target) * toward <= 0.0 {
+        return target;
+    }
+    let from = u_target.clamp(lo, hi);
+    let stop = if (u_unary - u_best) * toward < 0.0 {
+        u_unary
+    } else {
+        u_best
+    };
+    const STEPS: usize = 64;
+    let mut u = stop;
+    for k in 1..=STEPS {
+        let v = from + (stop - from) * k as f64 / STEPS as f64;
+        if m_at(v) >= floor {
+            u = v;
+            break;
+        }
+    }
+    taken * u.exp()
 }
 
 /// How [`Damping`] adapts.
@@ -573,5 +693,117 @@ impl NeighbourGraph {
                 None
             }
         })
+    }
+}
+
+// A target the guard leaves is returned as it came, bit for bit.
+#[cfg(test)]
+#[allow(clippy::float_cmp)]
+mod tests {
+    use super::*;
+
+    /// Scores at the default anchors for `M(s) = m(ln s)`.
+    fn scores(m: impl Fn(f64) -> f64) -> Vec<AnchorScore> {
+        crate::exposure::estimator::DEFAULT_ANCHORS
+            .iter()
+            .map(|&x| AnchorScore { x, m: m(x.ln()) })
+            .collect()
+    }
+
+    /// `M` rising linearly in `ln s` from 50 at `s = 1/1.9` to 100 at
+    /// `s = 1.9`: a camera balanced darker than its best.
+    fn rising() -> Vec<AnchorScore> {
+        let h = 1.9f64.ln();
+        scores(|u| 75.0 + 25.0 * u / h)
+    }
+
+    #[test]
+    fn a_target_within_the_budget_stands() {
+        let a = rising();
+        // M̂(1.8) ≈ 97.9 ≥ 95.
+        assert_eq!(guard_m_by(1.8, 1.9, 1.0, &a, 0.05), 1.8);
+        // No limit: Eq. 5 as written.
+        assert_eq!(guard_m_by(0.6, 1.5, 1.0, &a, 1.0), 0.6);
+    }
+
+    #[test]
+    fn a_costly_target_moves_to_where_the_estimate_reaches_the_floor() {
+        let a = rising();
+        let h = 1.9f64.ln();
+        // The floor 95 lies at ln s = 0.8·h (M = 75 + 25·0.8).
+        let want = (0.8 * h).exp();
+        for taken in [1.0, 250.0] {
+            let g = guard_m_by(0.8 * taken, 1.9 * taken, taken, &a, 0.05);
+            assert!(
+                (g / taken / want - 1.0).abs() < 0.02,
+                "guarded {g} at taken {taken}, want {}",
+                want * taken
+            );
+            // A budget of 20 %: the floor 80 at ln s = 0.2·h.
+            let g = guard_m_by(0.8 * taken, 1.9 * taken, taken, &a, 0.2);
+            assert!((g / taken / (0.2 * h).exp() - 1.0).abs() < 0.02, "{g}");
+        }
+    }
+
+    #[test]
+    fn the_guard_never_passes_the_unary() {
+        let a = rising();
+        // The law asks only 1.2 times the exposure: the floor (1.67) lies
+        // beyond it, and the guarded target is the law's own.
+        let g = guard_m_by(0.7, 1.2, 1.0, &a, 0.05);
+        assert!((g - 1.2).abs() < 1e-9, "{g}");
+        // A unary on the far side of the target from the best anchor:
+        // the guard has nothing to give back.
+        assert_eq!(guard_m_by(0.9, 0.6, 1.0, &a, 0.05), 0.9);
+    }
+
+    #[test]
+    fn a_target_beyond_the_anchors_is_judged_by_the_nearest_end() {
+        let a = rising();
+        // s = 0.2 is judged by M̂(1/1.9) = 50 and moved up.
+        let g = guard_m_by(0.2, 1.9, 1.0, &a, 0.05);
+        assert!(g > 1.5 && g <= 1.9, "{g}");
+        // s = 3 is judged by M̂(1.9) = 100, the best.
+        assert_eq!(guard_m_by(3.0, 1.9, 1.0, &a, 0.05), 3.0);
+    }
+
+    #[test]
+    fn a_peak_between_the_anchors_is_found_from_either_side() {
+        // M peaks at s = 1 and falls off 30 per EV-ish on both sides.
+        let a = scores(|u| 100.0 - 40.0 * u.abs());
+        let up = guard_m_by(0.55, 1.1, 1.0, &a, 0.1);
+        assert!(up > 0.55 && up < 1.0, "{up}");
+        assert!(
+            100.0 - 40.0 * up.ln().abs() >= 89.0,
+            "M̂ at {up}: {}",
+            100.0 - 40.0 * up.ln().abs()
+        );
+        let down = guard_m_by(1.85, 0.9, 1.0, &a, 0.1);
+        assert!(down < 1.85 && down > 1.0, "{down}");
+        assert!(100.0 - 40.0 * down.ln().abs() >= 89.0);
+    }
+
+    #[test]
+    fn bad_scores_leave_the_target() {
+        let mut a = rising();
+        a[2].m = f64::NAN;
+        assert_eq!(guard_m_by(0.6, 1.5, 1.0, &a, 0.05), 0.6);
+        let zero = scores(|_| 0.0);
+        assert_eq!(guard_m_by(0.6, 1.5, 1.0, &zero, 0.05), 0.6);
+        let mut unsorted = rising();
+        unsorted.swap(0, 6);
+        assert_eq!(guard_m_by(0.6, 1.5, 1.0, &unsorted, 0.05), 0.6);
+        assert_eq!(guard_m_by(0.6, 1.5, 0.0, &rising(), 0.05), 0.6);
+    }
+
+    #[test]
+    fn max_m_loss_is_validated() {
+        let p = BalanceParams {
+            max_m_loss: 1.5,
+            ..Default::default()
+        };
+        let e = p.validate().unwrap_err().to_string();
+        assert!(e.contains("balance.max_m_loss"), "{e}");
+        assert!(BalanceParams::default().validate().is_ok());
     }
 }

@@ -297,59 +297,69 @@ impl RigController {
             };
             // A camera following a change of light goes where its
             // balanced command would have gone in the reference's light.
-            let (target, alpha, damping) =
-                match balancing.filter(|_| !neighbour.is_empty() && u.light.is_none()) {
-                    Some(params) => {
-                        // A uniform change of light is measured under
-                        // every gradient law (the camera follows it, and
-                        // the damping starts again). The frames' means
-                        // also guess at changes the measurement leaves to
-                        // the law (not uniform over the image), except
-                        // under the fast law, whose jumps leave frames at
-                        // several exposures in flight that would read as
-                        // changes. (A probe frame's mean is no change of
-                        // light.)
-                        if config.law.kind != LawKind::Fast && !u.probe_frame {
-                            cam.damping.observe(
-                                input.info.taken.exposure().log2(),
-                                f64::from(input.metered.stats().mean),
-                                config.bracket.light_tolerance,
-                            );
-                        }
-                        // A probe frame's own law asks from a darker frame:
-                        // its `α` is not the rest's, and stays out of the
-                        // mean.
-                        let b = balance::balance_with(u.desired, bases[i], &neighbour, |a| {
-                            if cam.has_levels() {
-                                a
-                            } else if u.probe_frame {
-                                cam.damping.alpha_mean().unwrap_or(a)
-                            } else {
-                                cam.damping.smooth_alpha(
-                                    a,
-                                    params
-                                        .damping
-                                        .alpha_weight_under(config.estimator.simulation),
-                                )
-                            }
-                        });
-                        // On fixed levels the walker keeps a camera from
-                        // circling, and a damped step would only add up
-                        // more slowly.
-                        let (e, kappa) = if cam.has_levels() {
-                            (b.exposure, 1.0)
-                        } else if u.hold.is_some() {
-                            (b.exposure, cam.damping.kappa())
+            let (target, alpha, damping) = match balancing
+                .filter(|_| !neighbour.is_empty() && u.light.is_none())
+            {
+                Some(params) => {
+                    // A uniform change of light is measured under
+                    // every gradient law (the camera follows it, and
+                    // the damping starts again). The frames' means
+                    // also guess at changes the measurement leaves to
+                    // the law (not uniform over the image), except
+                    // under the fast law, whose jumps leave frames at
+                    // several exposures in flight that would read as
+                    // changes. (A probe frame's mean is no change of
+                    // light.)
+                    if config.law.kind != LawKind::Fast && !u.probe_frame {
+                        cam.damping.observe(
+                            input.info.taken.exposure().log2(),
+                            f64::from(input.metered.stats().mean),
+                            config.bracket.light_tolerance,
+                        );
+                    }
+                    // A probe frame's own law asks from a darker frame:
+                    // its `α` is not the rest's, and stays out of the
+                    // mean.
+                    let b = balance::balance_with(u.desired, bases[i], &neighbour, |a| {
+                        if cam.has_levels() {
+                            a
+                        } else if u.probe_frame {
+                            cam.damping.alpha_mean().unwrap_or(a)
                         } else {
-                            cam.damping.apply(bases[i], b.exposure, &params.damping)
-                        };
-                        (e, Some(b.alpha), Some(kappa))
-                    }
-                    None => {
-                        cam.damping.reset();
-                        (u.desired, None, None)
-                    }
-                };
+                            cam.damping.smooth_alpha(
+                                a,
+                                params
+                                    .damping
+                                    .alpha_weight_under(config.estimator.simulation),
+                            )
+                        }
+                    });
+                    // Balancing may not cost the camera more than
+                    // its share of `M` (a probe frame's estimate is
+                    // of a darker frame and says nothing of the rest).
+                    let balanced = match (&u.estimate, u.probe_frame) {
+                        (Some(est), false) => {
+                            balance::guard_m(b.exposure, u.desired, u.taken, est, params.max_m_loss)
+                        }
+                        _ => b.exposure,
+                    };
+                    // On fixed levels the walker keeps a camera from
+                    // circling, and a damped step would only add up
+                    // more slowly.
+                    let (e, kappa) = if cam.has_levels() {
+                        (balanced, 1.0)
+                    } else if u.hold.is_some() {
+                        (balanced, cam.damping.kappa())
+                    } else {
+                        cam.damping.apply(bases[i], balanced, &params.damping)
+                    };
+                    (e, Some(b.alpha), Some(kappa))
+                }
+                None => {
+                    cam.damping.reset();
+                    (u.desired, None, None)
+                }
+            };
             let (command, clamped, hold) = if u.hold.is_some() {
                 (None, None, u.hold)
             } else {
