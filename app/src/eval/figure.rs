@@ -91,6 +91,61 @@ fn bounds(panel: &Panel) -> (f64, f64, f64, f64) {
     (x0 - xpad, x1 + xpad, y0 - ypad, y1 + ypad)
 }
 
+/// The corner of the plot where the legend hides the fewest points (a
+/// mark, which shows where a strategy settled, counts as five), upper
+/// right on a tie. The legend's size is estimated from its labels: about
+/// 7 pixels a character at the legend's font, 17 pixels a line.
+fn legend_corner(
+    panel: &Panel,
+    (x0, x1, y0, y1): (f64, f64, f64, f64),
+    (w, h): (u32, u32),
+) -> SeriesLabelPosition {
+    let labels: Vec<&str> = panel
+        .series
+        .iter()
+        .filter_map(|s| s.label.as_deref())
+        .collect();
+    let chars = labels.iter().map(|l| l.chars().count()).max().unwrap_or(0);
+    // The plot inside the panel: less the axes' label areas, the caption
+    // and the margins.
+    let plot_w = (f64::from(w) - 64.0 - 20.0).max(1.0);
+    let plot_h = (f64::from(h) - 40.0 - 28.0 - 20.0).max(1.0);
+    let fw = ((7.0 * chars as f64 + 40.0) / plot_w).min(1.0);
+    let fh = ((17.0 * labels.len() as f64 + 14.0) / plot_h).min(1.0);
+    let (xs, ys) = (x1 - x0, y1 - y0);
+    let corners = [
+        (SeriesLabelPosition::UpperRight, true, true),
+        (SeriesLabelPosition::UpperLeft, false, true),
+        (SeriesLabelPosition::LowerRight, true, false),
+        (SeriesLabelPosition::LowerLeft, false, false),
+    ];
+    let hidden = |right: bool, upper: bool| -> usize {
+        panel
+            .series
+            .iter()
+            .map(|s| {
+                let weight = if s.style == Style::Marks { 5 } else { 1 };
+                let inside = s
+                    .points
+                    .iter()
+                    .filter(|(x, y)| {
+                        let fx = (x - x0) / xs;
+                        let fy = (y - y0) / ys;
+                        let in_x = if right { fx >= 1.0 - fw } else { fx <= fw };
+                        let in_y = if upper { fy >= 1.0 - fh } else { fy <= fh };
+                        in_x && in_y
+                    })
+                    .count();
+                weight * inside
+            })
+            .sum()
+    };
+    corners
+        .iter()
+        .min_by_key(|(_, right, upper)| hidden(*right, *upper))
+        .map_or(SeriesLabelPosition::UpperRight, |c| c.0.clone())
+}
+
 fn draw(
     area: &DrawingArea<crate::report::glyphs::Glyphs<BitMapBackend<'_>>, plotters::coord::Shift>,
     panel: &Panel,
@@ -174,9 +229,64 @@ fn draw(
             .label_font((FONT, 13))
             .background_style(WHITE.mix(0.85))
             .border_style(RGBColor(180, 180, 180))
-            .position(SeriesLabelPosition::UpperRight)
+            .position(legend_corner(panel, (x0, x1, y0, y1), area.dim_in_pixel()))
             .draw()
             .map_err(err)?;
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn series(style: Style, label: &str, points: Vec<(f64, f64)>) -> Series {
+        Series {
+            label: Some(label.into()),
+            colour: BLACK,
+            style,
+            points,
+        }
+    }
+
+    /// A curve that peaks in the upper right with the settled marks there
+    /// (as `M` against exposure on a sequence whose best is its longest
+    /// bracket): the legend goes where the curve is low.
+    #[test]
+    fn the_legend_avoids_the_curves_peak_and_the_marks() {
+        let curve: Vec<(f64, f64)> = (0..=100)
+            .map(|i| {
+                let x = f64::from(i) / 10.0;
+                (x, x * x)
+            })
+            .collect();
+        let marks = vec![(9.5, 90.0), (9.8, 96.0), (10.0, 100.0)];
+        let panel = Panel {
+            series: vec![
+                series(Style::Line, "M", curve),
+                series(Style::Marks, "gradient balanced (multi)", marks),
+            ],
+            ..Default::default()
+        };
+        let b = bounds(&panel);
+        let corner = legend_corner(&panel, b, (640, 420));
+        assert_eq!(corner, SeriesLabelPosition::UpperLeft);
+        // Mirrored, the peak is upper left and the legend goes right.
+        let mirrored = Panel {
+            series: panel
+                .series
+                .iter()
+                .map(|s| Series {
+                    points: s.points.iter().map(|&(x, y)| (-x, y)).collect(),
+                    ..s.clone()
+                })
+                .collect(),
+            ..Default::default()
+        };
+        let b = bounds(&mirrored);
+        assert_eq!(
+            legend_corner(&mirrored, b, (640, 420)),
+            SeriesLabelPosition::UpperRight
+        );
+    }
 }
