@@ -88,8 +88,8 @@ pub struct BalanceParams {
     #[serde(default = "default_hold_sets")]
     pub hold_sets: u32,
     /// The largest share of its own best `M` that balancing may cost a
-    /// camera, as its estimate predicts it under scale-and-clip
-    /// ([`guard_m`]; 1: no limit, Eq. 5 as written).
+    /// camera by pulling it darker, as its estimate predicts it under
+    /// scale-and-clip ([`guard_m`]; 1: no limit, Eq. 5 as written).
     #[serde(default = "default_max_m_loss")]
     pub max_m_loss: f64,
 }
@@ -102,8 +102,12 @@ fn default_max_m_loss() -> f64 {
     DEFAULT_MAX_M_LOSS
 }
 
-/// [`BalanceParams::max_m_loss`] by default: 5 %.
-pub const DEFAULT_MAX_M_LOSS: f64 = 0.05;
+/// [`BalanceParams::max_m_loss`] by default: 10 %. At 5 % the `snow`
+/// preset's back camera kept 94.5 % of its best `M` at a quarter of the
+/// resolution (88 % at 10 %), but at full resolution it came to rest
+/// where its estimate is bistable (γ̂ 0.85 or 1.82 at the same exposure)
+/// and cycled 1.2 EV every second or so.
+pub const DEFAULT_MAX_M_LOSS: f64 = 0.1;
 
 /// Sets a scene ratio is held by default: 5 s at 20 Hz.
 pub const DEFAULT_HOLD_SETS: u32 = 100;
@@ -333,9 +337,9 @@ pub fn balance_with(
     }
 }
 
-/// Where balancing may take a camera: the balanced `target`, moved back
-/// towards the camera's own `unary` exposure until its estimate predicts at
-/// least `1 − max_loss` of the best `M` its anchors show.
+/// Where balancing may take a camera: a balanced `target` darker than the
+/// camera's own `unary` exposure, moved back up until the camera's estimate
+/// predicts at least `1 − max_loss` of the best `M` its anchors show.
 ///
 /// Eq. 5 weighs the neighbours as much as the camera's own law at rest
 /// (`α = ½`), whatever that costs the camera. Where neighbours see their
@@ -349,8 +353,15 @@ pub fn balance_with(
 /// the floor, the target moves from there towards the best anchor to the
 /// first exposure that reaches the floor, but not past the unary (the law
 /// keeps its own pace). A target beyond the anchors' span is judged by
-/// the nearest end. The γ-mapping's scores are not exposures' and the
-/// target stands; so it does for a flat estimate and for `max_loss ≥ 1`.
+/// the nearest end.
+///
+/// Only a pull darker is guarded. A pull brighter can lead a camera over
+/// a hump of `M(E)` the anchors cannot see past: on the `tunnel-exit`
+/// preset at full resolution the front camera's own law rests on a lower
+/// hump at 2^10.4 µs and its neighbours pull it to 2^15.7, near its best;
+/// guarded both ways it stayed at 2^10.7. The γ-mapping's scores are not
+/// an exposure's and the target stands; so it does for a flat estimate and
+/// for `max_loss ≥ 1`.
 pub fn guard_m(target: f64, unary: f64, taken: f64, estimate: &Estimate, max_loss: f64) -> f64 {
     if estimate.simulation != Simulation::ScaleClip || estimate.flat {
         return target;
@@ -412,7 +423,7 @@ pub fn guard_m_by(
     // The unary must lie on the best anchor's side of the target: the
     // guard only gives back what the neighbours' pull took.
     let toward = (u_best - u_target.clamp(lo, hi)).signum();
-    if toward == 0.0 || (u_unary - u_target) * toward <= 0.0 {
+    if toward <= 0.0 || (u_unary - u_target) * toward <= 0.0 {
         return target;
     }
     let from = u_target.clamp(lo, hi);
@@ -768,7 +779,7 @@ mod tests {
     }
 
     #[test]
-    fn a_peak_between_the_anchors_is_found_from_either_side() {
+    fn a_pull_darker_is_guarded_and_a_pull_brighter_is_not() {
         // M peaks at s = 1 and falls off 30 per EV-ish on both sides.
         let a = scores(|u| 100.0 - 40.0 * u.abs());
         let up = guard_m_by(0.55, 1.1, 1.0, &a, 0.1);
@@ -778,9 +789,9 @@ mod tests {
             "M̂ at {up}: {}",
             100.0 - 40.0 * up.ln().abs()
         );
-        let down = guard_m_by(1.85, 0.9, 1.0, &a, 0.1);
-        assert!(down < 1.85 && down > 1.0, "{down}");
-        assert!(100.0 - 40.0 * down.ln().abs() >= 89.0);
+        // A pull brighter is left to Eq. 5: the anchors cannot see past a
+        // hump of `M` to a better exposure that neighbours may lead to.
+        assert_eq!(guard_m_by(1.85, 0.9, 1.0, &a, 0.1), 1.85);
     }
 
     #[test]
