@@ -279,6 +279,21 @@ fn check_emulation(args: &CheckArgs, out: &mut dyn Write) -> Result<()> {
         writeln!(out, "{}", row(f))?;
     }
     writeln!(out, "{}", row(&report.all))?;
+    for (name, curve) in &report.responses {
+        let Some(inverse) = curve else {
+            continue;
+        };
+        let at = |z: usize| inverse.get(z).copied().unwrap_or(f32::NAN);
+        writeln!(
+            out,
+            "response of {name}, recovered from its first moment: linear value (0–255) of codes 16, 64, 128, 192: {:.2}, {:.1}, {:.1}, {:.1}; nearest power curve: exponent {}",
+            at(16),
+            at(64),
+            at(128),
+            at(192),
+            brackets::CheckReport::power_of(inverse).map_or("none".into(), |g| format!("{g:.2}"))
+        )?;
+    }
     let over = report.levels_over(0.05);
     writeln!(
         out,

@@ -6,7 +6,7 @@
 use std::path::Path;
 
 use anyhow::{Context, Result};
-use rigview_core::hdr::EmulateOptions;
+use rigview_core::hdr::{EmulateOptions, Response};
 
 use super::emulate::{merge_decoded, noise_of};
 use super::{read_image, read_manifest, BracketImage, Decoded, Emulator, MANIFEST};
@@ -56,6 +56,9 @@ pub struct CheckReport {
     pub levels: Vec<LevelFigures>,
     /// Over every image.
     pub all: LevelFigures,
+    /// Per camera (its name), the linear value (0–255) of each 8-bit code
+    /// of a response recovered from its brackets; `None` for linear data.
+    pub responses: Vec<(String, Option<Vec<f32>>)>,
 }
 
 impl CheckReport {
@@ -70,6 +73,24 @@ impl CheckReport {
             .filter(|f| !(f.median_ev <= limit_ev && f.median_ev_noisy <= limit_ev))
             .filter_map(|f| f.level)
             .collect()
+    }
+
+    /// The exponent `g` of the power curve `v = 255 (z/255)^g` nearest a
+    /// recovered response (`inverse`: the linear value of each code), by
+    /// least squares in logarithms over codes 32 to 224 (2.2 for a display
+    /// gamma, 1 for linear data); `None` without such codes above zero.
+    pub fn power_of(inverse: &[f32]) -> Option<f64> {
+        let (mut sxx, mut sxy) = (0.0f64, 0.0f64);
+        for z in 32..=224usize {
+            let v = f64::from(*inverse.get(z)?);
+            if v <= 0.0 {
+                continue;
+            }
+            let x = (z as f64 / 255.0).ln();
+            sxx += x * x;
+            sxy += x * (v / 255.0).ln();
+        }
+        (sxx > 0.0).then(|| sxy / sxx)
     }
 
     /// Whether the goal holds: the median |error| at most `limit_ev` over
@@ -282,9 +303,21 @@ pub fn check_emulation(dir: &Path, options: &CheckOptions) -> Result<CheckReport
     for (_, t) in &levels {
         all.add(t);
     }
+    let responses = names
+        .iter()
+        .enumerate()
+        .map(|(cam, name)| {
+            let curve = match emulator.response(cam) {
+                Response::Curve { inverse, .. } => Some(inverse.clone()),
+                Response::Linear => None,
+            };
+            (name.clone(), curve)
+        })
+        .collect();
     Ok(CheckReport {
         moments,
         levels: levels.iter().map(|(l, t)| t.figures(Some(*l))).collect(),
         all: all.figures(None),
+        responses,
     })
 }

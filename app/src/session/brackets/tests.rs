@@ -423,6 +423,14 @@ fn an_8_bit_sequence_without_a_response_has_it_recovered() {
     let l = check_emulation(linear.path(), &options).unwrap();
     println!("recovered {:?}\nlinear {:?}", r.all, l.all);
     assert_eq!(r.levels.len(), 4);
+    // The recovered curve is the display gamma's; declared linear, none.
+    let [(name, Some(inverse))] = &r.responses[..] else {
+        panic!("responses {:?}", r.responses.len());
+    };
+    assert_eq!(name, "front");
+    let g = CheckReport::power_of(inverse).unwrap();
+    assert!((g - 2.2).abs() < 0.15, "exponent {g}");
+    assert!(matches!(&l.responses[..], [(_, None)]));
     assert!(r.all.median_ev <= 0.05, "{:?}", r.all);
     // Taken as linear, the gamma curve's images are emulated worse.
     assert!(
@@ -459,6 +467,7 @@ fn the_emulation_goal_holds_at_every_level() {
             level: None,
             ..level(0.0, 0.0003, 0.0003)
         },
+        responses: Vec::new(),
     };
     assert!(report.meets(0.05));
     assert!(report.levels_over(0.05).is_empty());
@@ -468,4 +477,21 @@ fn the_emulation_goal_holds_at_every_level() {
     assert_eq!(report.levels_over(0.05), vec![8000.0, 16000.0]);
     report.levels[4].median_ev_noisy = f64::NAN;
     assert_eq!(report.levels_over(0.05), vec![8000.0, 16000.0]);
+}
+
+/// The power curve nearest a response: 1 for a linear one, 2.2 for a
+/// display gamma, none without codes above zero.
+#[test]
+fn the_nearest_power_curve_of_a_response() {
+    let power = |g: f64| -> Vec<f32> {
+        (0..256)
+            .map(|z| (255.0 * (f64::from(z) / 255.0).powf(g)) as f32)
+            .collect()
+    };
+    for g in [1.0, 2.2] {
+        let got = CheckReport::power_of(&power(g)).unwrap();
+        assert!((got - g).abs() < 1e-3, "{g}: {got}");
+    }
+    assert_eq!(CheckReport::power_of(&[0.0; 256]), None);
+    assert_eq!(CheckReport::power_of(&[1.0; 10]), None);
 }
