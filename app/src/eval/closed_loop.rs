@@ -33,8 +33,12 @@ fn eval_spec() -> ViewSpec {
 
 /// [`eval_view`] of any rig calibrated in the vehicle frame.
 pub fn rig_view(rig: &Rig) -> Result<SurroundView> {
-    build_view(rig, &eval_spec())?
-        .into_surround()
+    surround_of(build_view(rig, &eval_spec())?)
+}
+
+/// The surround view the evaluation's view is.
+fn surround_of(view: View) -> Result<SurroundView> {
+    view.into_surround()
         .context("the evaluation's view is the surround view")
 }
 
@@ -43,12 +47,7 @@ pub fn rig_view(rig: &Rig) -> Result<SurroundView> {
 /// known: its cameras are metered over their whole frames and no view is
 /// composed.
 pub fn ground_view(rig: &Rig) -> Result<Option<SurroundView>> {
-    grounded_view(rig)?
-        .map(|v| {
-            v.into_surround()
-                .context("the evaluation's view is the surround view")
-        })
-        .transpose()
+    grounded_view(rig)?.map(surround_of).transpose()
 }
 
 /// The view the evaluation's processor composes of `rig`, as

@@ -420,18 +420,14 @@ pub fn guard_m_by(
     }
     let u_best = best.x.ln();
     let u_unary = (unary / taken).ln();
-    // The unary must lie on the best anchor's side of the target: the
-    // guard only gives back what the neighbours' pull took.
-    let toward = (u_best - u_target.clamp(lo, hi)).signum();
-    if toward <= 0.0 || (u_unary - u_target) * toward <= 0.0 {
+    // Only a pull darker is guarded (the best anchor lies above the
+    // target), and the unary must lie above it too: the guard only gives
+    // back what the neighbours' pull took.
+    let from = u_target.clamp(lo, hi);
+    if u_best < from || u_unary <= u_target {
         return target;
     }
-    let from = u_target.clamp(lo, hi);
-    let stop = if (u_unary - u_best) * toward < 0.0 {
-        u_unary
-    } else {
-        u_best
-    };
+    let stop = u_unary.min(u_best);
     const STEPS: usize = 64;
     let mut u = stop;
     for k in 1..=STEPS {
