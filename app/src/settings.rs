@@ -271,6 +271,7 @@ impl SettingsStore {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use rigview_core::exposure::ToneCurve;
     use rigview_core::pipeline::Strategy;
 
     #[test]
@@ -313,6 +314,35 @@ mod tests {
         let text = s.to_yaml().unwrap();
         let msg = format!("{:#}", Settings::parse(&text, "s.yaml").unwrap_err());
         assert!(msg.contains("s.yaml") && msg.contains("delta"), "{msg}");
+    }
+
+    #[test]
+    fn a_tone_curve_is_read_from_the_settings_and_checked() {
+        let text = Settings::default().to_yaml().unwrap();
+        assert!(!text.contains("tone_curve"), "written only when set");
+        let at = "    estimator:\n";
+        assert!(text.contains(at), "{text}");
+        let with = |curve: &str| text.replacen(at, &format!("{at}      tone_curve: {curve}\n"), 1);
+        let power = Settings::parse(&with("2.2"), "gamma.yaml").unwrap();
+        assert_eq!(
+            power.processing.controller.estimator.tone_curve,
+            Some(ToneCurve::Power(2.2))
+        );
+        let table = Settings::parse(&with("[0.0, 0.2, 1.0]"), "table.yaml").unwrap();
+        assert_eq!(
+            table.processing.controller.estimator.tone_curve,
+            Some(ToneCurve::Table(vec![0.0, 0.2, 1.0]))
+        );
+        // Written back as read.
+        let again = Settings::parse(&table.to_yaml().unwrap(), "again.yaml").unwrap();
+        assert_eq!(again, table);
+        for bad in ["[0.0, 0.7, 0.5, 1.0]", "0", "[0.0, 0.5]"] {
+            let msg = format!("{:#}", Settings::parse(&with(bad), "bad.yaml").unwrap_err());
+            assert!(
+                msg.contains("bad.yaml") && msg.contains("tone_curve"),
+                "{bad}: {msg}"
+            );
+        }
     }
 
     #[test]

@@ -17,7 +17,7 @@ use std::time::{Duration, Instant};
 
 use serde::{Deserialize, Serialize};
 
-use crate::exposure::{ExposureRange, ExposureSetting};
+use crate::exposure::{ExposureRange, ExposureSetting, ToneCurve};
 use crate::image::{FrameView, PixelFormat};
 use crate::{Error, Result};
 
@@ -169,6 +169,11 @@ pub struct CameraInfo {
     /// its nearest level. `None`: any level within `range`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub levels: Option<Vec<f64>>,
+    /// Its tone curve, when its frames are not linear and the source knows
+    /// it (a bracket sequence's recovered 8-bit response): scale-and-clip
+    /// simulates exposure changes through it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tone_curve: Option<ToneCurve>,
 }
 
 /// The state of one camera's stream.

@@ -207,6 +207,7 @@ fn bench_seek(c: &mut Criterion) {
             height: 96,
             range: Default::default(),
             levels: None,
+            tone_curve: None,
         })
         .collect();
     let frames: Vec<Frame> = (0..4)

@@ -32,6 +32,7 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use rigview_core::exposure::{Estimator, EstimatorConfig, ExposureSetting, Meter};
 use rigview_core::sim::truth::Sweep;
+use rigview_core::source::FrameSource;
 
 use super::closed_loop::{self, LoopOptions};
 use super::downstream::{Downstream, FeatureMeter};
@@ -75,6 +76,19 @@ pub fn run(plan: &Plan, dir: &Path, mode: BracketMode, out: &Path) -> Result<Res
     let options = BracketOptions::new(BRACKETS_START, mode);
     let (probe, rig) = brackets::open_with_rig(dir, None, &options)?;
     let moments = probe.manifest().moments.len();
+    // The cameras whose frames went through a tone curve, which
+    // scale-and-clip simulates through.
+    let toned: Vec<String> = probe
+        .cameras()
+        .iter()
+        .filter_map(|c| {
+            let curve = c.tone_curve.as_ref()?;
+            Some(match curve.nearest_power() {
+                Some(p) => format!("{} (nearest power {p:.1})", c.name),
+                None => c.name.clone(),
+            })
+        })
+        .collect();
     let view = closed_loop::ground_view(&rig)?;
     let names: Vec<String> = rig.cameras.iter().map(|c| c.name.clone()).collect();
     let mut plan = plan.clone();
@@ -251,7 +265,7 @@ pub fn run(plan: &Plan, dir: &Path, mode: BracketMode, out: &Path) -> Result<Res
             ),
         ],
         source: format!(
-            "the bracket sequence {} ({moments} moments, {} cameras{}; {})",
+            "the bracket sequence {} ({moments} moments, {} cameras{}; {}{})",
             dir.display(),
             names.len(),
             if view.is_some() {
@@ -264,6 +278,15 @@ pub fn run(plan: &Plan, dir: &Path, mode: BracketMode, out: &Path) -> Result<Res
                     "frames emulated at the exposure asked, M(E) swept at 0.1 EV",
                 BracketMode::Nearest =>
                     "the bracket nearest the exposure asked, M(E) at the brackets",
+            },
+            if toned.is_empty() {
+                String::new()
+            } else {
+                format!(
+                    "; 8-bit responses recovered, which scale-and-clip simulates \
+                     exposure through: {}",
+                    toned.join(", ")
+                )
             }
         ),
         plan,

@@ -412,6 +412,7 @@ fn configure(
         height: usize::try_from(height).unwrap_or(0),
         range,
         levels: None,
+        tone_curve: None,
     };
     Ok(Device {
         stream,

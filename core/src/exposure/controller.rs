@@ -25,6 +25,7 @@ use super::light::{LightChange, LightParams, LightTracker};
 use super::metering::Metered;
 use super::probe::{ProbeEvent, ProbeInput, ProbeParams, Prober};
 use super::split::{Clamped, ExposureRange, ExposureSetting, SplitParams, Splitter};
+use super::tone::ToneCurve;
 use crate::error::{check_range, Error, Result};
 
 mod config;
@@ -207,6 +208,8 @@ pub struct CameraController {
     /// the camera's own law desired (balancing moves the request by the
     /// target's ratio to it).
     level_request: Option<LevelRequest>,
+    /// The camera's own tone curve ([`Self::set_tone_curve`]).
+    tone: Option<ToneCurve>,
 }
 
 /// A kept frame as the estimator reads it, when it is at least
@@ -277,6 +280,7 @@ impl CameraController {
             fresh_reference: false,
             walker: None,
             level_request: None,
+            tone: None,
         })
     }
 
@@ -285,6 +289,15 @@ impl CameraController {
     pub fn set_levels(&mut self, levels: Option<Vec<f64>>) {
         self.walker = levels.as_deref().and_then(LevelWalker::new);
         self.level_request = None;
+    }
+
+    /// Tells the controller the camera's tone curve, which its
+    /// scale-and-clip estimate simulates through (`None`: the
+    /// configuration's); see [`crate::exposure::ToneCurve`].
+    pub fn set_tone_curve(&mut self, curve: Option<ToneCurve>) -> Result<()> {
+        self.estimator.set_tone_curve(curve.clone())?;
+        self.tone = curve;
+        Ok(())
     }
 
     /// The splitter (ranges and hysteresis state).

@@ -80,6 +80,14 @@
 //! frame after which the camera's own law sent it brighter. How much the
 //! darker frame corrects is measured in `docs/exposure-results.md`.
 //!
+//! **Through a tone curve** ([`ToneCurve`], set in the configuration or
+//! per camera with [`Estimator::set_tone_curve`]): for a frame whose
+//! camera applies a curve `I = f(L)`, scale-and-clip maps each pixel
+//! through `f(min(1, s·f⁻¹(I)))` (a lookup per anchor), saturated pixels
+//! held and the assumed recovery counted at the recorded level of `s`, as
+//! above; partly saturated blocks are mapped as a whole, and a darker
+//! frame is not read (its split assumes a linear frame).
+//!
 //! The
 //! scale-and-clip polynomial is fitted in `ln s` ([`FitVariable::Log`]): the
 //! anchors are geometric and exposure acts multiplicatively, and in `s` the
@@ -97,6 +105,7 @@ use serde::{Deserialize, Serialize};
 use super::kernel::{self, Source};
 use super::metering::{Metered, SATURATED_LEVEL};
 use super::metric::{GradientMetric, Scratch};
+use super::tone::ToneCurve;
 use crate::cpu::Isa;
 use crate::error::Result;
 
@@ -238,6 +247,10 @@ pub struct Estimator {
     info: Vec<f32>,
     mapped: Vec<f32>,
     declip: Declip,
+    /// The tone curve scale-and-clip simulates through, if any.
+    tone: Option<ToneCurve>,
+    /// The lookup of the anchor being scored through `tone`.
+    lut: Vec<f32>,
 }
 
 /// The per-pixel parts of [`Source::Declipped`], reused from frame to frame.
@@ -257,14 +270,38 @@ impl Estimator {
         anchors.dedup_by(|a, b| (*a - *b).abs() < 1e-9);
         Ok(Self {
             metric: GradientMetric::new(config.metric)?,
-            config,
             anchors,
             scratch: Scratch::default(),
             logs: kernel::Aligned::default(),
             info: Vec::new(),
             mapped: Vec::new(),
             declip: Declip::default(),
+            lut: Vec::new(),
+            tone: config.tone_curve.clone(),
+            config,
         })
+    }
+
+    /// Sets the tone curve scale-and-clip simulates through (checked);
+    /// `None` goes back to the configuration's.
+    pub fn set_tone_curve(&mut self, curve: Option<ToneCurve>) -> Result<()> {
+        if let Some(c) = &curve {
+            c.validate()?;
+        }
+        self.tone = curve.or_else(|| self.config.tone_curve.clone());
+        Ok(())
+    }
+
+    /// The tone curve scale-and-clip simulates through, if any.
+    pub fn tone_curve(&self) -> Option<&ToneCurve> {
+        self.tone.as_ref()
+    }
+
+    /// The tone curve, when scale-and-clip simulates through one.
+    fn toned(&self) -> Option<&ToneCurve> {
+        self.tone
+            .as_ref()
+            .filter(|_| self.config.simulation == Simulation::ScaleClip)
     }
 
     /// Runs the kernels with the vector instruction set `isa` (or the
@@ -385,8 +422,13 @@ impl Estimator {
     /// that it does not depend on `x`. Needs the information map of
     /// [`Self::current_information`].
     fn texture_recovery(&self, image: &Metered, xs: &[f64]) -> Vec<f64> {
-        let widest = self.anchors.iter().chain(xs).copied().fold(1.0, f64::min) as f32;
-        let levels: Vec<f32> = xs.iter().map(|&x| x as f32).collect();
+        // Through a tone curve, the recorded value of the light `x`.
+        let at = |x: f64| self.toned().map_or(x, |c| c.recorded(x)) as f32;
+        let widest = at(self.anchors.iter().chain(xs).copied().fold(1.0, f64::min));
+        let levels: Vec<f32> = xs
+            .iter()
+            .map(|&x| if x < 1.0 { at(x) } else { x as f32 })
+            .collect();
         // Blocks that are partly saturated are edges of saturated areas,
         // neither saturated surface nor texture: they are left out.
         let whole: Option<Vec<f32>> = image.saturated_samples().map(|sat| {
@@ -519,6 +561,30 @@ impl Estimator {
         if (x - 1.0).abs() < 1e-12 {
             return self.score(image);
         }
+        if self.config.simulation == Simulation::ScaleClip {
+            if let Some(curve) = &self.tone {
+                // Held: saturated pixels stay (and the held weights leave
+                // them out) under a darkening, as without a curve.
+                let hold = (held && x < 1.0).then_some(SATURATED_LEVEL);
+                curve.lookup(x, hold, &mut self.lut);
+            }
+        }
+        if self.toned().is_some() {
+            return self.metric.score_source(
+                Source::Table {
+                    luma: image.luma(),
+                    table: &self.lut,
+                },
+                image.width(),
+                image.height(),
+                if held && x < 1.0 {
+                    Some(self.mapped.as_slice())
+                } else {
+                    image.weight()
+                },
+                &mut self.scratch,
+            );
+        }
         let (source, weight) = match (self.config.simulation, image.saturated_samples()) {
             (Simulation::Gamma, _) => (
                 Source::Gamma {
@@ -607,7 +673,9 @@ impl Estimator {
     ) -> Result<Estimate> {
         self.prepare(image, with_intensity);
         let (m_current, info_intensity) = self.current_information(image, with_intensity);
+        // (The darker frame's split assumes a linear frame.)
         let declipped = self.config.simulation == Simulation::ScaleClip
+            && self.tone.is_none()
             && darker.is_some_and(|d| self.declip(image, d));
         let held = !declipped && self.held_weights(image);
         let xs = self.anchors.clone();
@@ -689,7 +757,15 @@ impl Estimator {
         let e = end as f32;
         let mapped = match self.config.simulation {
             Simulation::Gamma => map_luma(image, |v| v.powf(e))?,
-            Simulation::ScaleClip => map_luma(image, |v| (v * e).min(1.0))?,
+            Simulation::ScaleClip => match self.tone.clone() {
+                Some(c) => {
+                    let e = f64::from(e);
+                    map_luma(image, |v| {
+                        c.recorded((e * c.linear(f64::from(v))).min(1.0)) as f32
+                    })?
+                }
+                None => map_luma(image, |v| (v * e).min(1.0))?,
+            },
         };
         let beyond = self.estimate_inner(&mapped, false, None)?;
         // The second search answers only if it looks further out: at its

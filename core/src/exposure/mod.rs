@@ -25,6 +25,7 @@ pub mod metering;
 pub mod metric;
 pub mod probe;
 pub mod split;
+pub mod tone;
 
 // The frame types, where the data flow starts.
 pub use crate::image::{FrameView, PixelFormat, RoiMask};
@@ -46,3 +47,4 @@ pub use metering::{CameraMasks, ImageStats, Meter, Metered, MeteringConfig, Prep
 pub use metric::{GradientMetric, MetricParams};
 pub use probe::{ProbeEvent, ProbeParams};
 pub use split::{ExposureRange, ExposureSetting, SplitParams, Splitter};
+pub use tone::ToneCurve;

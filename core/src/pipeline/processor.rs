@@ -61,7 +61,9 @@ fn rig_controller(
     let ranges: Vec<_> = cameras.iter().map(|c| c.range).collect();
     let mut controller = RigController::new(settings.controller_config(), &ranges, graph)?;
     for (k, cam) in cameras.iter().enumerate() {
-        controller.camera_mut(k)?.set_levels(cam.levels.clone());
+        let camera = controller.camera_mut(k)?;
+        camera.set_levels(cam.levels.clone());
+        camera.set_tone_curve(cam.tone_curve.clone())?;
     }
     Ok(controller)
 }

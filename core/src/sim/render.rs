@@ -177,6 +177,7 @@ impl SimRender {
                 height: p.height,
                 range: config.sensor.range(),
                 levels: None,
+                tone_curve: None,
             })
             .collect();
         Ok(Self {

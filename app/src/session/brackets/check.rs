@@ -6,6 +6,7 @@
 use std::path::Path;
 
 use anyhow::{Context, Result};
+use rigview_core::exposure::ToneCurve;
 use rigview_core::hdr::{EmulateOptions, Response};
 
 use super::emulate::{merge_decoded, noise_of};
@@ -80,17 +81,10 @@ impl CheckReport {
     /// least squares in logarithms over codes 32 to 224 (2.2 for a display
     /// gamma, 1 for linear data); `None` without such codes above zero.
     pub fn power_of(inverse: &[f32]) -> Option<f64> {
-        let (mut sxx, mut sxy) = (0.0f64, 0.0f64);
-        for z in 32..=224usize {
-            let v = f64::from(*inverse.get(z)?);
-            if v <= 0.0 {
-                continue;
-            }
-            let x = (z as f64 / 255.0).ln();
-            sxx += x * x;
-            sxy += x * (v / 255.0).ln();
+        if inverse.len() != 256 {
+            return None;
         }
-        (sxx > 0.0).then(|| sxy / sxx)
+        ToneCurve::from_code_values(inverse).ok()?.nearest_power()
     }
 
     /// Whether the goal holds: the median |error| at most `limit_ev` over

@@ -4,7 +4,7 @@
 
 use anyhow::{Context, Result};
 use rigview_core::exposure::split::gain_factor;
-use rigview_core::exposure::{ExposureRange, ExposureSetting, PixelFormat};
+use rigview_core::exposure::{ExposureRange, ExposureSetting, PixelFormat, ToneCurve};
 use rigview_core::hdr::{self, EmulateOptions, MergeConfig, Radiance, Response, SensorNoise, Shot};
 use rigview_core::sim::Sensor;
 
@@ -56,21 +56,8 @@ impl Emulator {
         if let Some(v) = manifest.sensor.read_noise_e {
             sensor.read_noise_e = v;
         }
-        let first = &manifest.moments[0];
-        let cameras = first.cameras.len();
-        let mut responses = Vec::with_capacity(cameras);
-        for images in &first.cameras {
-            let linear = match manifest.sensor.response {
-                Some(ResponseKind::Linear) => true,
-                Some(ResponseKind::Recover) => false,
-                None => read_image(manifest, &images[0])?.format.bits() > 8,
-            };
-            responses.push(if linear {
-                Response::Linear
-            } else {
-                recover(manifest, images)?
-            });
-        }
+        let responses = responses(manifest)?;
+        let cameras = responses.len();
         let spans = (0..cameras)
             .map(|cam| {
                 manifest
@@ -267,6 +254,35 @@ pub(super) fn merge_decoded(
 }
 
 /// Recovers an 8-bit response from one camera's bracket.
+/// Each camera's response: linear above 8 bits or under `# response:
+/// linear`, else recovered from its brackets of the first moment.
+pub(super) fn responses(manifest: &Manifest) -> Result<Vec<Response>> {
+    let first = &manifest.moments[0];
+    let mut responses = Vec::with_capacity(first.cameras.len());
+    for images in &first.cameras {
+        let linear = match manifest.sensor.response {
+            Some(ResponseKind::Linear) => true,
+            Some(ResponseKind::Recover) => false,
+            None => read_image(manifest, &images[0])?.format.bits() > 8,
+        };
+        responses.push(if linear {
+            Response::Linear
+        } else {
+            recover(manifest, images)?
+        });
+    }
+    Ok(responses)
+}
+
+/// The tone curve scale-and-clip simulates through for a camera of
+/// `response`: none for a linear one.
+pub(super) fn tone_curve(response: &Response) -> Result<Option<ToneCurve>> {
+    Ok(match response {
+        Response::Linear => None,
+        Response::Curve { inverse, .. } => Some(ToneCurve::from_code_values(inverse)?),
+    })
+}
+
 fn recover(manifest: &Manifest, images: &[BracketImage]) -> Result<Response> {
     let decoded: Vec<Decoded> = images
         .iter()

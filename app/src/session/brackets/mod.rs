@@ -154,6 +154,14 @@ impl BracketSource {
             BracketMode::Nearest => None,
             BracketMode::Emulate => Some(Emulator::new(&manifest, options.seed)?),
         };
+        // Each camera's tone curve, for scale-and-clip: from its response
+        // (the emulator's, or recovered here for `nearest`).
+        let responses = match &emulator {
+            Some(e) => (0..names.len()).map(|c| e.response(c).clone()).collect(),
+            // (A sequence the recovery cannot solve, e.g. one exposure a
+            // moment, is taken as linear, as `nearest` took every one.)
+            None => emulate::responses(&manifest).unwrap_or_default(),
+        };
         let cameras = names
             .iter()
             .zip(&first.cameras)
@@ -171,6 +179,11 @@ impl BracketSource {
                     height: d.height,
                     range,
                     levels,
+                    tone_curve: responses
+                        .get(cam)
+                        .map(emulate::tone_curve)
+                        .transpose()?
+                        .flatten(),
                 })
             })
             .collect::<Result<Vec<_>>>()?;

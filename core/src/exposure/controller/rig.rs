@@ -135,6 +135,8 @@ impl RigController {
                 fresh.last_frame = cam.last_frame;
                 fresh.in_flight = cam.in_flight.clone();
                 fresh.frames = cam.frames;
+                fresh.walker = cam.walker.take();
+                fresh.set_tone_curve(cam.tone.take())?;
                 *cam = fresh;
             }
         }

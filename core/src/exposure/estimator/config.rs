@@ -6,6 +6,7 @@ use serde::{Deserialize, Serialize};
 use super::FitVariable;
 use crate::error::{check_range, Error, Result};
 use crate::exposure::metric::{GradientMetric, MetricParams};
+use crate::exposure::tone::ToneCurve;
 
 /// The paper's seven anchors.
 pub const DEFAULT_ANCHORS: [f64; 7] = [1.0 / 1.9, 1.0 / 1.5, 1.0 / 1.2, 1.0, 1.2, 1.5, 1.9];
@@ -72,6 +73,13 @@ pub struct EstimatorConfig {
     /// above the anchors around it ([`Polynomial::argmax_supported`]).
     #[serde(default = "default_plateau")]
     pub plateau: f64,
+    /// The cameras' tone curve, when their frames are not linear:
+    /// scale-and-clip then simulates an exposure change through it
+    /// ([`ToneCurve`]); the γ-mapping ignores it. A source that knows a
+    /// camera's curve (a bracket sequence's recovered response) sets that
+    /// camera's own.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tone_curve: Option<ToneCurve>,
 }
 
 /// [`EstimatorConfig::plateau`] when a settings file leaves it out.
@@ -91,6 +99,7 @@ impl Default for EstimatorConfig {
             degree: 5,
             metric: MetricParams::default(),
             plateau: DEFAULT_PLATEAU,
+            tone_curve: None,
         }
     }
 }
@@ -130,6 +139,9 @@ impl EstimatorConfig {
             ));
         }
         GradientMetric::new(self.metric)?;
+        if let Some(curve) = &self.tone_curve {
+            curve.validate()?;
+        }
         check_range(
             "plateau",
             self.plateau,

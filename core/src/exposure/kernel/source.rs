@@ -35,6 +35,10 @@ pub(crate) enum Source<'a> {
         hidden: &'a [f32],
         s: f32,
     },
+    /// Each value through a lookup of values at inputs evenly spaced over
+    /// `[0, 1]`, interpolated linearly (a tone curve's simulated exposure
+    /// change, [`crate::exposure::tone::ToneCurve::lookup`]).
+    Table { luma: &'a [f32], table: &'a [f32] },
 }
 
 impl Source<'_> {
@@ -43,6 +47,7 @@ impl Source<'_> {
             Source::Plain(v) => v.len() >= len,
             Source::Gamma { log2, .. } => log2.len() >= len,
             Source::Scale { luma, .. } | Source::Hold { luma, .. } => luma.len() >= len,
+            Source::Table { luma, table } => luma.len() >= len && table.len() >= 2,
             Source::Blocks {
                 luma, saturated, ..
             } => luma.len() >= len && saturated.len() >= len,
@@ -108,6 +113,19 @@ impl Source<'_> {
                     .zip(&hidden[span])
                 {
                     *o = (scale * (s * u + f.min(s * t))).clamp(0.0, scale);
+                }
+            }
+            Source::Table { luma, table } => {
+                let last = table.len() - 1;
+                let bins = last as f32;
+                for (o, &v) in out.iter_mut().zip(&luma[span]) {
+                    let x = v.clamp(0.0, 1.0) * bins;
+                    // `as` saturates (and maps NaN to 0); `min` keeps i + 1
+                    // in the table.
+                    let i = (x as usize).min(last - 1);
+                    let f = x - i as f32;
+                    let (a, b) = (table[i], table[i + 1]);
+                    *o = (scale * (a + f * (b - a))).clamp(0.0, scale);
                 }
             }
         }

@@ -126,6 +126,36 @@ fn mapped_sources_match_mapping_first() {
                 "{isa:?} s={s}: {got} vs {want}"
             );
         }
+        // Through a lookup (a tone curve's exposure change): a steep,
+        // uneven table, interpolated between its entries.
+        let table: Vec<f32> = (0..65)
+            .map(|i| ((i as f32) / 64.0).powf(0.45).min(0.97))
+            .collect();
+        let through = |v: f32| {
+            let x = v.clamp(0.0, 1.0) * 64.0;
+            let i = (x as usize).min(63);
+            table[i] + (x - i as f32) * (table[i + 1] - table[i])
+        };
+        let mapped: Vec<f32> = img.iter().map(|&v| through(v)).collect();
+        for weight in [None, Some(&vec![1.0f32; w * h][..])] {
+            let want = reference(&mapped, w, h, weight, 1000.0);
+            let got = sum_ln_q(
+                isa,
+                Source::Table {
+                    luma: &img,
+                    table: &table,
+                },
+                w,
+                h,
+                weight,
+                p,
+                &mut Rows::default(),
+            );
+            assert!(
+                (got - want).abs() <= 1e-5 * want,
+                "{isa:?} table: {got} vs {want}"
+            );
+        }
         // Scale-and-hold, on an image with saturated patches, weighted.
         let level = 0.9f32;
         let held: Vec<f32> = img.iter().map(|&v| (v * 1.3).min(1.0)).collect();
