@@ -207,11 +207,10 @@ fn tracks_more(m: &Measured, preset: &str, factor: f64) {
 /// Issue 30's goal for `M`: every gradient law under scale-and-clip
 /// settles at 90 % or more of the best `M` on every camera, and keeps at
 /// least as much as mean AE over the rig (the mean of the cameras'
-/// fractions). Balanced (multi), the goal is met on `sky`, `tunnel-exit`
-/// and `lawn`, not on snow's back camera (88 %, 81 % before balancing was
-/// limited to 10 % of a camera's own `M`; 5 % gave 94.5 % here but a
-/// limit cycle at full resolution, docs/exposure-results.md): there the
-/// floor is 85 %.
+/// fractions). Balanced (multi) too: snow's back camera keeps 91.5 % with
+/// balancing limited to 8 % of a camera's own `M` (88 % at 10 %, 81 %
+/// unlimited; 5 % gave 94.5 % here but a limit cycle at full resolution,
+/// docs/exposure-results.md).
 fn gradient_laws_keep_90(m: &Measured, preset: &str) {
     let rig = |s: EvalStrategy| m.of(s).iter().sum::<f64>() / m.of(s).len() as f64;
     for s in [
@@ -219,11 +218,7 @@ fn gradient_laws_keep_90(m: &Measured, preset: &str) {
         EvalStrategy::FastSc,
         EvalStrategy::MultiSc,
     ] {
-        let floor = if s == EvalStrategy::MultiSc && preset == "snow" {
-            0.85
-        } else {
-            0.9
-        };
+        let floor = 0.9;
         for (cam, f) in m.of(s).iter().enumerate() {
             assert!(
                 *f >= floor,
