@@ -22,7 +22,7 @@ use rigview::gui::{panels, plots, AppOptions, RigviewApp};
 use rigview::logging::{self, LogBuffer};
 use rigview::session::RecordSpec;
 use rigview::session::{self, SimSpec, SourceSpec};
-use rigview_core::exposure::{LawKind, NeighbourGraph};
+use rigview_core::exposure::{LawKind, NeighbourGraph, ToneCurve};
 use rigview_core::pipeline::{
     Output, PipelineOptions, ProcessingSettings, Processor, StageTimes, Strategy, Telemetry,
     TelemetryRow,
@@ -226,6 +226,24 @@ fn switching_the_strategy_and_parameters_changes_the_controller() {
         a.latest()
             .is_some_and(|o| o.settings.controller.probe.is_none())
     });
+    // Scale-and-clip through a tone curve: its check box gives a gamma of
+    // 2.2, which reaches every camera's estimator.
+    assert_eq!(
+        h.state()
+            .settings()
+            .processing
+            .controller
+            .estimator
+            .tone_curve,
+        None
+    );
+    h.get_by_label("frames through a tone curve").click();
+    step_until(&mut h, 60.0, "tone curve reaches processing", |a| {
+        a.latest().is_some_and(|o| {
+            o.settings.controller.estimator.tone_curve == Some(ToneCurve::Power(2.2))
+        })
+    });
+    assert!(h.query_by_label("display gamma").is_some());
     // The gradient controller moves the cameras off the manual level.
     step_until(&mut h, 60.0, "gradient control moves a camera", |a| {
         a.latest().is_some_and(|o| {
@@ -244,6 +262,10 @@ fn switching_the_strategy_and_parameters_changes_the_controller() {
         LawKind::Fast
     );
     assert_eq!(again.settings().processing.controller.probe, None);
+    assert_eq!(
+        again.settings().processing.controller.estimator.tone_curve,
+        Some(ToneCurve::Power(2.2))
+    );
 }
 
 #[test]

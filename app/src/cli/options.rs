@@ -10,7 +10,7 @@ use std::time::Duration;
 use anyhow::{Context, Result};
 use clap::Args;
 use rigview_core::bowl::Viewpoint;
-use rigview_core::exposure::{LawKind, PixelFormat, ProbeParams, Simulation};
+use rigview_core::exposure::{LawKind, PixelFormat, ProbeParams, Simulation, ToneCurve};
 use rigview_core::pipeline::{MeterRoi, PipelineOptions, ProcessingSettings, Strategy, ViewKind};
 use rigview_core::surround::BlendMode;
 use rigview_record::Compression;
@@ -216,6 +216,33 @@ pub struct ControlArgs {
     /// the law alone).
     #[arg(long, value_enum, value_name = "ON|OFF")]
     pub probe: Option<Switch>,
+    /// The cameras' tone curve, which scale-and-clip simulates exposure
+    /// under: a display gamma (2.2 for sRGB-like frames), or `off` for
+    /// linear frames.
+    #[arg(long, value_name = "GAMMA|off", value_parser = tone_curve)]
+    pub tone_curve: Option<ToneArg>,
+}
+
+/// `--tone-curve`: a power curve, or none.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ToneArg(pub Option<ToneCurve>);
+
+fn tone_curve(s: &str) -> std::result::Result<ToneArg, String> {
+    if s.trim().eq_ignore_ascii_case("off") {
+        return Ok(ToneArg(None));
+    }
+    let curve = s
+        .trim()
+        .parse::<f64>()
+        .ok()
+        .map(ToneCurve::Power)
+        .filter(|c| c.validate().is_ok());
+    match curve {
+        Some(c) => Ok(ToneArg(Some(c))),
+        None => Err(format!(
+            "{s:?}: expected a display gamma in (0, 10] (2.2 for sRGB-like frames) or off"
+        )),
+    }
 }
 
 /// Processing options that override the saved settings, for every command
@@ -281,6 +308,9 @@ impl ControlArgs {
         }
         if let Some(m) = self.meter {
             p.roi = m;
+        }
+        if let Some(ToneArg(c)) = &self.tone_curve {
+            p.controller.estimator.tone_curve.clone_from(c);
         }
         match self.probe {
             Some(Switch::Off) => p.controller.probe = None,
@@ -368,6 +398,35 @@ pub fn parse_pixel_format(s: &str) -> std::result::Result<PixelFormat, String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_tone_curve_is_a_gamma_or_off() {
+        assert_eq!(tone_curve("2.2"), Ok(ToneArg(Some(ToneCurve::Power(2.2)))));
+        assert_eq!(tone_curve("OFF"), Ok(ToneArg(None)));
+        for bad in ["0", "-1", "gamma", "11", "NaN"] {
+            let e = tone_curve(bad).unwrap_err();
+            assert!(e.contains(bad) && e.contains("display gamma"), "{e}");
+        }
+        let mut p = ProcessingSettings::default();
+        let args = |c| ControlArgs {
+            tone_curve: Some(ToneArg(c)),
+            ..ControlArgs::default()
+        };
+        args(Some(ToneCurve::Power(1.8))).apply(&mut p);
+        assert_eq!(
+            p.controller.estimator.tone_curve,
+            Some(ToneCurve::Power(1.8))
+        );
+        args(None).apply(&mut p);
+        assert_eq!(p.controller.estimator.tone_curve, None);
+        // Left out, the saved curve stays.
+        p.controller.estimator.tone_curve = Some(ToneCurve::Power(2.4));
+        ControlArgs::default().apply(&mut p);
+        assert_eq!(
+            p.controller.estimator.tone_curve,
+            Some(ToneCurve::Power(2.4))
+        );
+    }
 
     #[test]
     fn the_window_size_is_read_or_refused_with_what_was_expected() {

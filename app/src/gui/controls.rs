@@ -3,7 +3,7 @@
 //! use and the messages; each section its own function.
 
 use egui::{Color32, Ui};
-use rigview_core::exposure::{LawKind, ProbeParams, Simulation};
+use rigview_core::exposure::{LawKind, ProbeParams, Simulation, ToneCurve};
 use rigview_core::pipeline::{MeterRoi, ProcessingSettings, Strategy};
 use rigview_core::surround::BlendMode;
 
@@ -191,6 +191,9 @@ fn law_section(ui: &mut Ui, p: &mut ProcessingSettings) -> bool {
         })
         .response
         .labelled_by(sim_label.id);
+    if p.controller.estimator.simulation == Simulation::ScaleClip {
+        changed |= tone_curve_row(ui, &mut p.controller.estimator.tone_curve);
+    }
     let mut probe = p.controller.probe.is_some();
     let r = ui
         .checkbox(&mut probe, "probe darker under saturation")
@@ -204,6 +207,44 @@ fn law_section(ui: &mut Ui, p: &mut ProcessingSettings) -> bool {
     }
     changed
 }
+
+/// Whether the cameras' frames went through a tone curve (scale-and-clip
+/// then simulates exposure under it), and its gamma; whether it changed.
+/// A table from the settings file is shown, and kept until unticked.
+fn tone_curve_row(ui: &mut Ui, curve: &mut Option<ToneCurve>) -> bool {
+    let mut changed = false;
+    let mut toned = curve.is_some();
+    let r = ui
+        .checkbox(&mut toned, "frames through a tone curve")
+        .on_hover_text(
+            "for cameras whose gamma or tone curve is on: scale-and-clip scales the \
+             light under the curve, not the recorded values (a bracket sequence's \
+             recovered response is used by itself)",
+        );
+    if r.changed() {
+        *curve = toned.then_some(ToneCurve::Power(DEFAULT_DISPLAY_GAMMA));
+        changed = true;
+    }
+    match curve {
+        Some(ToneCurve::Power(g)) => {
+            ui.horizontal(|ui| {
+                let label = ui.label("display gamma");
+                changed |= ui
+                    .add(egui::DragValue::new(g).range(1.0..=5.0).speed(0.01))
+                    .labelled_by(label.id)
+                    .changed();
+            });
+        }
+        Some(ToneCurve::Table(t)) => {
+            ui.label(format!("a table of {} values (settings file)", t.len()));
+        }
+        None => {}
+    }
+    changed
+}
+
+/// The curve the tone-curve check box starts with: an sRGB-like gamma.
+const DEFAULT_DISPLAY_GAMMA: f64 = 2.2;
 
 /// The law's parameters, metering, blending and the manual level; whether
 /// any changed.
