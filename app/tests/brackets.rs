@@ -406,6 +406,15 @@ fn eval_on_a_camera_frame_rig_meters_whole_frames() {
         assert!(m >= 0.95 && m > ae, "{key}: {m} against mean AE {ae}");
         assert!(mean(key, tracked) > 0.0);
     }
+    // `rigview run` replays it too, without a view: every moment
+    // processed, the cameras controlled (moved from their start).
+    let stdout = run_headless(&folder, dir.path());
+    assert!(stdout.contains("12 processed"), "{stdout}");
+    let (h, rows) = common::csv(&folder.join("run").join("telemetry.csv"));
+    let e = h.iter().position(|c| c == "cam0.exposure").unwrap();
+    let first: f64 = rows[0][e].parse().unwrap();
+    let last: f64 = rows[rows.len() - 1][e].parse().unwrap();
+    assert!((last / first).log2().abs() > 0.5, "{first} -> {last}");
 }
 
 /// `rigview run --headless --source brackets:DIR` (emulated, the default)

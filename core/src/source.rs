@@ -176,6 +176,22 @@ pub struct CameraInfo {
     pub tone_curve: Option<ToneCurve>,
 }
 
+/// Waits until `due` if it comes within `timeout`: `true` once it has
+/// come, `false` (after waiting `timeout`) while it is further away. For
+/// sources that serve each set at its time on the wall clock.
+pub fn wait_until(due: Instant, timeout: Duration) -> bool {
+    let now = Instant::now();
+    if due > now {
+        let wait = due - now;
+        if wait > timeout {
+            std::thread::sleep(timeout);
+            return false;
+        }
+        std::thread::sleep(wait);
+    }
+    true
+}
+
 /// The state of one camera's stream.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub enum StreamState {

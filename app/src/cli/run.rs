@@ -130,6 +130,7 @@ impl RunArgs {
                     dir: dir.clone(),
                     rig: self.rig.clone(),
                     mode: self.bracket_mode,
+                    realtime: self.realtime || !headless,
                 }))
             }
             SourceKind::Sim => {

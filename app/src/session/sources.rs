@@ -7,6 +7,7 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use anyhow::{Context, Result};
+use rigview_calib::rig::Frame;
 use rigview_core::exposure::{ExposureSetting, NeighbourGraph};
 use rigview_core::pipeline::{Notify, PipelineOptions, ProcessingSettings, Processor};
 use rigview_core::sim::{Pacing, SimConfig, SimRender, SimRig, SimRigOptions};
@@ -68,6 +69,9 @@ pub struct BracketSpec {
     pub rig: Option<std::path::PathBuf>,
     /// How commands are answered: the nearest bracket or an emulated frame.
     pub mode: BracketMode,
+    /// Serve each moment at its time, as cameras would (the window);
+    /// otherwise as fast as the sets are taken.
+    pub realtime: bool,
 }
 
 /// Starts a session.
@@ -110,12 +114,32 @@ fn start_brackets(
     notify: Notify,
     record: Option<&RecordSpec>,
 ) -> Result<Session> {
-    let opening = BracketOptions::new(BRACKETS_START, spec.mode);
+    let opening = BracketOptions {
+        realtime: spec.realtime,
+        ..BracketOptions::new(BRACKETS_START, spec.mode)
+    };
     let (source, rig) = brackets::open_with_rig(&spec.dir, spec.rig.as_deref(), &opening)?;
     let cameras = source.cameras().to_vec();
-    let (view, graph) = view_for(&rig, &cameras, processing)
-        .with_context(|| format!("the calibration of the brackets {}", spec.dir.display()))?;
-    let processor = Processor::new(cameras.clone(), Some(view), graph, processing.clone())?;
+    let (view, graph) = match &rig.frame {
+        // A rig posed relative to one of its cameras (a public dataset's
+        // Kalibr camchain) has no ground to show: the cameras are metered
+        // over their whole frames and controlled, as `rigview eval` does.
+        Frame::Camera(camera) => {
+            tracing::warn!(
+                "{}: the rig is posed relative to its camera \"{camera}\", not on the ground: \
+                 no surround view, whole frames metered (`rigview calib ground` poses it)",
+                spec.dir.display()
+            );
+            (None, NeighbourGraph::new(cameras.len(), &rig.neighbours)?)
+        }
+        Frame::Vehicle => {
+            let (view, graph) = view_for(&rig, &cameras, processing).with_context(|| {
+                format!("the calibration of the brackets {}", spec.dir.display())
+            })?;
+            (Some(view), graph)
+        }
+    };
+    let processor = Processor::new(cameras.clone(), view, graph, processing.clone())?;
     let origin = Origin {
         source_name: format!(
             "brackets {} ({} moments × {} cameras, {:?})",

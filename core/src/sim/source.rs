@@ -24,8 +24,8 @@ use super::camera_ae::CameraAeParams;
 use super::render::{FillRequest, SimRender};
 use crate::exposure::{ExposureSetting, Meter, MeteringConfig};
 use crate::source::{
-    check_command, CameraInfo, ExposureCommand, Frame, FrameSet, FrameSource, RateMeter,
-    SourceError, StreamHealth,
+    check_command, wait_until, CameraInfo, ExposureCommand, Frame, FrameSet, FrameSource,
+    RateMeter, SourceError, StreamHealth,
 };
 
 /// When a set is produced.
@@ -207,14 +207,8 @@ impl FrameSource for SimRig {
         if self.options.pacing == Pacing::Realtime {
             let start = *self.started.get_or_insert_with(Instant::now);
             let due = start + Duration::from_secs_f64(self.render.time_of(self.trigger));
-            let now = Instant::now();
-            if due > now {
-                let wait = due - now;
-                if wait > timeout {
-                    std::thread::sleep(timeout);
-                    return Ok(None);
-                }
-                std::thread::sleep(wait);
+            if !wait_until(due, timeout) {
+                return Ok(None);
             }
         }
         self.produce().map(Some)

@@ -41,13 +41,13 @@ mod import;
 mod manifest;
 
 use std::path::Path;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
 use rigview_core::exposure::{ExposureRange, ExposureSetting};
 use rigview_core::source::{
-    check_command, CameraInfo, ExposureCommand, Frame, FrameMeta, FrameSet, FrameSource,
-    FrameStatus, RateMeter, SourceError, StreamHealth,
+    check_command, wait_until, CameraInfo, ExposureCommand, Frame, FrameMeta, FrameSet,
+    FrameSource, FrameStatus, RateMeter, SourceError, StreamHealth,
 };
 
 pub use check::{check_emulation, CheckOptions, CheckReport, LevelFigures};
@@ -78,15 +78,21 @@ pub struct BracketOptions {
     pub mode: BracketMode,
     /// The seed of the emulated frames' noise.
     pub seed: u64,
+    /// Serve each moment at its time (`time_s`, from the first moment's)
+    /// on the wall clock, as cameras would; otherwise whenever asked (the
+    /// evaluation and headless runs, in lock step).
+    pub realtime: bool,
 }
 
 impl BracketOptions {
-    /// `mode`, starting at `start`, with the default seed.
+    /// `mode`, starting at `start`, with the default seed, served whenever
+    /// asked.
     pub fn new(start: ExposureSetting, mode: BracketMode) -> Self {
         Self {
             start,
             mode,
             seed: 0x0b2a_c4e7,
+            realtime: false,
         }
     }
 }
@@ -140,6 +146,9 @@ pub struct BracketSource {
     /// Sets served per second (the window's stream rates).
     rate: RateMeter,
     emulator: Option<Emulator>,
+    /// [`BracketOptions::realtime`]: when the first moment was served.
+    realtime: bool,
+    started: Option<Instant>,
 }
 
 /// Frames between a command and the first frame that shows it.
@@ -196,6 +205,8 @@ impl BracketSource {
             queued: Vec::new(),
             next: 0,
             emulator,
+            realtime: options.realtime,
+            started: None,
         })
     }
 
@@ -275,9 +286,18 @@ impl FrameSource for BracketSource {
         &self.cameras
     }
 
-    fn next_set(&mut self, _timeout: Duration) -> Result<Option<FrameSet>, SourceError> {
+    fn next_set(&mut self, timeout: Duration) -> Result<Option<FrameSet>, SourceError> {
         if self.is_finished() {
             return Ok(None);
+        }
+        if self.realtime {
+            let moments = &self.manifest.moments;
+            let since_first = moments[self.next as usize].time_s - moments[0].time_s;
+            let start = *self.started.get_or_insert_with(Instant::now);
+            let due = start + Duration::from_secs_f64(since_first.max(0.0));
+            if !wait_until(due, timeout) {
+                return Ok(None);
+            }
         }
         self.produce()
             .map(Some)

@@ -82,13 +82,20 @@ fn a_good_manifest_is_read_in_order() {
     assert!(src.is_finished());
 }
 
+/// A sequence of two moments at `t0` and `t1` (s), one image each of the
+/// two cameras.
+fn two_moments(dir: &Path, t0: f64, t1: f64) {
+    let m: String = [(0, t0), (1, t1)]
+        .iter()
+        .flat_map(|&(k, t)| ["front", "left"].map(|c| format!("{c},{k},{t},1000,0,front/a.png\n")))
+        .collect();
+    write(dir, &format!("{HEADER}{m}"), &["front/a.png"]);
+}
+
 #[test]
 fn the_streams_report_the_rate_the_sets_are_served_at() {
     let dir = tempfile::tempdir().unwrap();
-    let m = format!(
-        "{HEADER}front,0,0,1000,0,front/a.png\nleft,0,0,1000,0,front/a.png\nfront,1,0.05,1000,0,front/a.png\nleft,1,0.05,1000,0,front/a.png\n"
-    );
-    write(dir.path(), &m, &["front/a.png"]);
+    two_moments(dir.path(), 0.0, 0.05);
     let options = BracketOptions::new(setting(1000.0, 0.0), BracketMode::Nearest);
     let mut src = BracketSource::open(dir.path(), &names(), &options).unwrap();
     src.next_set(Duration::ZERO).unwrap().unwrap();
@@ -103,6 +110,31 @@ fn the_streams_report_the_rate_the_sets_are_served_at() {
             .all(|h| h.fps > 0.0 && h.fps <= 50.0 && h.completed == 2),
         "{health:?}"
     );
+}
+
+#[test]
+fn in_real_time_each_moment_is_served_at_its_time() {
+    let dir = tempfile::tempdir().unwrap();
+    two_moments(dir.path(), 5.0, 5.06);
+    let options = BracketOptions {
+        realtime: true,
+        ..BracketOptions::new(setting(1000.0, 0.0), BracketMode::Nearest)
+    };
+    let mut src = BracketSource::open(dir.path(), &names(), &options).unwrap();
+    let start = std::time::Instant::now();
+    // The first moment at once (its time is the sequence's start), the
+    // second 60 ms later: a 1 ms wait gives nothing.
+    assert!(src.next_set(Duration::from_millis(1)).unwrap().is_some());
+    assert!(src.next_set(Duration::from_millis(1)).unwrap().is_none());
+    assert!(!src.is_finished());
+    assert!(src.next_set(Duration::from_secs(5)).unwrap().is_some());
+    assert!(start.elapsed() >= Duration::from_millis(59));
+    assert!(src.is_finished());
+    // Not in real time, both at once.
+    let options = BracketOptions::new(setting(1000.0, 0.0), BracketMode::Nearest);
+    let mut src = BracketSource::open(dir.path(), &names(), &options).unwrap();
+    assert!(src.next_set(Duration::ZERO).unwrap().is_some());
+    assert!(src.next_set(Duration::ZERO).unwrap().is_some());
 }
 
 fn error(manifest: &str, images: &[&str]) -> String {
