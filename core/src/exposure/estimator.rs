@@ -561,15 +561,11 @@ impl Estimator {
         if (x - 1.0).abs() < 1e-12 {
             return self.score(image);
         }
-        if self.config.simulation == Simulation::ScaleClip {
-            if let Some(curve) = &self.tone {
-                // Held: saturated pixels stay (and the held weights leave
-                // them out) under a darkening, as without a curve.
-                let hold = (held && x < 1.0).then_some(SATURATED_LEVEL);
-                curve.lookup(x, hold, &mut self.lut);
-            }
-        }
-        if self.toned().is_some() {
+        if let (Simulation::ScaleClip, Some(curve)) = (self.config.simulation, &self.tone) {
+            // Held: saturated pixels stay (and the held weights leave them
+            // out) under a darkening, as without a curve.
+            let hold = (held && x < 1.0).then_some(SATURATED_LEVEL);
+            curve.lookup(x, hold, &mut self.lut);
             return self.metric.score_source(
                 Source::Table {
                     luma: image.luma(),
