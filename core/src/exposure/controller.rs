@@ -253,6 +253,8 @@ impl CameraController {
     /// A controller for a camera with `range`.
     pub fn new(config: &ControllerConfig, range: ExposureRange) -> Result<Self> {
         config.validate()?;
+        let mut light = LightTracker::default();
+        light.set_tone_curve(config.estimator.tone_curve.as_ref());
         Ok(Self {
             estimator: Estimator::new(config.estimator.clone())?,
             splitter: Splitter::new(range, config.split)?,
@@ -275,7 +277,7 @@ impl CameraController {
             passed: None,
             bracket: Bracket::default(),
             repeller: Repeller::default(),
-            light: LightTracker::default(),
+            light,
             kept_light_ev: 0.0,
             fresh_reference: false,
             walker: None,
@@ -296,6 +298,9 @@ impl CameraController {
     /// configuration's); see [`crate::exposure::ToneCurve`].
     pub fn set_tone_curve(&mut self, curve: Option<ToneCurve>) -> Result<()> {
         self.estimator.set_tone_curve(curve.clone())?;
+        // The light tracking reads light under the curve whichever
+        // simulation the estimate uses.
+        self.light.set_tone_curve(self.estimator.tone_curve());
         self.tone = curve;
         Ok(())
     }

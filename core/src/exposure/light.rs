@@ -35,6 +35,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::metering::Metered;
+use super::tone::ToneCurve;
 use crate::error::{check_range, Result};
 use crate::stats::quantile;
 
@@ -180,6 +181,9 @@ struct Reference {
 #[derive(Clone, Debug, Default)]
 pub struct LightTracker {
     reference: Option<Reference>,
+    /// The light of each recorded value, when the frames went through a
+    /// tone curve ([`LightTracker::set_tone_curve`]).
+    linear: Option<Vec<f32>>,
 }
 
 /// A metered pixel as the tracking sees it.
@@ -192,6 +196,32 @@ enum Pixel {
     Dark(f32),
     /// Above `high` or with a saturated sample: at least this.
     Bright(f32),
+}
+
+/// [`classify`] with the value as light: through `linear` (the light of
+/// recorded values evenly spaced over `[0, 1]`, interpolated) when given.
+fn classify_light(
+    params: &LightParams,
+    metered: &Metered,
+    k: usize,
+    linear: Option<&[f32]>,
+) -> Pixel {
+    let pixel = classify(params, metered, k);
+    let Some(table) = linear else {
+        return pixel;
+    };
+    let light = |v: f32| {
+        let last = table.len() - 1;
+        let x = v.clamp(0.0, 1.0) * last as f32;
+        let i = (x as usize).min(last - 1);
+        table[i] + (x - i as f32) * (table[i + 1] - table[i])
+    };
+    match pixel {
+        Pixel::Out => Pixel::Out,
+        Pixel::Usable(v) => Pixel::Usable(light(v)),
+        Pixel::Dark(v) => Pixel::Dark(light(v)),
+        Pixel::Bright(v) => Pixel::Bright(light(v)),
+    }
 }
 
 fn classify(params: &LightParams, metered: &Metered, k: usize) -> Pixel {
@@ -222,6 +252,18 @@ impl LightTracker {
         self.reference = None;
     }
 
+    /// Reads the frames' values as light through `curve` (frames that went
+    /// through a camera's tone curve: a change of light `ρ` moves a
+    /// recorded value by `ρ^(1/p)` on a power curve `p`, not by `ρ`), or as
+    /// they are (`None`). Forgets the reference when the curve changes.
+    pub fn set_tone_curve(&mut self, curve: Option<&ToneCurve>) {
+        let linear = curve.map(ToneCurve::linear_lookup);
+        if linear != self.linear {
+            self.linear = linear;
+            self.reference = None;
+        }
+    }
+
     /// Whether there is a reference.
     pub fn has_reference(&self) -> bool {
         self.reference.is_some()
@@ -247,7 +289,7 @@ impl LightTracker {
         let inv = (1.0 / taken) as f32;
         for y in (0..h).step_by(stride) {
             for x in (0..w).step_by(stride) {
-                let v = match classify(params, metered, y * w + x) {
+                let v = match classify_light(params, metered, y * w + x, self.linear.as_deref()) {
                     Pixel::Usable(v) => v * inv,
                     _ => f32::NAN,
                 };
@@ -307,7 +349,7 @@ impl LightTracker {
                 if before.is_nan() {
                     continue;
                 }
-                match classify(params, metered, y * w + x) {
+                match classify_light(params, metered, y * w + x, self.linear.as_deref()) {
                     Pixel::Usable(v) => ratios.push(v / before),
                     Pixel::Bright(v) => above.push(v / before),
                     Pixel::Dark(v) => below.push(v / before),
@@ -372,6 +414,35 @@ mod tests {
             })
             .collect();
         Metered::from_luma(w, h, luma, None).expect("metered")
+    }
+
+    #[test]
+    fn through_a_tone_curve_the_change_is_measured_as_light() {
+        // The frames through a display gamma of 2.2: +2 stops of light move
+        // the recorded values by 2/2.2 of a stop.
+        let toned = |e: f64, l: f64| {
+            let m = frame(160, 120, e, l, 0);
+            let luma = m.luma().iter().map(|&v| v.powf(1.0 / 2.2)).collect();
+            Metered::from_luma(160, 120, luma, None).expect("metered")
+        };
+        let p = LightParams::default();
+        let (before, after) = (toned(0.25, 1.0), toned(0.25, 4.0));
+        let mut plain = LightTracker::default();
+        plain.set_reference(&p, &before, 0.25, 0.3);
+        let c = plain.change(&p, &after, 0.25).expect("plain");
+        assert!((c.ev - 2.0 / 2.2).abs() < 0.02, "{c:?}");
+        let mut t = LightTracker::default();
+        t.set_tone_curve(Some(&ToneCurve::Power(2.2)));
+        t.set_reference(&p, &before, 0.25, 0.3);
+        let c = t.change(&p, &after, 0.25).expect("through the curve");
+        assert!((c.ev - 2.0).abs() < 0.02 && c.follow(&p), "{c:?}");
+        assert!((c.best / (0.3 / 4.0) - 1.0).abs() < 0.02, "{c:?}");
+        // A new curve forgets the reference (it was read under the old).
+        t.set_tone_curve(None);
+        assert!(!t.has_reference());
+        t.set_reference(&p, &before, 0.25, 0.3);
+        t.set_tone_curve(None);
+        assert!(t.has_reference(), "the same curve keeps it");
     }
 
     #[test]

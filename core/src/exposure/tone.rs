@@ -10,6 +10,10 @@
 //! up to the curve's accuracy. A pure power curve `f(L) = L^(1/p)` makes
 //! this `min(1, s^(1/p)·I)`.
 //!
+//! The light tracking ([`super::light`]) reads values as light through the
+//! same curve, under either simulation: under a tone curve `I/E` changes
+//! with the exposure alone.
+//!
 //! The curve comes from the source where it knows it (a bracket sequence's
 //! recovered response, [`crate::source::CameraInfo::tone_curve`]) or from
 //! the settings (`processing.controller.estimator.tone_curve`: an exponent,
@@ -140,6 +144,14 @@ impl ToneCurve {
             sxy += v.ln() * l.ln();
         }
         (sxx > 0.0).then(|| sxy / sxx)
+    }
+
+    /// The light of [`TABLE_BINS`] recorded values evenly spaced over
+    /// `[0, 1]`, for interpolating it pixel by pixel.
+    pub(crate) fn linear_lookup(&self) -> Vec<f32> {
+        (0..TABLE_BINS)
+            .map(|i| self.linear(i as f64 / (TABLE_BINS - 1) as f64) as f32)
+            .collect()
     }
 
     /// The lookup the kernels map a frame through to simulate `s` times
