@@ -35,7 +35,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::metering::Metered;
-use super::tone::ToneCurve;
+use super::tone::{self, ToneCurve};
 use crate::error::{check_range, Result};
 use crate::stats::quantile;
 
@@ -210,12 +210,7 @@ fn classify_light(
     let Some(table) = linear else {
         return pixel;
     };
-    let light = |v: f32| {
-        let last = table.len() - 1;
-        let x = v.clamp(0.0, 1.0) * last as f32;
-        let i = (x as usize).min(last - 1);
-        table[i] + (x - i as f32) * (table[i + 1] - table[i])
-    };
+    let light = |v: f32| tone::interpolate(table, v);
     match pixel {
         Pixel::Out => Pixel::Out,
         Pixel::Usable(v) => Pixel::Usable(light(v)),

@@ -26,6 +26,19 @@ use crate::error::{Error, Result};
 /// Entries of the lookup a simulated exposure change is applied through.
 pub(crate) const TABLE_BINS: usize = 1024;
 
+/// The value at `v` (clamped to `[0, 1]`) of a lookup of at least two
+/// values at inputs evenly spaced over `[0, 1]`, interpolated linearly
+/// ([`ToneCurve::lookup`], [`ToneCurve::linear_lookup`]).
+#[inline(always)]
+pub(crate) fn interpolate(table: &[f32], v: f32) -> f32 {
+    let last = table.len() - 1;
+    let x = v.clamp(0.0, 1.0) * last as f32;
+    // `as` saturates (and maps NaN to 0); `min` keeps i + 1 in the table.
+    let i = (x as usize).min(last - 1);
+    let (a, b) = (table[i], table[i + 1]);
+    a + (x - i as f32) * (b - a)
+}
+
 /// How a recorded value `I` in `[0, 1]` relates to the light `L` in
 /// `[0, 1]` (both scaled so that full scale is 1).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

@@ -1,7 +1,7 @@
 //! The exposure simulations: where the rows of the image to score come
 //! from, mapped row by row into the pass's ring.
 
-use super::super::fastmath;
+use super::super::{fastmath, tone};
 
 /// Where the rows of the image to score come from.
 #[derive(Clone, Copy, Debug)]
@@ -116,16 +116,8 @@ impl Source<'_> {
                 }
             }
             Source::Table { luma, table } => {
-                let last = table.len() - 1;
-                let bins = last as f32;
                 for (o, &v) in out.iter_mut().zip(&luma[span]) {
-                    let x = v.clamp(0.0, 1.0) * bins;
-                    // `as` saturates (and maps NaN to 0); `min` keeps i + 1
-                    // in the table.
-                    let i = (x as usize).min(last - 1);
-                    let f = x - i as f32;
-                    let (a, b) = (table[i], table[i + 1]);
-                    *o = (scale * (a + f * (b - a))).clamp(0.0, scale);
+                    *o = (scale * tone::interpolate(table, v)).clamp(0.0, scale);
                 }
             }
         }
