@@ -1,6 +1,7 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
-//! The darker probe of a settled camera under saturation
-//! (`exposure::probe`), frame by frame on hand-made inputs.
+//! The probe of a settled camera (`exposure::probe`): darker under
+//! saturation, brighter where most of the frame is dark; frame by frame
+//! on hand-made inputs.
 
 use rigview_core::exposure::probe::{ProbeInput, Prober};
 use rigview_core::exposure::{ProbeEvent, ProbeParams};
@@ -12,6 +13,7 @@ fn frame(taken: f64, m: f64, desired: f64) -> ProbeInput {
         taken,
         m,
         saturated: 0.3,
+        dark: 0.0,
         desired,
         wants_frame: false,
         read_probe_frame: false,
@@ -52,6 +54,27 @@ fn settle_and_probe(p: &mut Prober, params: &ProbeParams, m: f64) -> f64 {
             to
         }
         other => panic!("expected a probe, got {other:?}"),
+    }
+}
+
+/// Feeds a probe ladder sent from 1000 (first rung at `first`) frames that
+/// each measure `m`, until it goes home (asserted at 1000); the rungs sent
+/// and the last rung's exposure.
+fn every_rung_measures(p: &mut Prober, params: &ProbeParams, first: f64, m: f64) -> (u32, f64) {
+    let (mut d, mut sent) = (first, 1);
+    loop {
+        let (next, e) = p.step(params, frame(d, m, d));
+        match e {
+            Some(ProbeEvent::Sent { .. }) => {
+                sent += 1;
+                d = next;
+            }
+            Some(ProbeEvent::Rejected { .. }) => {
+                assert!((next - 1000.0).abs() < 1e-9, "back to {next}, not home");
+                return (sent, d);
+            }
+            other => panic!("unexpected {other:?}"),
+        }
     }
 }
 
@@ -127,6 +150,7 @@ fn a_camera_without_saturation_or_still_moving_does_not_probe() {
             &params,
             ProbeInput {
                 saturated: 0.0,
+                dark: 0.0,
                 ..settled(1000.0, 100.0)
             },
         );
@@ -437,22 +461,8 @@ fn a_ladder_probes_further_down_until_a_rung_measures_better() {
     // Every rung no better: three probe frames, then home, resting.
     let mut p = Prober::default();
     ladder(&mut p, 1000.0, 100.0);
-    let (mut d, _) = ladder(&mut p, 1000.0, 100.0);
-    let mut sent = 1;
-    loop {
-        let (next, e) = p.step(&params, frame(d, 90.0, d));
-        match e {
-            Some(ProbeEvent::Sent { .. }) => {
-                sent += 1;
-                d = next;
-            }
-            Some(ProbeEvent::Rejected { .. }) => {
-                assert!((next - 1000.0).abs() < 1e-9, "back to {next}, not home");
-                break;
-            }
-            other => panic!("unexpected {other:?}"),
-        }
-    }
+    let (d, _) = ladder(&mut p, 1000.0, 100.0);
+    let (sent, d) = every_rung_measures(&mut p, &params, d, 90.0);
     assert_eq!(sent, 3);
     assert!(p.resting());
     assert!((d - 1000.0 / step.powi(3)).abs() < 1e-6, "last rung at {d}");
@@ -546,4 +556,143 @@ fn a_new_light_rearms_the_probe_before_the_cooldown() {
         !probes_again(true, 90.0),
         "a 10 % change waits for the cooldown"
     );
+}
+
+/// A settled frame at `e` with `dark` of its pixels dark and none
+/// saturated.
+fn dark(e: f64, m: f64, dark: f64) -> ProbeInput {
+    ProbeInput {
+        saturated: 0.0,
+        dark,
+        ..settled(e, m)
+    }
+}
+
+/// A camera resting where most of its frame is dark (a tunnel's walls
+/// behind its bright exit) probes brighter, by a ladder of
+/// `bright_step_ev` steps: the first rung that measures `ladder_gain`
+/// more is taken; with none, it goes home and rests.
+#[test]
+fn a_mostly_dark_camera_probes_brighter_by_a_ladder() {
+    let params = params();
+    let step = params.bright_step_ev.exp2();
+    let rung = |k: i32| 1000.0 * step.powi(k);
+    // Half dark (the default `min_dark`): no probe yet at 49 %.
+    let mut p = Prober::default();
+    for _ in 0..6 {
+        assert_eq!(p.step(&params, dark(1000.0, 100.0, 0.49)).1, None);
+    }
+    // At 60 %: rung 1 after the settled frames.
+    let mut p = Prober::default();
+    assert_eq!(p.step(&params, dark(1000.0, 100.0, 0.6)).1, None);
+    let (d, e) = p.step(&params, dark(1000.0, 100.0, 0.6));
+    match e {
+        Some(ProbeEvent::Sent { from, to }) => {
+            assert!((from - 1000.0).abs() < 1e-9);
+            assert!((to - rung(1)).abs() < 1e-6, "rung 1 at {to}");
+            assert!((d - to).abs() < 1e-9);
+        }
+        other => panic!("expected a brighter probe, got {other:?}"),
+    }
+    // Rung 1 measures less (past the hump), rung 2 a little more (5 %,
+    // short of the ladder's gain), rung 3 twice as much: taken.
+    let (d, e) = p.step(&params, frame(d, 60.0, d));
+    assert!(matches!(e, Some(ProbeEvent::Sent { .. })));
+    assert!((d - rung(2)).abs() < 1e-6, "rung 2 at {d}");
+    let (d, e) = p.step(&params, frame(d, 105.0, d));
+    assert!(matches!(e, Some(ProbeEvent::Sent { .. })));
+    assert!((d - rung(3)).abs() < 1e-6, "rung 3 at {d}");
+    let (next, e) = p.step(&params, frame(d, 200.0, d * 1.3));
+    assert!(matches!(e, Some(ProbeEvent::Taken { gain }) if (gain - 1.0).abs() < 1e-9));
+    assert!(
+        (next - d * 1.3).abs() < 1e-9,
+        "the law goes on from the rung"
+    );
+
+    // No rung better: three brighter frames, then home, resting.
+    let mut p = Prober::default();
+    p.step(&params, dark(1000.0, 100.0, 0.6));
+    let (d, _) = p.step(&params, dark(1000.0, 100.0, 0.6));
+    let (sent, _) = every_rung_measures(&mut p, &params, d, 80.0);
+    assert_eq!(sent, params.bright_ladder);
+    assert!(p.resting());
+    // Resting, it does not probe again in the same scene.
+    for _ in 0..10 {
+        assert_eq!(p.step(&params, dark(1000.0, 100.0, 0.6)).1, None);
+    }
+
+    // Mostly dark wins over saturation in view: the probe goes up.
+    let mut p = Prober::default();
+    let half = ProbeInput {
+        saturated: 0.3,
+        ..dark(1000.0, 100.0, 0.6)
+    };
+    p.step(&params, half);
+    let (d, _) = p.step(&params, half);
+    assert!((d - rung(1)).abs() < 1e-6, "probe at {d}");
+
+    // A balanced camera does not probe brighter (balancing's neighbours
+    // pull it over a hump; docs/exposure-results.md).
+    let mut p = Prober::default();
+    for _ in 0..6 {
+        let input = ProbeInput {
+            balanced: true,
+            ..dark(1000.0, 100.0, 0.9)
+        };
+        assert_eq!(p.step(&params, input).1, None);
+    }
+}
+
+/// A brighter ladder reaches far, so a recent frame answers for it only if
+/// one lay as far as the last rung, or one in its range measured better.
+#[test]
+fn recent_frames_answer_for_a_brighter_ladder_only_as_far_as_it_reaches() {
+    let params = params();
+    let reach = f64::from(params.bright_ladder) * params.bright_step_ev;
+    // A camera that came down from 1.5 EV above (M lower there) probes.
+    let mut p = Prober::default();
+    p.step(&params, frame(1000.0 * 1.5f64.exp2(), 60.0, 1000.0));
+    p.step(&params, dark(1000.0, 100.0, 0.6));
+    let (_, e) = p.step(&params, dark(1000.0, 100.0, 0.6));
+    assert!(matches!(e, Some(ProbeEvent::Sent { .. })), "{e:?}");
+    // One that came down from the ladder's reach knows.
+    let mut p = Prober::default();
+    p.step(&params, frame(1000.0 * reach.exp2(), 60.0, 1000.0));
+    p.step(&params, dark(1000.0, 100.0, 0.6));
+    let (_, e) = p.step(&params, dark(1000.0, 100.0, 0.6));
+    assert!(matches!(e, Some(ProbeEvent::Known { .. })), "{e:?}");
+    // So does one whose recent frame in range measured better (the law
+    // brought it back from there).
+    let mut p = Prober::default();
+    p.step(&params, frame(1000.0 * 2f64.exp2(), 150.0, 1000.0));
+    p.step(&params, dark(1000.0, 100.0, 0.6));
+    let (_, e) = p.step(&params, dark(1000.0, 100.0, 0.6));
+    assert!(matches!(e, Some(ProbeEvent::Known { gain }) if (gain - 0.5).abs() < 1e-9));
+    // The parameters are checked.
+    for (bad, name) in [
+        (
+            ProbeParams {
+                min_dark: 1.5,
+                ..ProbeParams::default()
+            },
+            "controller.probe.min_dark",
+        ),
+        (
+            ProbeParams {
+                bright_step_ev: 0.0,
+                ..ProbeParams::default()
+            },
+            "controller.probe.bright_step_ev",
+        ),
+        (
+            ProbeParams {
+                bright_ladder: 0,
+                ..ProbeParams::default()
+            },
+            "controller.probe.bright_ladder",
+        ),
+    ] {
+        let err = bad.validate().unwrap_err().to_string();
+        assert!(err.contains(name), "{err}");
+    }
 }

@@ -104,6 +104,13 @@ impl Trace {
         let mut v: Vec<f64> = (from..e.len()).filter(|&i| !p[i]).map(|i| e[i]).collect();
         crate::report::quantile(&mut v, 0.5)
     }
+
+    /// Whether any camera's frame of set `k` was a probe frame.
+    pub fn probe_set(&self, k: usize) -> bool {
+        self.probe
+            .iter()
+            .any(|p| p.get(k).copied().unwrap_or(false))
+    }
 }
 
 /// Runs `settings` on `render` for `frames` sets; `tick` is called after

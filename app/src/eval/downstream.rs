@@ -61,6 +61,28 @@ pub struct SetFeatures {
     pub stereo: Vec<(usize, usize, f64)>,
 }
 
+/// The sets of `measured`, the first of them set `from` of `trace`, that
+/// show the strategy at rest: a set with a probe frame (darker or brighter
+/// on purpose; counted as flicker, `super::start`) is left out, and the
+/// frames after one are not counted as tracked from it.
+pub fn at_rest(
+    measured: Vec<SetFeatures>,
+    trace: &super::closed_loop::Trace,
+    from: usize,
+) -> Vec<SetFeatures> {
+    measured
+        .into_iter()
+        .enumerate()
+        .filter(|(k, _)| !trace.probe_set(from + k))
+        .map(|(k, mut set)| {
+            if from + k > 0 && trace.probe_set(from + k - 1) {
+                set.tracked.iter_mut().for_each(|t| *t = None);
+            }
+            set
+        })
+        .collect()
+}
+
 /// Measures [`SetFeatures`] set after set (module documentation).
 #[derive(Debug)]
 pub struct FeatureMeter {
@@ -536,6 +558,32 @@ fn grey(frame: &FrameView<'_>) -> Vec<u8> {
 mod tests {
     use super::*;
     use rigview_core::image::PixelFormat;
+
+    /// Probe sets are left out, and the set after one is not tracked from
+    /// it; the others pass as they were.
+    #[test]
+    fn at_rest_leaves_out_probe_sets() {
+        let set = |k: usize| SetFeatures {
+            tracked: vec![Some(k), Some(10 + k)],
+            overlaps: vec![(0, 1, k)],
+            stereo: Vec::new(),
+        };
+        // Sets 0..6; camera 1's frame of set 3 is a probe.
+        let trace = super::super::closed_loop::Trace {
+            probe: vec![
+                vec![false; 6],
+                vec![false, false, false, true, false, false],
+            ],
+            ..Default::default()
+        };
+        // Measured from set 2 on.
+        let kept = at_rest((2..6).map(set).collect(), &trace, 2);
+        let inliers: Vec<usize> = kept.iter().map(|s| s.overlaps[0].2).collect();
+        assert_eq!(inliers, [2, 4, 5]);
+        assert_eq!(kept[0].tracked, [Some(2), Some(12)]);
+        assert_eq!(kept[1].tracked, [None, None], "set 4 follows the probe");
+        assert_eq!(kept[2].tracked, [Some(5), Some(15)]);
+    }
 
     /// A textured grey image: a checkerboard of 8-pixel squares.
     fn board(w: usize, h: usize, dark: u8, light: u8) -> Vec<u8> {

@@ -35,7 +35,7 @@ use rigview_core::sim::truth::Sweep;
 use rigview_core::source::FrameSource;
 
 use super::closed_loop::{self, LoopOptions};
-use super::downstream::{Downstream, FeatureMeter};
+use super::downstream::{self, Downstream, FeatureMeter};
 use super::seams::{self, SeamRun, SeamsResult};
 use super::start::StartRow;
 use super::strategy::EvalStrategy;
@@ -190,13 +190,14 @@ pub fn run(plan: &Plan, dir: &Path, mode: BracketMode, out: &Path) -> Result<Res
         let trace = closed_loop::run_observed(
             source,
             &rig,
-            strategy.settings(),
+            strategy.settings_as_run(),
             LoopOptions {
                 view: view.is_some(),
             },
             &mut meter.from_set(from, &mut measured),
             &mut || bar.inc(1),
         )?;
+        let measured = downstream::at_rest(measured, &trace, from);
         let downstream = Downstream::of(&measured);
         let mut m_fraction = Vec::new();
         for (cam, s) in sweeps.iter().enumerate() {

@@ -10,8 +10,8 @@
 //!
 //! **Flicker** is what the view shows of the exposure moving once the
 //! camera has settled: the steps of log2 E from each frame to the next
-//! (probe frames, darker on purpose, left out), as their mean and their
-//! largest, EV. A camera that circles, or hops between two levels, flickers
+//! (probe frames, darker or brighter on purpose, left out), as their mean
+//! and their largest, EV. A camera that circles, or hops between two levels, flickers
 //! even where its settled M is high.
 
 use rigview_core::eval::dynamics::{step_response, ResponseSpec};

@@ -210,4 +210,14 @@ impl EvalStrategy {
         p.controller.law.kind = law;
         p
     }
+
+    /// [`Self::settings`] with the controller's probes as the app runs
+    /// them (its default): where a strategy comes to rest is what an
+    /// operator gets, probes included (experiment 3). The step responses
+    /// and seams measure the laws alone.
+    pub fn settings_as_run(self) -> ProcessingSettings {
+        let mut p = self.settings();
+        p.controller.probe = ProcessingSettings::default().controller.probe;
+        p
+    }
 }

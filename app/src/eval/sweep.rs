@@ -13,7 +13,9 @@ use rigview_core::sim::truth::{self, Sweep, SweepOptions};
 use rigview_core::sim::{SimConfig, SimRender};
 
 use super::closed_loop;
-use super::downstream::{Downstream, FeatureMeter, OverlapFeatures, StereoDensity, StereoView};
+use super::downstream::{
+    self, Downstream, FeatureMeter, OverlapFeatures, StereoDensity, StereoView,
+};
 use super::strategy::EvalStrategy;
 use crate::report::mean;
 
@@ -153,7 +155,7 @@ pub fn run(
         let mut meter = FeatureMeter::new(render.rig(), plan.canvas)?;
         let names: Vec<String> = render.cameras().iter().map(|c| c.name.clone()).collect();
         for strategy in EvalStrategy::SETTLED {
-            let mut settings = strategy.settings();
+            let mut settings = strategy.settings_as_run();
             if whole {
                 settings.roi = MeterRoi::Full;
             }
@@ -169,6 +171,7 @@ pub fn run(
                 &mut || tick(1),
             )
             .with_context(|| format!("the closed loop on {preset} under {}", strategy.key()))?;
+            let measured = downstream::at_rest(measured, &trace, from);
             let downstream = Downstream::of(&measured);
             out.overlaps
                 .extend(downstream.overlaps(preset, strategy, &names));

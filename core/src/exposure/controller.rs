@@ -305,6 +305,12 @@ impl CameraController {
         Ok(())
     }
 
+    /// The tone curve the camera's frames are read through: its own, or
+    /// the configuration's (`None`: linear).
+    pub fn tone_curve(&self) -> Option<&ToneCurve> {
+        self.estimator.tone_curve()
+    }
+
     /// The splitter (ranges and hysteresis state).
     pub fn splitter(&self) -> &Splitter {
         &self.splitter
@@ -661,6 +667,7 @@ impl CameraController {
                             taken,
                             m: e.m_current,
                             saturated,
+                            dark: f64::from(stats.dark_fraction),
                             desired: asked,
                             wants_frame: keeps_frames,
                             read_probe_frame: e.declipped && read_probe,
@@ -693,7 +700,12 @@ impl CameraController {
                     if let Some(e) = event.filter(|e| !matches!(e, ProbeEvent::Sent { .. })) {
                         self.last_probe = Some(e);
                     }
-                    if keeps_frames && matches!(event, Some(ProbeEvent::Rejected { .. })) {
+                    // (A brighter probe's frame shows nothing darkening
+                    // would: the camera goes back down to `d`.)
+                    if keeps_frames
+                        && matches!(event, Some(ProbeEvent::Rejected { .. }))
+                        && taken < d
+                    {
                         self.darker = Some(ProbeFrame {
                             exposure: taken,
                             image: metered.clone(),

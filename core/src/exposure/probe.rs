@@ -1,4 +1,5 @@
-//! Probing darker where saturation hides what darkening would show.
+//! Probing darker where saturation hides what darkening would show, and
+//! brighter where the noise floor hides what brightening would.
 //!
 //! Neither exposure simulation can look under saturated pixels: a frame
 //! does not say how far above full well a saturated region lies, so what
@@ -64,6 +65,20 @@
 //! `M` at the rest changes by `relight_change` (a new light; scale-and-clip,
 //! [`ProbeInput::relight`]). A manual or fixed exposure is the operator's
 //! and never probes.
+//!
+//! The same holds upwards where most of a frame is black. A camera under
+//! its own law that rests with at least `min_dark` of its metered
+//! pixels dark probes *brighter*, by a ladder of `bright_ladder` frames
+//! `bright_step_ev` apart (up to 4.5 EV by default), the first rung that
+//! measures `ladder_gain` more taken; the dark test comes before the
+//! saturated one. Texture in the noise floor is invisible to both
+//! simulations: at the rig's resolution a tunnel exit's front camera rests
+//! with the exit resolved and two thirds of its ground black, on a hump of
+//! `M(E)` a quarter as high as the walls' texture 5.4 EV up
+//! (docs/exposure-results.md). Balanced cameras do not probe brighter:
+//! their neighbours pull them over such humps. A recent frame answers for
+//! a brighter ladder only if one lay as far as its last rung, or one in its
+//! reach measured better.
 //!
 //! Under scale-and-clip a balanced camera probes too
 //! ([`ProbeInput::balanced`]), from where balancing holds it at rest:
@@ -141,6 +156,20 @@ pub struct ProbeParams {
     /// neighbours for nothing. The hump a camera meets coming down from
     /// saturation lies 20–40 % below the best (docs/exposure-results.md).
     pub ladder_gain: f64,
+    /// The dark fraction of the metered pixels (at or below
+    /// [`crate::exposure::metering::DARK_LEVEL`]) from which a camera
+    /// under its own law probes *brighter* where it rests: a ladder of up
+    /// to `bright_ladder` frames, each `bright_step_ev` brighter than the
+    /// last, the first that measures `ladder_gain` more taken. Neither
+    /// simulation sees texture that lies in the noise floor, so where
+    /// most of a frame is black (a tunnel's walls behind its bright exit)
+    /// a camera can rest on a hump of `M(E)` several EV below its best
+    /// (docs/exposure-results.md). At 1 only wholly dark frames do.
+    pub min_dark: f64,
+    /// How much brighter each rung of a brighter probe is, in EV.
+    pub bright_step_ev: f64,
+    /// The rungs of a brighter probe.
+    pub bright_ladder: u32,
 }
 
 impl Default for ProbeParams {
@@ -158,6 +187,9 @@ impl Default for ProbeParams {
             reacquire_start_saturated: 0.5,
             ladder: 3,
             ladder_gain: 0.1,
+            min_dark: 0.5,
+            bright_step_ev: 1.5,
+            bright_ladder: 3,
         }
     }
 }
@@ -249,6 +281,27 @@ impl ProbeParams {
             1.0,
             "a relative gain of M in [0, 1]",
         )?;
+        check_range(
+            "controller.probe.min_dark",
+            self.min_dark,
+            0.0,
+            1.0,
+            "a fraction of pixels in [0, 1]",
+        )?;
+        check_range(
+            "controller.probe.bright_step_ev",
+            self.bright_step_ev,
+            0.1,
+            4.0,
+            "an exposure step in EV in [0.1, 4]",
+        )?;
+        check_range(
+            "controller.probe.bright_ladder",
+            f64::from(self.bright_ladder),
+            1.0,
+            8.0,
+            "a number of probe frames in [1, 8]",
+        )?;
         Ok(())
     }
 }
@@ -257,7 +310,7 @@ impl ProbeParams {
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub enum ProbeEvent {
     /// A probe frame was commanded: from the settled exposure to a darker
-    /// one.
+    /// one (or a brighter one, where most of the frame is dark).
     Sent {
         /// The settled exposure.
         from: f64,
@@ -297,6 +350,9 @@ pub struct ProbeInput {
     pub m: f64,
     /// The saturated fraction of its metered pixels.
     pub saturated: f64,
+    /// The dark fraction of its metered pixels (at or below
+    /// [`crate::exposure::metering::DARK_LEVEL`]).
+    pub dark: f64,
     /// The exposure the camera's own law wants next.
     pub desired: f64,
     /// Whether the estimator reads saturated pixels from a probe frame
@@ -328,13 +384,15 @@ enum State {
     Watching,
     /// `frames` settled frames at `home`, with their `M` summed.
     Settling { home: f64, m_sum: f64, frames: u32 },
-    /// A probe frame at `probe` was commanded, the `rung`th of `rungs`.
+    /// A probe frame at `probe` was commanded, the `rung`th of `rungs`,
+    /// each `step` EV from the last (negative: darker).
     Probing {
         home: f64,
         home_m: f64,
         probe: f64,
         rung: u32,
         rungs: u32,
+        step: f64,
     },
     /// A probe from `home` measured no better `frames` frames ago; no
     /// probing until the scene changes.
@@ -444,14 +502,15 @@ impl Prober {
                 probe,
                 rung,
                 rungs,
+                step,
             } => {
                 // The pending-command logic lets this frame through once it
                 // shows the probe, or once the wait timed out; where the
                 // exposure range ends, the probe may be shallower. Half the
                 // step is still a probe.
-                let darker = (home / taken).log2();
-                if !(darker >= 0.5 * params.step_ev
-                    && darker <= (home / probe).log2() + params.settle_ev)
+                let away = (taken / home).log2() * step.signum();
+                if !(away >= 0.5 * step.abs()
+                    && away <= (probe / home).log2().abs() + params.settle_ev)
                 {
                     self.state = State::Resting {
                         home,
@@ -467,7 +526,7 @@ impl Prober {
                 } else {
                     0.0
                 };
-                let needed = if rungs > 1 || input.balanced {
+                let needed = if rungs > 1 || input.balanced || step > 0.0 {
                     params.accept_gain.max(params.ladder_gain)
                 } else {
                     params.accept_gain
@@ -477,7 +536,7 @@ impl Prober {
                     (desired, Some(ProbeEvent::Taken { gain }))
                 } else if rung < rungs {
                     // The next rung of the ladder, from the same home.
-                    self.send(params, home, home_m, rung + 1, rungs)
+                    self.send(home, home_m, rung + 1, rungs, step)
                 } else {
                     self.state = State::Resting {
                         home,
@@ -522,22 +581,23 @@ impl Prober {
     }
 
     /// Commands the `rung`th probe frame of `rungs` from `home` (measured
-    /// `home_m` there): `rung` probe steps darker.
+    /// `home_m` there): `rung` steps of `step` EV (negative: darker).
     fn send(
         &mut self,
-        params: &ProbeParams,
         home: f64,
         home_m: f64,
         rung: u32,
         rungs: u32,
+        step: f64,
     ) -> (f64, Option<ProbeEvent>) {
-        let probe = home * (-f64::from(rung) * params.step_ev).exp2();
+        let probe = home * (f64::from(rung) * step).exp2();
         self.state = State::Probing {
             home,
             home_m,
             probe,
             rung,
             rungs,
+            step,
         };
         (
             probe,
@@ -608,15 +668,34 @@ impl Prober {
                     _ => (taken, m, 1),
                 }
             };
-        if frames >= params.settle_frames && saturated >= params.min_saturated {
+        // Mostly dark (the texture in the noise floor): brighter, by a
+        // ladder. Otherwise, with saturation in view: darker.
+        let brighter = !input.balanced && input.dark >= params.min_dark;
+        if frames >= params.settle_frames && (brighter || saturated >= params.min_saturated) {
             let home_m = m_sum / f64::from(frames);
-            // What a probe would show, if a recent frame shows it already.
+            let (step, rungs) = if brighter {
+                (params.bright_step_ev, params.bright_ladder.max(1))
+            } else {
+                (-params.step_ev, input.rungs.max(1))
+            };
+            // What a probe would show, if a recent frame shows it already
+            // (within a darker probe's one step, or a brighter ladder's
+            // reach). A brighter ladder reaches far: a recent frame answers
+            // for it only if one lay as far as its last rung, or one in its
+            // range measured better (the estimator then disagrees with the
+            // measurement, and the round trip would repeat).
+            let reach = if brighter { f64::from(rungs) } else { 1.0 };
+            let away = |e: f64| (e / home).log2() * step.signum();
+            let reached = !brighter
+                || self
+                    .recent
+                    .iter()
+                    .any(|&(e, _)| away(e) >= (reach - 0.5) * step.abs());
             let known = self
                 .recent
                 .iter()
-                .filter(|(e, _)| {
-                    let darker = (home / e).log2();
-                    darker >= 0.5 * params.step_ev && darker <= params.step_ev + params.settle_ev
+                .filter(|&&(e, _)| {
+                    away(e) >= 0.5 * step.abs() && away(e) <= reach * step.abs() + params.settle_ev
                 })
                 .map(|(_, m)| *m)
                 .fold(None, |best: Option<f64>, m| {
@@ -629,7 +708,14 @@ impl Prober {
                     0.0
                 }
             });
-            if let Some(gain) = known.filter(|&g| !wants_frame || g > params.accept_gain) {
+            let answers = |g: f64| {
+                if brighter {
+                    reached || g > params.ladder_gain
+                } else {
+                    !wants_frame || g > params.accept_gain
+                }
+            };
+            if let Some(gain) = known.filter(|&g| answers(g)) {
                 self.state = State::Resting {
                     home,
                     home_m,
@@ -637,7 +723,7 @@ impl Prober {
                 };
                 return (desired, Some(ProbeEvent::Known { gain }));
             }
-            return self.send(params, home, home_m, 1, input.rungs.max(1));
+            return self.send(home, home_m, 1, rungs, step);
         }
         self.state = State::Settling {
             home,
