@@ -1675,3 +1675,100 @@ fn a_camera_keeps_its_levels_and_tone_curve_when_the_settings_change() {
         Some(&ToneCurve::Power(1.8))
     );
 }
+
+/// Balancing moves exposures by ratios of light: through a camera's tone
+/// curve a patch ratio is read as light. Two cameras see the same textured
+/// frame (the same own steps) and an overlap whose light in camera 1 is
+/// twice camera 0's. Recorded through a power curve of 2.2 the patches
+/// differ by 2^(1/2.2) = 1.37; with the curve set, balancing moves the
+/// cameras as a linear rig recording the ratio 2 does, not as one
+/// recording 1.37.
+#[test]
+fn balancing_reads_overlap_ratios_as_light_through_tone_curves() {
+    let p = 2.2;
+    let (w, h) = (64, 48);
+    let luma: Vec<f32> = (0..w * h)
+        .map(|k| 0.2 + 0.15 * (((k % w) / 4 + (k / w) / 4) % 3) as f32)
+        .collect();
+    let metered = Metered::from_luma(w, h, luma, None).unwrap();
+    let moved = |curve: Option<ToneCurve>, recorded_ratio: f64| {
+        let config = ControllerConfig {
+            estimator: EstimatorConfig {
+                simulation: Simulation::Gamma,
+                ..Default::default()
+            },
+            probe: None,
+            light: None,
+            ..Default::default()
+        };
+        let mut rig = RigController::new(
+            config,
+            &[ExposureRange::default(); 2],
+            NeighbourGraph::ring(2).unwrap(),
+        )
+        .unwrap();
+        for k in 0..2 {
+            rig.camera_mut(k)
+                .unwrap()
+                .set_tone_curve(curve.clone())
+                .unwrap();
+        }
+        let info = FrameInfo {
+            frame_id: 1,
+            taken: ExposureSetting {
+                shutter_us: 2000.0,
+                gain_db: 0.0,
+            },
+        };
+        let inputs = [
+            CameraInput {
+                info,
+                metered: &metered,
+            },
+            CameraInput {
+                info,
+                metered: &metered,
+            },
+        ];
+        let patches: Vec<PatchPair> = (0..8)
+            .map(|k| {
+                let m = 0.25 + 0.02 * k as f32;
+                PatchPair {
+                    mean_i: m,
+                    saturated_i: 0.0,
+                    mean_j: (f64::from(m) * recorded_ratio).min(0.95) as f32,
+                    saturated_j: 0.0,
+                }
+            })
+            .collect();
+        let pairs = [PairObservation {
+            i: 0,
+            j: 1,
+            patches,
+        }];
+        let step = rig.step(&inputs, &pairs).unwrap();
+        let c = &step.cameras;
+        // Balancing's move of each camera from its own desired exposure.
+        [
+            (c[0].target / c[0].unary).log2(),
+            (c[1].target / c[1].unary).log2(),
+        ]
+    };
+    let linear_2 = moved(None, 2.0);
+    let toned = moved(Some(ToneCurve::Power(p)), 2f64.powf(1.0 / p));
+    let linear_137 = moved(None, 2f64.powf(1.0 / p));
+    println!("balancing's moves (EV): linear, ratio 2 {linear_2:?}; through 2.2 {toned:?}; linear, ratio 1.37 {linear_137:?}");
+    // Camera 0 sees the overlap darker: balancing brightens it and darkens
+    // camera 1.
+    assert!(linear_2[0] > 0.05 && linear_2[1] < -0.05, "{linear_2:?}");
+    for k in 0..2 {
+        assert!(
+            (toned[k] - linear_2[k]).abs() < 0.02,
+            "camera {k}: {toned:?} against {linear_2:?}"
+        );
+        assert!(
+            (linear_137[k] - linear_2[k]).abs() > 0.05,
+            "camera {k}: the recorded ratio alone moves it the same: {linear_137:?}"
+        );
+    }
+}

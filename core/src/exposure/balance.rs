@@ -65,6 +65,7 @@ use serde::{Deserialize, Serialize};
 
 use super::bracket::same_scene;
 use super::estimator::{AnchorScore, Estimate, Simulation};
+use super::tone::ToneCurve;
 use crate::error::{check_range, Error, Result};
 use crate::stats::median;
 
@@ -185,6 +186,24 @@ pub struct PatchPair {
 /// `r_ij` (Eq. 5) from the patches of one pair, or `None` when fewer than
 /// `min_patches` are usable.
 pub fn pair_ratio(patches: &[PatchPair], params: &BalanceParams) -> Option<f64> {
+    pair_ratio_through(patches, params, [None, None])
+}
+
+/// [`pair_ratio`] as a ratio of light: each camera's patch means read
+/// through its tone curve (`curves[0]` camera `i`'s, `curves[1]` camera
+/// `j`'s; `None`: a linear camera). Eq. 6 moves exposures by the ratio,
+/// which is the ratio of recorded values only for a linear camera: through
+/// a power curve of 2.2 a ratio of light of 2 records as 1.37. Which
+/// patches are usable is decided on the recorded values. (A patch's mean
+/// is read through the curve, not each pixel: the patches are small and
+/// nearly even.)
+pub fn pair_ratio_through(
+    patches: &[PatchPair],
+    params: &BalanceParams,
+    curves: [Option<&ToneCurve>; 2],
+) -> Option<f64> {
+    // (ε of Eq. 5 is in recorded units: it is added before the curve.)
+    let light = |v: f64, curve: Option<&ToneCurve>| curve.map_or(v, |c| c.linear(v));
     let mut ratios: Vec<f64> = patches
         .iter()
         .filter(|p| {
@@ -192,7 +211,10 @@ pub fn pair_ratio(patches: &[PatchPair], params: &BalanceParams) -> Option<f64> 
                 && f64::from(p.mean_i) >= params.min_mean
                 && f64::from(p.mean_j) >= params.min_mean
         })
-        .map(|p| f64::from(p.mean_j) / (f64::from(p.mean_i) + params.epsilon))
+        .map(|p| {
+            light(f64::from(p.mean_j), curves[1])
+                / light(f64::from(p.mean_i) + params.epsilon, curves[0])
+        })
         .filter(|r| r.is_finite())
         .collect();
     if ratios.len() < params.min_patches {

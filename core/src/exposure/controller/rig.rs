@@ -64,9 +64,10 @@ pub struct CameraStep {
     pub clamped: Option<Clamped>,
     /// Whether the mean-intensity fallback replaced an empty metric.
     pub fallback: bool,
-    /// What a darker probe did on this frame ([`super::probe`]).
+    /// What a probe (darker or brighter) did on this frame
+    /// ([`super::probe`]).
     pub probe: Option<ProbeEvent>,
-    /// Whether the frame was taken at a probe's darker exposure.
+    /// Whether the frame was taken at a probe's exposure.
     pub probe_frame: bool,
 }
 
@@ -201,6 +202,9 @@ impl RigController {
         // The ratios are measured in every mode (telemetry); only balancing
         // acts on them.
         let mut ratios = Vec::with_capacity(pairs.len() * 2);
+        // The same as ratios of light, which balancing moves exposures by:
+        // through the cameras' tone curves (as `ratios` where none has one).
+        let mut light = Vec::with_capacity(pairs.len() * 2);
         // Per ratio, whether its patches are clipped.
         let mut clipped = Vec::with_capacity(pairs.len() * 2);
         let measure = config.balancing.unwrap_or_default();
@@ -225,16 +229,20 @@ impl RigController {
                         saturated_j: q.saturated_i,
                     })
                     .collect();
-                ratios.push(PairRatio {
-                    i: p.i,
-                    j: p.j,
-                    r_ij: balance::pair_ratio(&p.patches, params),
-                });
-                ratios.push(PairRatio {
-                    i: p.j,
-                    j: p.i,
-                    r_ij: balance::pair_ratio(&swapped, params),
-                });
+                for (i, j, patches) in [(p.i, p.j, &p.patches), (p.j, p.i, &swapped)] {
+                    let r_ij = balance::pair_ratio(patches, params);
+                    let curves = [self.cameras[i].tone_curve(), self.cameras[j].tone_curve()];
+                    light.push(PairRatio {
+                        i,
+                        j,
+                        r_ij: if curves.iter().any(Option::is_some) {
+                            balance::pair_ratio_through(patches, params, curves)
+                        } else {
+                            r_ij
+                        },
+                    });
+                    ratios.push(PairRatio { i, j, r_ij });
+                }
                 let clips = balance::clipped(&p.patches, params);
                 clipped.extend([clips, clips]);
             }
@@ -254,7 +262,7 @@ impl RigController {
         // is not the one the rest balances: the pair holds its scene ratio
         // over it, and the neighbours stay where they are.
         let probing = |k: usize| unary.get(k).is_some_and(|u| u.probe_frame);
-        let acted: Vec<PairRatio> = ratios
+        let acted: Vec<PairRatio> = light
             .iter()
             .zip(&clipped)
             .map(|(r, &clipped)| {
