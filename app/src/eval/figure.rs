@@ -63,7 +63,9 @@ pub fn write(path: &Path, panels: &[Panel], cols: usize, panel_w: u32, panel_h: 
         root.fill(&WHITE)
             .map_err(|e| anyhow::anyhow!("figure: {e}"))?;
         let areas = root.split_evenly((rows, cols));
-        for (area, panel) in areas.iter().zip(panels) {
+        let mut panels = panels.to_vec();
+        place_legend(&mut panels, (panel_w, panel_h));
+        for (area, panel) in areas.iter().zip(&panels) {
             draw(area, panel)?;
         }
         root.present().map_err(|e| anyhow::anyhow!("figure: {e}"))?;
@@ -97,10 +99,22 @@ fn bounds(panel: &Panel) -> (f64, f64, f64, f64) {
 /// 7 pixels a character at the legend's font, 17 pixels a line.
 fn legend_corner(
     panel: &Panel,
+    bounds: (f64, f64, f64, f64),
+    size: (u32, u32),
+) -> SeriesLabelPosition {
+    legend_placement(panel, panel, bounds, size).0
+}
+
+/// Where the legend of `labelled`'s series would go on `panel` (the same
+/// series in the same order), and how many points it hides there (a mark
+/// counting five).
+fn legend_placement(
+    labelled: &Panel,
+    panel: &Panel,
     (x0, x1, y0, y1): (f64, f64, f64, f64),
     (w, h): (u32, u32),
-) -> SeriesLabelPosition {
-    let labels: Vec<&str> = panel
+) -> (SeriesLabelPosition, usize) {
+    let labels: Vec<&str> = labelled
         .series
         .iter()
         .filter_map(|s| s.label.as_deref())
@@ -142,8 +156,50 @@ fn legend_corner(
     };
     corners
         .iter()
-        .min_by_key(|(_, right, upper)| hidden(*right, *upper))
-        .map_or(SeriesLabelPosition::UpperRight, |c| c.0.clone())
+        .map(|(corner, right, upper)| (corner.clone(), hidden(*right, *upper)))
+        .min_by_key(|c| c.1)
+        .unwrap_or((SeriesLabelPosition::UpperRight, 0))
+}
+
+/// A legend that one panel of several carries for all (the same series,
+/// colours and styles in every panel) moves to the panel where it hides
+/// the fewest points, the first on a tie: the first panel's data may lie
+/// where the legend goes (the tunnel exit's front camera peaks at its
+/// right, under the legend's upper right corner).
+fn place_legend(panels: &mut [Panel], size: (u32, u32)) {
+    let labelled: Vec<usize> = (0..panels.len())
+        .filter(|&k| panels[k].series.iter().any(|s| s.label.is_some()))
+        .collect();
+    let [from] = labelled[..] else {
+        return;
+    };
+    let alike = |a: &Panel, b: &Panel| {
+        a.series.len() == b.series.len()
+            && a.series
+                .iter()
+                .zip(&b.series)
+                .all(|(x, y)| x.colour == y.colour && x.style == y.style)
+    };
+    let source = &panels[from];
+    let Some((to, _)) = panels
+        .iter()
+        .enumerate()
+        .filter(|(_, p)| alike(source, p))
+        .map(|(k, p)| (k, legend_placement(source, p, bounds(p), size).1))
+        .min_by_key(|&(k, hidden)| (hidden, k != from))
+    else {
+        return;
+    };
+    if to != from {
+        let labels: Vec<Option<String>> = panels[from]
+            .series
+            .iter_mut()
+            .map(|s| s.label.take())
+            .collect();
+        for (s, label) in panels[to].series.iter_mut().zip(labels) {
+            s.label = label;
+        }
+    }
 }
 
 fn draw(
@@ -288,5 +344,44 @@ mod tests {
             legend_corner(&mirrored, b, (640, 420)),
             SeriesLabelPosition::UpperRight
         );
+    }
+
+    /// A legend the first of several alike panels carries moves to the one
+    /// where it hides the fewest points: here the first panel's data fill
+    /// every corner, the third's none (a hump in the middle).
+    #[test]
+    fn a_shared_legend_moves_to_the_panel_where_it_hides_least() {
+        let grid: Vec<(f64, f64)> = (0..=20)
+            .flat_map(|i| (0..=20).map(move |j| (f64::from(i), f64::from(j))))
+            .collect();
+        let hump: Vec<(f64, f64)> = (0..=20)
+            .map(|i| {
+                let x = f64::from(i);
+                (x, 20.0 * (-(x - 10.0).powi(2) / 8.0).exp())
+            })
+            .collect();
+        let panel = |points: Vec<(f64, f64)>, label: bool| Panel {
+            series: vec![Series {
+                label: label.then(|| "M".to_string()),
+                colour: BLACK,
+                style: Style::LineDots,
+                points,
+            }],
+            ..Default::default()
+        };
+        let mut panels = vec![
+            panel(grid.clone(), true),
+            panel(grid.clone(), false),
+            panel(hump.clone(), false),
+        ];
+        place_legend(&mut panels, (400, 300));
+        let labelled: Vec<bool> = panels.iter().map(|p| p.series[0].label.is_some()).collect();
+        assert_eq!(labelled, [false, false, true]);
+        // A panel whose series differ does not take it.
+        let mut panels = vec![panel(grid, true), panel(hump, false)];
+        panels[1].series[0].colour = RED;
+        place_legend(&mut panels, (400, 300));
+        assert!(panels[0].series[0].label.is_some());
+        assert!(panels[1].series[0].label.is_none());
     }
 }
