@@ -221,7 +221,7 @@ fn switching_the_strategy_and_parameters_changes_the_controller() {
     });
     // Probing darker is on by default; its check box turns it off.
     assert!(h.state().settings().processing.controller.probe.is_some());
-    h.get_by_label("probe darker under saturation").click();
+    h.get_by_label("probe darker or brighter").click();
     step_until(&mut h, 60.0, "probe setting reaches processing", |a| {
         a.latest()
             .is_some_and(|o| o.settings.controller.probe.is_none())

@@ -196,10 +196,12 @@ fn law_section(ui: &mut Ui, p: &mut ProcessingSettings) -> bool {
     }
     let mut probe = p.controller.probe.is_some();
     let r = ui
-        .checkbox(&mut probe, "probe darker under saturation")
+        .checkbox(&mut probe, "probe darker or brighter")
         .on_hover_text(
-            "single mode: a settled camera with saturated pixels takes one frame \
-             0.93 EV darker and stays there if M measures higher",
+            "a settled camera with saturated pixels takes one frame 0.93 EV darker \
+             (balanced cameras too, under scale-and-clip), one alone with half its \
+             pixels black up to three frames 1.5 EV brighter each; it stays where M \
+             measures higher",
         );
     if r.changed() {
         p.controller.probe = probe.then(ProbeParams::default);

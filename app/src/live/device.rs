@@ -13,7 +13,7 @@ use aravis::{
     AcquisitionMode, Auto, Buffer, Camera, ChunkParser, GvStream, GvStreamOption,
     GvStreamPacketResend, GvStreamSocketBuffer, Stream,
 };
-use rigview_core::exposure::{ExposureRange, ExposureSetting};
+use rigview_core::exposure::{ExposureRange, ExposureSetting, ToneCurve};
 use rigview_core::source::CameraInfo;
 
 use super::config::CaptureConfig;
@@ -295,6 +295,47 @@ impl Device {
     }
 }
 
+/// The tone curve of the camera's gamma correction, where it has one and
+/// it is on: GenICam's `GammaEnable` (where there is one), then
+/// `GammaSelector` `sRGB` (about 1/2.2) or else `Gamma`, each pixel `P`
+/// output as `P^Gamma` ([`ToneCurve::from_genicam_gamma`]). Scale-and-clip
+/// and the balancing read the frames through it. A pixel lookup table
+/// (`LUTEnable`, applied after the gamma) is not read.
+fn gamma_curve(
+    camera: &Camera,
+    has: &dyn Fn(&str) -> bool,
+    named: Named<'_>,
+) -> Result<Option<ToneCurve>, CameraError> {
+    if !has("Gamma") && !has("GammaSelector") {
+        return Ok(None);
+    }
+    if has("GammaEnable")
+        && !camera
+            .boolean("GammaEnable")
+            .map_err(named.read("GammaEnable"))?
+    {
+        return Ok(None);
+    }
+    let srgb = has("GammaSelector")
+        && camera
+            .string("GammaSelector")
+            .map_err(named.read("GammaSelector"))?
+            .eq_ignore_ascii_case("sRGB");
+    let gamma = if srgb {
+        1.0 / 2.2
+    } else if has("Gamma") {
+        camera.float("Gamma").map_err(named.read("Gamma"))?
+    } else {
+        return Ok(None);
+    };
+    ToneCurve::from_genicam_gamma(gamma).map_err(|e| CameraError::Unexpected {
+        camera: named.0.to_owned(),
+        feature: "Gamma",
+        expected: "a positive gamma (each pixel P output as P^Gamma)".into(),
+        found: e.to_string(),
+    })
+}
+
 fn int(v: u32) -> i32 {
     i32::try_from(v).unwrap_or(i32::MAX)
 }
@@ -405,6 +446,7 @@ fn configure(
     }
     let auto_exposure = camera.is_exposure_auto_available().unwrap_or(false);
     let auto_gain = gain != GainUnit::None && camera.is_gain_auto_available().unwrap_or(false);
+    let tone_curve = gamma_curve(&camera, &has, named)?;
     let info = CameraInfo {
         name: name.to_owned(),
         format: config.pixel_format,
@@ -412,7 +454,7 @@ fn configure(
         height: usize::try_from(height).unwrap_or(0),
         range,
         levels: None,
-        tone_curve: None,
+        tone_curve,
     };
     Ok(Device {
         stream,

@@ -200,6 +200,12 @@ impl LiveSource {
                         setting.shutter_us,
                         setting.gain_db
                     );
+                    if let Some(p) = info.tone_curve.as_ref().and_then(|c| c.nearest_power()) {
+                        tracing::info!(
+                            "{}: gamma correction on: frames read through a tone curve of {p:.2}",
+                            info.name
+                        );
+                    }
                     if let Some(slot) = infos.get_mut(camera) {
                         *slot = Some((info, setting));
                     }

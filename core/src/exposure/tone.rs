@@ -137,6 +137,27 @@ impl ToneCurve {
         }
     }
 
+    /// The curve of a GenICam camera whose gamma correction is on with
+    /// `Gamma = gamma`: the SFNC outputs each normalised pixel value `P` as
+    /// `P^Gamma` (0.4545 for sRGB output), so `L = I^(1/gamma)`. `None` at
+    /// 1 (no change). A gamma that is not a positive number is refused,
+    /// named as the camera's `Gamma` feature.
+    pub fn from_genicam_gamma(gamma: f64) -> Result<Option<Self>> {
+        if !(gamma.is_finite() && gamma > 0.0) {
+            return Err(Error::InvalidParameter {
+                name: "Gamma",
+                value: gamma,
+                expected: "a positive GenICam gamma (each pixel P output as P^Gamma)",
+            });
+        }
+        if (gamma - 1.0).abs() < 1e-6 {
+            return Ok(None);
+        }
+        let curve = Self::Power(1.0 / gamma);
+        curve.validate()?;
+        Ok(Some(curve))
+    }
+
     /// The exponent `p` of the power curve `L = I^p` nearest the curve, by
     /// least squares in logarithms over recorded values from 32/255 to
     /// 224/255 (2.2 for a display gamma, 1 for a linear response); `None`
@@ -188,6 +209,22 @@ impl ToneCurve {
 #[allow(clippy::float_cmp)] // exact values: the held and clipped ends
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_genicam_gamma_is_the_curves_reciprocal_power() {
+        // sRGB output (Gamma 1/2.2): light is the recorded value to 2.2.
+        let c = ToneCurve::from_genicam_gamma(1.0 / 2.2).unwrap().unwrap();
+        assert!((c.nearest_power().unwrap() - 2.2).abs() < 1e-9);
+        assert!((c.linear(0.5) - 0.5f64.powf(2.2)).abs() < 1e-12);
+        // A gamma of 1 changes nothing; a gamma above 1 darkens.
+        assert_eq!(ToneCurve::from_genicam_gamma(1.0).unwrap(), None);
+        let dark = ToneCurve::from_genicam_gamma(2.0).unwrap().unwrap();
+        assert!((dark.linear(0.25) - 0.5).abs() < 1e-12);
+        for bad in [0.0, -0.45, f64::NAN, f64::INFINITY] {
+            let e = ToneCurve::from_genicam_gamma(bad).unwrap_err().to_string();
+            assert!(e.contains("Gamma"), "{e}");
+        }
+    }
 
     #[test]
     fn a_table_and_its_power_agree() {
