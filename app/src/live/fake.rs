@@ -17,6 +17,11 @@ use rigview_core::source::FrameMeta;
 
 use super::LiveError;
 
+/// The environment variable naming a GenICam XML that Aravis's fake
+/// cameras describe themselves with instead of Aravis's own (as
+/// `app/tests/live_gamma.rs` gives them gamma correction).
+pub const FAKE_GENICAM_ENV: &str = "RIGVIEW_FAKE_GENICAM";
+
 /// The largest region of Aravis's fake camera (its sensor), pixels.
 pub const FAKE_SENSOR_SIZE: usize = 2048;
 
@@ -412,6 +417,19 @@ pub(crate) fn cameras(
         capture.pixel_format.genicam_name(),
         started.elapsed().as_secs_f64()
     );
+    // Another GenICam description for the fake cameras (Aravis's own with
+    // features added: a camera with gamma correction, say).
+    if let Some(path) = std::env::var_os(FAKE_GENICAM_ENV) {
+        let path = std::path::PathBuf::from(path);
+        if !path.is_file() {
+            anyhow::bail!(
+                "{FAKE_GENICAM_ENV}={}: not a file: give a GenICam XML for the fake cameras",
+                path.display()
+            );
+        }
+        tracing::info!("fake cameras described by {}", path.display());
+        super::ffi::set_fake_genicam(&path);
+    }
     super::ffi::enable_interface("Fake");
     let cameras = views
         .into_iter()

@@ -1,5 +1,6 @@
 //! The few Aravis calls that the safe `aravis` crate lacks: enabling an
-//! interface, shutting the library down, and the fill callback of the
+//! interface, the fake cameras' GenICam file, shutting the library down,
+//! and the fill callback of the
 //! in-process fake camera. Every `unsafe` block of the app lives here (core keeps
 //! its SIMD kernels' and one `libc` call's; ARCHITECTURE.md lists them).
 
@@ -20,6 +21,19 @@ pub fn enable_interface(name: &str) {
     // SAFETY: `name` is a valid NUL-terminated string that lives through the
     // call; Aravis copies what it needs.
     unsafe { aravis_sys::arv_enable_interface(name.as_ptr()) }
+}
+
+/// Makes Aravis's in-process fake cameras describe themselves with the
+/// GenICam XML at `path` instead of Aravis's own (for every fake camera
+/// created after the call). A path that is not valid UTF-8 or holds a NUL
+/// is left out.
+pub fn set_fake_genicam(path: &std::path::Path) {
+    let Some(path) = path.to_str().and_then(|p| CString::new(p).ok()) else {
+        return;
+    };
+    // SAFETY: `path` is a valid NUL-terminated string that lives through
+    // the call; Aravis copies it.
+    unsafe { aravis_sys::arv_set_fake_camera_genicam_filename(path.as_ptr()) }
 }
 
 /// Frees Aravis's global state (interfaces, device lists). Call it once, at
