@@ -127,7 +127,7 @@ pub struct DisplayInput {
     pub taken: f64,
     /// Its mean intensity in [0, 1].
     pub mean: f64,
-    /// Whether it was taken at a probe's darker exposure.
+    /// Whether it was taken at a probe's exposure (darker, or brighter).
     pub probe_frame: bool,
     /// The [`BRIGHT_QUANTILE`]-quantile of its metered intensities in
     /// [0, 1] (the pixels the view shows, about): a seam gain brightens
@@ -202,7 +202,11 @@ impl DisplayGains {
             let e = f.taken.log2();
             let scene = (f.mean.max(1e-4) / f.taken).log2();
             match (self.held[k], f.probe_frame) {
-                (Some((d, _)), true) => ease[k] = d - e,
+                // A darker probe frame is shown at the display exposure; a
+                // brighter one (a mostly black camera probing up) as taken,
+                // like any brighter jump: darkened, what it clipped would
+                // show grey, and black at its last rung 4.5 EV up.
+                (Some((d, _)), true) => ease[k] = (d - e).max(0.0),
                 (None, true) => {}
                 (Some((d, last_scene)), false) => {
                     let jump = e - d;
@@ -334,6 +338,10 @@ mod tests {
             total(&d.update(&s, &[frame(1000.0, 0.4, false)], &[])),
             &[1.0]
         );
+        // A probe 1.5 EV brighter: shown as taken, not darkened (what it
+        // clipped would show grey).
+        let g = d.update(&s, &[frame(1000.0 * 1.5f64.exp2(), 0.9, true)], &[])[0];
+        assert!(g.exposure == 1.0 && g.seam == 1.0, "{g:?}");
     }
 
     #[test]
