@@ -20,6 +20,7 @@ fn frame(taken: f64, m: f64, desired: f64) -> ProbeInput {
         rungs: 1,
         balanced: false,
         relight: false,
+        brighter_only: false,
     }
 }
 
@@ -695,4 +696,32 @@ fn recent_frames_answer_for_a_brighter_ladder_only_as_far_as_it_reaches() {
         let err = bad.validate().unwrap_err().to_string();
         assert!(err.contains(name), "{err}");
     }
+}
+
+#[test]
+fn a_camera_that_probes_only_brighter_makes_no_darker_probe() {
+    let params = params();
+    let only = |i: ProbeInput| ProbeInput {
+        brighter_only: true,
+        ..i
+    };
+    // Saturation in view (30 %) and settled: no darker probe, ever, and no
+    // circle's probe either.
+    let mut p = Prober::default();
+    for _ in 0..12 {
+        let (d, e) = p.step(&params, only(settled(1000.0, 100.0)));
+        assert_eq!(e, None, "probed darker");
+        assert!(!p.probing());
+        assert!((d - 1010.0).abs() < 1e-9, "the law passes through: {d}");
+    }
+    // Mostly dark: the brighter ladder, as for any camera.
+    let mut p = Prober::default();
+    p.step(&params, only(dark(1000.0, 100.0, 0.6)));
+    let (d, e) = p.step(&params, only(dark(1000.0, 100.0, 0.6)));
+    assert!(matches!(e, Some(ProbeEvent::Sent { .. })), "{e:?}");
+    assert!(d > 1000.0 && p.probing(), "probe at {d}");
+    // Its rung measured: no longer probing.
+    let (_, e) = p.step(&params, only(frame(d, 300.0, d)));
+    assert!(matches!(e, Some(ProbeEvent::Taken { .. })), "{e:?}");
+    assert!(!p.probing());
 }

@@ -344,7 +344,7 @@ fn the_lawn_in_closed_loop() {
 /// walls' texture, four times the `M`, lies 5.4 EV up, beyond what its
 /// estimate sees. Its brighter probe (a ladder of 1.5 EV rungs) finds it:
 /// the camera ends at 90 % or more of the best `M`, where without probes
-/// it keeps under half.
+/// it keeps under half; under PID too, which probes only brighter.
 #[test]
 fn at_the_rigs_resolution_the_tunnel_exits_front_camera_probes_brighter() {
     let config = SimConfig::preset("tunnel-exit").unwrap();
@@ -371,15 +371,28 @@ fn at_the_rigs_resolution_the_tunnel_exits_front_camera_probes_brighter() {
         let e = trace.settled(front, 10);
         (e, sweep.score_at(e.exp2()) / sweep.best_score)
     };
-    let s = EvalStrategy::NonlinearSc;
-    let (e_probed, probed) = run(s.settings_as_run());
-    let (e_alone, alone) = run(s.settings());
-    println!(
-        "tunnel-exit, front camera at 1288×964 (best at 2^{:.2} µs): probes on 2^{e_probed:.2} ({:.1} %), off 2^{e_alone:.2} ({:.1} %)",
-        sweep.best.log2(),
-        100.0 * probed,
-        100.0 * alone
-    );
-    assert!(probed >= 0.9, "with probes {:.1} %", 100.0 * probed);
-    assert!(alone < 0.5, "without probes {:.1} %", 100.0 * alone);
+    // The nonlinear law, and PID (which probes only brighter).
+    for s in [EvalStrategy::NonlinearSc, EvalStrategy::PidSc] {
+        let (e_probed, probed) = run(s.settings_as_run());
+        let (e_alone, alone) = run(s.settings());
+        println!(
+            "tunnel-exit, {}, front camera at 1288×964 (best at 2^{:.2} µs): probes on 2^{e_probed:.2} ({:.1} %), off 2^{e_alone:.2} ({:.1} %)",
+            s.label(),
+            sweep.best.log2(),
+            100.0 * probed,
+            100.0 * alone
+        );
+        assert!(
+            probed >= 0.9,
+            "{}: with probes {:.1} %",
+            s.label(),
+            100.0 * probed
+        );
+        assert!(
+            alone < 0.5,
+            "{}: without probes {:.1} %",
+            s.label(),
+            100.0 * alone
+        );
+    }
 }

@@ -199,9 +199,9 @@ fn law_section(ui: &mut Ui, p: &mut ProcessingSettings) -> bool {
         .checkbox(&mut probe, "probe darker or brighter")
         .on_hover_text(
             "a settled camera with saturated pixels takes one frame 0.93 EV darker \
-             (balanced cameras too, under scale-and-clip), one alone with half its \
-             pixels black up to three frames 1.5 EV brighter each; it stays where M \
-             measures higher",
+             (balanced cameras too, under scale-and-clip; not PID), one alone (PID \
+             too) with half its pixels black up to three frames 1.5 EV brighter \
+             each; it stays where M measures higher",
         );
     if r.changed() {
         p.controller.probe = probe.then(ProbeParams::default);

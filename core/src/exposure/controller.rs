@@ -482,6 +482,11 @@ impl CameraController {
             None => self.reacquiring = false,
         }
         let own_law = gradient && config.balancing.is_none();
+        // PID alone probes too, but only brighter (`ProbeInput::brighter_only`).
+        let pid_alone = config.mode == ControlMode::Pid
+            && self.manual.is_none()
+            && config.balancing.is_none()
+            && self.walker.is_none();
         // Under scale-and-clip a balanced camera probes too, from where
         // balancing holds it at rest: the estimator cannot see under
         // saturated pixels, and coming down from saturation (a brighter
@@ -497,10 +502,10 @@ impl CameraController {
         // moved the rest's compromise: four strip cameras 0.20 EV apart
         // against 0.15, `tests/tests/balancing.rs`.)
         let keeps_frames = (own_law || (balanced_probe && self.reacquiring)) && scale_clip;
-        if own_law != self.was_own_law {
+        if (own_law || pid_alone) != self.was_own_law {
             self.prober.reset();
             self.last_probe = None;
-            self.was_own_law = own_law;
+            self.was_own_law = own_law || pid_alone;
         }
         if !keeps_frames {
             self.darker = None;
@@ -588,11 +593,14 @@ impl CameraController {
                 LawStep::Relative(config.law.bound(config.mean.ratio(f64::from(stats.mean))))
             }
             (ControlMode::Gradient, Some(e)) => config.law.step(e, stats),
-            (ControlMode::Pid, Some(e)) if hold.is_none() => LawStep::Relative(
-                config
-                    .law
-                    .bound(self.pid.update(&config.pid, 1.0 - e.gamma_hat)),
-            ),
+            // (A probe frame is the prober's, not the integral's.)
+            (ControlMode::Pid, Some(e)) if hold.is_none() && !self.prober.probing() => {
+                LawStep::Relative(
+                    config
+                        .law
+                        .bound(self.pid.update(&config.pid, 1.0 - e.gamma_hat)),
+                )
+            }
             _ => LawStep::Relative(1.0),
         };
         // Under the camera's own law, between frames that do not ask
@@ -651,7 +659,7 @@ impl CameraController {
         // Frames the camera does not react to leave the prober as it is.
         let probe_params = config
             .probe
-            .filter(|_| (own_law || balanced_probe) && !fallback);
+            .filter(|_| (own_law || pid_alone || balanced_probe) && !fallback);
         let mut probe = None;
         match (probe_params, &estimate) {
             (Some(params), Some(e)) => {
@@ -660,7 +668,7 @@ impl CameraController {
                     // brought it to rest. That rest is rarely the camera's
                     // own maximum, so only a probe that measures clearly
                     // more is taken (`ProbeParams::ladder_gain`).
-                    let asked = if own_law { desired } else { base };
+                    let asked = if own_law || pid_alone { desired } else { base };
                     let (d, event) = self.prober.step(
                         &params,
                         ProbeInput {
@@ -674,6 +682,7 @@ impl CameraController {
                             rungs: if self.reacquiring { params.ladder } else { 1 },
                             balanced: balanced_probe,
                             relight: scale_clip,
+                            brighter_only: pid_alone,
                         },
                     );
                     let alone = matches!(
@@ -684,8 +693,13 @@ impl CameraController {
                                 | ProbeEvent::Abandoned
                         )
                     );
-                    if own_law || alone {
+                    if own_law || pid_alone || alone {
                         desired = d;
+                    }
+                    if pid_alone && matches!(event, Some(ProbeEvent::Taken { .. })) {
+                        // PID goes on from the rung taken, its history (of
+                        // the rest left behind) forgotten.
+                        self.pid.reset();
                     }
                     self.probe_alone = alone && balanced_probe;
                     probe = event;

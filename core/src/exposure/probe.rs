@@ -76,7 +76,9 @@
 //! with the exit resolved and two thirds of its ground black, on a hump of
 //! `M(E)` a quarter as high as the walls' texture 5.4 EV up
 //! (docs/exposure-results.md). Balanced cameras do not probe brighter:
-//! their neighbours pull them over such humps. A recent frame answers for
+//! their neighbours pull them over such humps. PID probes only brighter
+//! ([`ProbeInput::brighter_only`]): a darker probe at each rest with
+//! saturation in view would disturb its integral for little. A recent frame answers for
 //! a brighter ladder only if one lay as far as its last rung, or one in its
 //! reach measured better.
 //!
@@ -375,6 +377,10 @@ pub struct ProbeInput {
     /// probing again before the cooldown (scale-and-clip, whose estimate
     /// cannot see under what a brighter light saturates).
     pub relight: bool,
+    /// Whether the camera probes only brighter (PID, whose integral a
+    /// darker probe at every rest with saturation in view disturbs; a
+    /// mostly black rest is rarer, and far from its best).
+    pub brighter_only: bool,
 }
 
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -430,6 +436,12 @@ impl Prober {
     /// one that did not come), until the scene changes.
     pub fn resting(&self) -> bool {
         matches!(self.state, State::Resting { .. })
+    }
+
+    /// Whether a probe frame was commanded and not yet measured: the next
+    /// frame the camera reacts to is the probe's (or shows it did not come).
+    pub fn probing(&self) -> bool {
+        matches!(self.state, State::Probing { .. })
     }
 
     /// Moves what the prober knows by a uniform change of light: the
@@ -646,6 +658,8 @@ impl Prober {
             wants_frame,
             ..
         } = input;
+        // (A camera that probes only brighter has no darker probe to make.)
+        let saturated = if input.brighter_only { 0.0 } else { saturated };
         let (home, m_sum, frames) =
             if saturated >= params.min_saturated && self.circling(params, taken) {
                 // A law that circles a jump of its estimate never settles:
