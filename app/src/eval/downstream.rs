@@ -92,7 +92,15 @@ pub struct FeatureMeter {
     stereo: Vec<StereoRectifier>,
     /// The last set's disparities, per pair.
     last_stereo: Vec<Disparities>,
+    /// The disparities of the latest [`RECENT_SETS`] sets measured by
+    /// [`Self::from_set`], with their set's index: the report draws the
+    /// last at rest.
+    recent: std::collections::VecDeque<(usize, Vec<Disparities>)>,
 }
+
+/// How many of the latest sets' disparities [`FeatureMeter`] keeps, for
+/// the last set at rest (a probe's runs over at most four).
+const RECENT_SETS: usize = 8;
 
 impl FeatureMeter {
     /// A meter of the cameras of `rig` (poses in the vehicle frame), whose
@@ -130,12 +138,14 @@ impl FeatureMeter {
             previous: Vec::new(),
             stereo,
             last_stereo: Vec::new(),
+            recent: Default::default(),
         })
     }
 
     /// Forgets the previous frames (a new run).
     pub fn reset(&mut self) {
         self.previous.clear();
+        self.recent.clear();
     }
 
     /// An observer for [`super::closed_loop::run_observed`] that measures
@@ -150,6 +160,12 @@ impl FeatureMeter {
         move |set, frames| {
             if set >= from {
                 out.push(self.observe(frames)?);
+                if !self.last_stereo.is_empty() {
+                    if self.recent.len() == RECENT_SETS {
+                        self.recent.pop_front();
+                    }
+                    self.recent.push_back((set, self.last_stereo.clone()));
+                }
             }
             Ok(())
         }
@@ -319,22 +335,27 @@ pub const STEREO_FIGURE: [EvalStrategy; 5] = [
 ];
 
 impl FeatureMeter {
-    /// The views of [`Self::last_stereo`] as [`StereoView`]s of `preset`
-    /// under `strategy` (none unless `strategy` is one of
-    /// [`STEREO_FIGURE`]); `names` are the cameras'.
+    /// The views of the last set at rest (`at_rest(set)`, among the latest
+    /// [`RECENT_SETS`] that [`Self::from_set`] measured; else of the last
+    /// set observed) as [`StereoView`]s of `preset` under `strategy` (none
+    /// unless `strategy` is one of [`STEREO_FIGURE`]); `names` are the
+    /// cameras'. A set with a probe frame shows a camera at an exposure
+    /// it does not rest at.
     pub fn stereo_views(
         &self,
         preset: &str,
         strategy: EvalStrategy,
         names: &[String],
+        at_rest: impl Fn(usize) -> bool,
     ) -> Vec<StereoView> {
         if !STEREO_FIGURE.contains(&strategy) {
             return Vec::new();
         }
         let name = |k: usize| names.get(k).cloned().unwrap_or_else(|| k.to_string());
+        let shown = last_at_rest(&self.recent, &self.last_stereo, at_rest);
         self.stereo
             .iter()
-            .zip(&self.last_stereo)
+            .zip(shown)
             .map(|(s, d)| StereoView {
                 preset: preset.to_string(),
                 strategy,
@@ -343,6 +364,20 @@ impl FeatureMeter {
             })
             .collect()
     }
+}
+
+/// The disparities of the latest of `recent` (set index, disparities)
+/// whose set is `at_rest`, or `last` when none is.
+fn last_at_rest<'a>(
+    recent: &'a std::collections::VecDeque<(usize, Vec<Disparities>)>,
+    last: &'a [Disparities],
+    at_rest: impl Fn(usize) -> bool,
+) -> &'a [Disparities] {
+    recent
+        .iter()
+        .rev()
+        .find(|(set, _)| at_rest(*set))
+        .map_or(last, |(_, d)| d.as_slice())
 }
 
 /// Writes the report's figure of `views` to `path` (PNG): a row per view,
@@ -561,6 +596,28 @@ mod tests {
 
     /// Probe sets are left out, and the set after one is not tracked from
     /// it; the others pass as they were.
+    #[test]
+    fn the_stereo_figure_shows_the_last_set_at_rest() {
+        let d = |valid: usize| Disparities {
+            width: 1,
+            height: 1,
+            values: vec![0.0],
+            max_disparity: 16,
+            considered: 10,
+            valid,
+            rectified: [vec![0], vec![0]],
+        };
+        // Sets 10..14 measured; 13 and 14 hold a probe frame.
+        let recent: std::collections::VecDeque<_> =
+            (10..15).map(|set| (set, vec![d(set)])).collect();
+        let last = vec![d(14)];
+        let shown = last_at_rest(&recent, &last, |set| set < 13);
+        assert_eq!(shown[0].valid, 12);
+        // None at rest: the last set observed.
+        let shown = last_at_rest(&recent, &last, |_| false);
+        assert_eq!(shown[0].valid, 14);
+    }
+
     #[test]
     fn at_rest_leaves_out_probe_sets() {
         let set = |k: usize| SetFeatures {

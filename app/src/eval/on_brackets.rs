@@ -221,7 +221,8 @@ pub fn run(plan: &Plan, dir: &Path, mode: BracketMode, out: &Path) -> Result<Res
         if strategy != EvalStrategy::MultiComp {
             overlaps.extend(downstream.overlaps(NAME, strategy, &names));
             stereo.extend(downstream.stereo(NAME, strategy, &names));
-            stereo_views.extend(meter.stereo_views(NAME, strategy, &names));
+            stereo_views
+                .extend(meter.stereo_views(NAME, strategy, &names, |set| !trace.probe_set(set)));
         }
         start.extend(StartRow::of(strategy, &trace, &names));
         if let Some(view) = &view {

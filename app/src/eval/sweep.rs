@@ -178,7 +178,7 @@ pub fn run(
             out.stereo
                 .extend(downstream.stereo(preset, strategy, &names));
             out.stereo_views
-                .extend(meter.stereo_views(preset, strategy, &names));
+                .extend(meter.stereo_views(preset, strategy, &names, |set| !trace.probe_set(set)));
             for (cam, s) in out.sweeps[first..].iter().enumerate() {
                 let log2_e = trace.settled(cam, plan.tail);
                 let m = s.sweep.score_at(log2_e.exp2());
