@@ -871,17 +871,26 @@ impl FusedScratch {
         out: &mut [f32],
         saturated: Option<&mut [f32]>,
     ) {
+        // 4×4 blocks of Mono8 and RGB8 frames: their AVX2 kernels.
         #[cfg(target_arch = "x86_64")]
-        if rows.c == 1 && rows.k == 4 && crate::cpu::Isa::detect() >= crate::cpu::Isa::Avx2 {
-            let width = 4 * out.len();
+        if matches!(rows.c, 1 | 3)
+            && rows.k == 4
+            && crate::cpu::Isa::detect() >= crate::cpu::Isa::Avx2
+        {
+            let width = 4 * rows.c * out.len();
             let row = |i: usize| rows.frame.row(rows.rows.start + i).get(..width);
             if let (4, Some(r0), Some(r1), Some(r2), Some(r3)) =
                 (rows.rows.len(), row(0), row(1), row(2), row(3))
             {
+                let four = [r0, r1, r2, r3];
                 // SAFETY: `detect` reports AVX2 only when the CPU has it.
                 #[allow(unsafe_code)]
                 unsafe {
-                    mono4_block_row_avx2([r0, r1, r2, r3], out, saturated);
+                    if rows.c == 1 {
+                        mono4_block_row_avx2(four, out, saturated);
+                    } else {
+                        rgb4_block_row_avx2(four, out, saturated);
+                    }
                 }
                 return;
             }
@@ -1000,12 +1009,7 @@ unsafe fn mono4_block_row_avx2(
     let ones16 = _mm256_set1_epi16(1);
     let threshold = _mm256_set1_epi8(SATURATED_BYTE as i8);
     let scale = _mm256_set1_ps(to_unit);
-    let steps = rows
-        .iter()
-        .map(|r| r.len() / 32)
-        .min()
-        .unwrap_or(0)
-        .min(n / 8);
+    let steps = whole_steps(&rows, 32, n);
     for i in 0..steps {
         let (at, blocks) = (32 * i, 8 * i..8 * i + 8);
         // SAFETY: `at + 32 ≤ 32·steps ≤` every row's length.
@@ -1048,6 +1052,174 @@ unsafe fn mono4_block_row_avx2(
         *o = sum as f32 * to_unit;
         if let Some(x) = saturated.as_deref_mut().and_then(|s| s.get_mut(b)) {
             *x = count as f32;
+        }
+    }
+}
+
+/// The steps of 8 blocks (`bytes` of each row a step) that every one of
+/// `rows` holds whole, and `n` blocks hold.
+#[inline(always)]
+fn whole_steps(rows: &[&[u8]; 4], bytes: usize, n: usize) -> usize {
+    rows.iter()
+        .map(|r| r.len() / bytes)
+        .min()
+        .unwrap_or(0)
+        .min(n / 8)
+}
+
+/// `pshufb` masks that take channel `ch` of 16 RGB pixels (48 bytes) out of
+/// each of its three 16-byte thirds (`-128`, a zero, where a pixel's byte
+/// lies in another third), the same in both 128-bit lanes.
+const fn rgb_channel_masks(ch: usize) -> [[i8; 32]; 3] {
+    let mut masks = [[-128i8; 32]; 3];
+    let mut i = 0;
+    while i < 16 {
+        let p = 3 * i + ch;
+        masks[p / 16][i] = (p % 16) as i8;
+        masks[p / 16][i + 16] = (p % 16) as i8;
+        i += 1;
+    }
+    masks
+}
+
+/// The 4×4 blocks of one block row of an RGB8 frame (the simulated rig's
+/// cameras: 1288×964 metered to 322×241): [`FusedScratch::block_row`]'s
+/// values, to the bit, 32 pixels (8 blocks) a step. Each row's 96 bytes
+/// are split into their channels by `pshufb` (16 pixels in each 128-bit
+/// lane), each channel's bytes summed in pairs by `vpmaddubsw`, the four
+/// rows' pairs added in 16 bits and the pairs of each block by `vpmaddwd`;
+/// a block's luminance is [`luma::rgb`] of its three sums, in the same
+/// operations. The saturated bytes are counted the same way from their
+/// all-ones masks. The blocks after the last whole step are summed one by
+/// one.
+///
+/// # Safety
+///
+/// The CPU has AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[allow(unsafe_code)]
+unsafe fn rgb4_block_row_avx2(
+    rows: [&[u8]; 4],
+    out: &mut [f32],
+    mut saturated: Option<&mut [f32]>,
+) {
+    use std::arch::x86_64::*;
+    const MASKS: [[[i8; 32]; 3]; 3] = [
+        rgb_channel_masks(0),
+        rgb_channel_masks(1),
+        rgb_channel_masks(2),
+    ];
+    let to_unit = 1.0f32 / 255.0;
+    let n = out.len();
+    let mut masks = [[_mm256_setzero_si256(); 3]; 3];
+    for ch in 0..3 {
+        for t in 0..3 {
+            // SAFETY: each mask holds 32 bytes.
+            masks[ch][t] = unsafe { _mm256_loadu_si256(MASKS[ch][t].as_ptr().cast()) };
+        }
+    }
+    let ones8 = _mm256_set1_epi8(1);
+    let ones16 = _mm256_set1_epi16(1);
+    let threshold = _mm256_set1_epi8(SATURATED_BYTE as i8);
+    let (wr, wg, wb) = (
+        _mm256_set1_ps(luma::W_R),
+        _mm256_set1_ps(luma::W_G),
+        _mm256_set1_ps(luma::W_B),
+    );
+    let scale = _mm256_set1_ps(to_unit);
+    let steps = whole_steps(&rows, 96, n);
+    for i in 0..steps {
+        let (at, blocks) = (96 * i, 8 * i..8 * i + 8);
+        // Each row's channels: pixels 0–15 in the low lane, 16–31 in the
+        // high one.
+        let mut v = [[_mm256_setzero_si256(); 3]; 4];
+        for (r, row) in rows.iter().enumerate() {
+            let p = row.as_ptr();
+            // SAFETY: `at + 96 ≤ 96·steps ≤` the row's length.
+            let thirds = unsafe {
+                [
+                    _mm256_loadu2_m128i(p.add(at + 48).cast(), p.add(at).cast()),
+                    _mm256_loadu2_m128i(p.add(at + 64).cast(), p.add(at + 16).cast()),
+                    _mm256_loadu2_m128i(p.add(at + 80).cast(), p.add(at + 32).cast()),
+                ]
+            };
+            for ch in 0..3 {
+                v[r][ch] = _mm256_or_si256(
+                    _mm256_or_si256(
+                        _mm256_shuffle_epi8(thirds[0], masks[ch][0]),
+                        _mm256_shuffle_epi8(thirds[1], masks[ch][1]),
+                    ),
+                    _mm256_shuffle_epi8(thirds[2], masks[ch][2]),
+                );
+            }
+        }
+        let mut sums = [_mm256_setzero_si256(); 3];
+        for ch in 0..3 {
+            let pair = |r: usize| _mm256_maddubs_epi16(v[r][ch], ones8);
+            sums[ch] = _mm256_madd_epi16(
+                _mm256_add_epi16(
+                    _mm256_add_epi16(pair(0), pair(1)),
+                    _mm256_add_epi16(pair(2), pair(3)),
+                ),
+                ones16,
+            );
+        }
+        // `luma::rgb` of the three sums, in its operations.
+        let luminance = _mm256_add_ps(
+            _mm256_add_ps(
+                _mm256_mul_ps(wr, _mm256_cvtepi32_ps(sums[0])),
+                _mm256_mul_ps(wg, _mm256_cvtepi32_ps(sums[1])),
+            ),
+            _mm256_mul_ps(wb, _mm256_cvtepi32_ps(sums[2])),
+        );
+        let luminance = _mm256_mul_ps(luminance, scale);
+        // SAFETY: `blocks` lies in `out` (`8·steps ≤ n`).
+        unsafe { _mm256_storeu_ps(out[blocks.clone()].as_mut_ptr(), luminance) };
+        if let Some(sat) = saturated.as_deref_mut() {
+            let mut counts = [_mm256_setzero_si256(); 3];
+            for ch in 0..3 {
+                // All ones (−1) where a byte saturates: minus the count.
+                let mask =
+                    |r: usize| _mm256_cmpeq_epi8(_mm256_max_epu8(v[r][ch], threshold), v[r][ch]);
+                let minus = _mm256_add_epi8(
+                    _mm256_add_epi8(mask(0), mask(1)),
+                    _mm256_add_epi8(mask(2), mask(3)),
+                );
+                let minus = _mm256_madd_epi16(_mm256_maddubs_epi16(ones8, minus), ones16);
+                counts[ch] = _mm256_sub_epi32(_mm256_setzero_si256(), minus);
+            }
+            let hot = _mm256_add_ps(
+                _mm256_add_ps(
+                    _mm256_mul_ps(wr, _mm256_cvtepi32_ps(counts[0])),
+                    _mm256_mul_ps(wg, _mm256_cvtepi32_ps(counts[1])),
+                ),
+                _mm256_mul_ps(wb, _mm256_cvtepi32_ps(counts[2])),
+            );
+            if let Some(dst) = sat.get_mut(blocks) {
+                // SAFETY: `dst` holds 8 values.
+                unsafe { _mm256_storeu_ps(dst.as_mut_ptr(), hot) };
+            }
+        }
+    }
+    for (b, o) in out.iter_mut().enumerate().skip(8 * steps) {
+        let (mut sum, mut count) = ([0u32; 3], [0u32; 3]);
+        for r in rows {
+            for (j, &v) in r
+                .get(12 * b..12 * b + 12)
+                .unwrap_or_default()
+                .iter()
+                .enumerate()
+            {
+                sum[j % 3] += u32::from(v);
+                count[j % 3] += u32::from(v >= SATURATED_BYTE);
+            }
+        }
+        let [r, g, bl] = sum.map(|v| v as f32);
+        *o = luma::rgb(r, g, bl) * to_unit;
+        if let Some(x) = saturated.as_deref_mut().and_then(|s| s.get_mut(b)) {
+            let [r, g, bl] = count.map(|v| v as f32);
+            *x = luma::rgb(r, g, bl);
         }
     }
 }

@@ -5,11 +5,11 @@
 use super::PixelFormat;
 
 /// BT.601 weight of red (OpenCV's `RGB2GRAY`).
-const W_R: f32 = 0.299;
+pub(crate) const W_R: f32 = 0.299;
 /// BT.601 weight of green.
-const W_G: f32 = 0.587;
+pub(crate) const W_G: f32 = 0.587;
 /// BT.601 weight of blue.
-const W_B: f32 = 0.114;
+pub(crate) const W_B: f32 = 0.114;
 
 /// Bits of the fixed-point weights of 8-bit conversions ([`FIXED`]).
 pub(crate) const FIXED_SHIFT: u32 = 15;

@@ -255,7 +255,9 @@ fn one_pass_8bit_metering_equals_the_two_pass_sums() {
     let mut next = xorshift(0x2545_f491_4f6c_dd1d);
     // Rows of whole and of partial 32-column steps (the Mono8 4×4 kernel).
     let cases = [(PixelFormat::Mono8, 1, 203), (PixelFormat::Mono8, 1, 256)];
-    for (format, c, w) in cases.into_iter().chain([(PixelFormat::Rgb8, 3, 203)]) {
+    // RGB8 too: whole and partial 32-pixel steps (the RGB8 4×4 kernel).
+    let rgb = [(PixelFormat::Rgb8, 3, 203), (PixelFormat::Rgb8, 3, 256)];
+    for (format, c, w) in cases.into_iter().chain(rgb) {
         // A third of the samples saturated (250–255), the rest anywhere.
         let data: Vec<u8> = (0..w * h * c)
             .map(|_| {
