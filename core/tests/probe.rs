@@ -720,8 +720,14 @@ fn a_camera_that_probes_only_brighter_makes_no_darker_probe() {
     let (d, e) = p.step(&params, only(dark(1000.0, 100.0, 0.6)));
     assert!(matches!(e, Some(ProbeEvent::Sent { .. })), "{e:?}");
     assert!(d > 1000.0 && p.probing(), "probe at {d}");
+    assert!(p.last_brighter(), "the probe is said to be brighter");
     // Its rung measured: no longer probing.
     let (_, e) = p.step(&params, only(frame(d, 300.0, d)));
     assert!(matches!(e, Some(ProbeEvent::Taken { .. })), "{e:?}");
     assert!(!p.probing());
+    assert!(p.last_brighter());
+    // Its next probe, darker (saturation in view, not only brighter now),
+    // is said to be darker.
+    let d = settle_and_probe(&mut p, &params, 100.0);
+    assert!(d < 1000.0 && !p.last_brighter(), "probe at {d}");
 }

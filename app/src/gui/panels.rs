@@ -381,30 +381,34 @@ pub fn camera_card(
             },
             probe_text(
                 cam.last_probe,
+                cam.last_probe_brighter,
                 cam.estimate.as_ref().is_some_and(|e| e.declipped)
             )
         ));
     });
 }
 
-/// The latest probe darker, for the camera's label: what `M` did there,
-/// and whether the estimate read the probe's frame (`read`).
-fn probe_text(p: Option<ProbeEvent>, read: bool) -> String {
+/// The latest probe, darker or `brighter`, for the camera's label: what
+/// `M` did there, and whether the estimate read saturated pixels from a
+/// darker frame of the scene (`read`: a darker probe's, or the one the law
+/// left going brighter).
+fn probe_text(p: Option<ProbeEvent>, brighter: bool, read: bool) -> String {
+    let way = if brighter { "brighter" } else { "darker" };
     let outcome = match p {
         Some(ProbeEvent::Taken { gain }) => {
-            format!("\nprobe darker: M {:+.1} %, taken", gain * 100.0)
+            format!("\nprobe {way}: M {:+.1} %, taken", gain * 100.0)
         }
         Some(ProbeEvent::Rejected { gain }) => {
-            format!("\nprobe darker: M {:+.1} %, stayed", gain * 100.0)
+            format!("\nprobe {way}: M {:+.1} %, stayed", gain * 100.0)
         }
         Some(ProbeEvent::Known { gain }) => {
-            format!("\ndarker seen: M {:+.1} %, no probe", gain * 100.0)
+            format!("\n{way} seen: M {:+.1} %, no probe", gain * 100.0)
         }
-        Some(ProbeEvent::Abandoned) => "\nprobe darker: abandoned".into(),
+        Some(ProbeEvent::Abandoned) => format!("\nprobe {way}: abandoned"),
         Some(ProbeEvent::Sent { .. }) | None => String::new(),
     };
     if read {
-        outcome + "\nsaturation read from the probe frame"
+        outcome + "\nsaturation read from a darker frame"
     } else {
         outcome
     }
@@ -861,17 +865,22 @@ mod tests {
     fn the_probe_text_says_what_the_probe_did_and_whether_its_frame_is_read() {
         let stayed = Some(ProbeEvent::Rejected { gain: -0.027 });
         assert_eq!(
-            probe_text(stayed, false),
+            probe_text(stayed, false, false),
             "\nprobe darker: M -2.7 %, stayed"
         );
         assert_eq!(
-            probe_text(stayed, true),
-            "\nprobe darker: M -2.7 %, stayed\nsaturation read from the probe frame"
+            probe_text(stayed, false, true),
+            "\nprobe darker: M -2.7 %, stayed\nsaturation read from a darker frame"
         );
-        assert_eq!(probe_text(None, false), "");
+        assert_eq!(probe_text(None, false, false), "");
         assert_eq!(
-            probe_text(Some(ProbeEvent::Taken { gain: 0.016 }), false),
+            probe_text(Some(ProbeEvent::Taken { gain: 0.016 }), false, false),
             "\nprobe darker: M +1.6 %, taken"
+        );
+        // A brighter probe (a mostly dark camera's ladder) says so.
+        assert_eq!(
+            probe_text(Some(ProbeEvent::Taken { gain: 0.9 }), true, false),
+            "\nprobe brighter: M +90.0 %, taken"
         );
     }
 }

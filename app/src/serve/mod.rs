@@ -101,7 +101,7 @@ const VIEW_ID: u32 = 1000;
 const TF_ID: u32 = 1001;
 const TELEMETRY_ID: u32 = 1002;
 
-const EXPOSURE_SCHEMA: &str = r#"{"type":"object","title":"rigview exposure state","properties":{"shutter_us":{"type":"number"},"gain_db":{"type":"number"},"exposure_log2":{"type":"number"},"gamma_hat":{"type":["number","null"]},"m":{"type":["number","null"]},"mean":{"type":"number"},"saturated":{"type":"number"},"probe_frame":{"type":"boolean"},"last_probe":{"description":"the latest probe darker: Sent {from, to}, Taken {gain} or Rejected","type":["object","string","null"]},"command_shutter_us":{"type":["number","null"]},"command_gain_db":{"type":["number","null"]}}}"#;
+const EXPOSURE_SCHEMA: &str = r#"{"type":"object","title":"rigview exposure state","properties":{"shutter_us":{"type":"number"},"gain_db":{"type":"number"},"exposure_log2":{"type":"number"},"gamma_hat":{"type":["number","null"]},"m":{"type":["number","null"]},"mean":{"type":"number"},"saturated":{"type":"number"},"probe_frame":{"type":"boolean"},"last_probe":{"description":"the latest probe, darker or brighter: Sent {from, to}, Taken {gain} or Rejected","type":["object","string","null"]},"last_probe_brighter":{"description":"whether that probe was brighter (most of the frame dark)","type":"boolean"},"command_shutter_us":{"type":["number","null"]},"command_gain_db":{"type":["number","null"]}}}"#;
 const TELEMETRY_SCHEMA: &str = r#"{"type":"object","title":"rigview set telemetry","properties":{"trigger":{"type":"integer"},"times_ms":{"type":"object"},"pairs":{"type":"array","items":{"type":"object","properties":{"pair":{"type":"string"},"log2_r":{"type":["number","null"]}}}},"clients":{"type":"integer"},"sent":{"type":"integer"},"dropped_for_clients":{"type":"integer"},"processed":{"type":["integer","null"]},"incomplete":{"type":["integer","null"]},"dropped_before_processing":{"type":["integer","null"]},"set_rate_hz":{"type":["number","null"]},"streams":{"type":["array","null"],"items":{"type":"object","properties":{"camera":{"type":"string"},"state":{"type":"string"},"fps":{"type":"number"},"failed":{"type":"integer"},"missing_packets":{"type":"integer"}}}}}}"#;
 
 fn cdr_channel(id: u32, topic: String, schema: &str, latched: bool) -> Channel {
@@ -327,6 +327,7 @@ impl Publisher {
                         "saturated": c.saturated,
                         "probe_frame": c.probe_frame,
                         "last_probe": c.last_probe,
+                        "last_probe_brighter": c.last_probe_brighter,
                         "command_shutter_us": c.command.map(|s| s.shutter_us),
                         "command_gain_db": c.command.map(|s| s.gain_db),
                     });

@@ -339,6 +339,12 @@ impl CameraController {
         self.last_probe
     }
 
+    /// Whether [`Self::last_probe`] was a brighter probe (where most of
+    /// the frame was dark) rather than a darker one.
+    pub fn last_probe_brighter(&self) -> bool {
+        self.prober.last_brighter()
+    }
+
     /// The exposure of the probe frame the estimator reads saturated pixels
     /// from (kept after a probe that measured no better, while the camera
     /// rests and the scene stays), if any.

@@ -421,6 +421,8 @@ const CIRCLE_DRIFT_EV: f64 = 0.1;
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Prober {
     state: State,
+    /// Whether the latest probe (sent, or known without one) was brighter.
+    brighter: bool,
     /// `(exposure, M)` of the latest frames the camera reacted to, in this
     /// scene.
     recent: VecDeque<(f64, f64)>,
@@ -436,6 +438,12 @@ impl Prober {
     /// one that did not come), until the scene changes.
     pub fn resting(&self) -> bool {
         matches!(self.state, State::Resting { .. })
+    }
+
+    /// Whether the latest probe (sent, or answered by a recent frame) was
+    /// brighter: its outcome ([`ProbeEvent`]) is then of a brighter frame.
+    pub fn last_brighter(&self) -> bool {
+        self.brighter
     }
 
     /// Whether a probe frame was commanded and not yet measured: the next
@@ -698,6 +706,7 @@ impl Prober {
             // for it only if one lay as far as its last rung, or one in its
             // range measured better (the estimator then disagrees with the
             // measurement, and the round trip would repeat).
+            self.brighter = brighter;
             let reach = if brighter { f64::from(rungs) } else { 1.0 };
             let away = |e: f64| (e / home).log2() * step.signum();
             let reached = !brighter

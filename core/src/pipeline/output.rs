@@ -101,9 +101,12 @@ pub struct CameraOutput {
     pub command: Option<ExposureSetting>,
     /// The manual override in force.
     pub manual: Option<f64>,
-    /// The outcome of the camera's latest probe darker
+    /// The outcome of the camera's latest probe
     /// ([`crate::exposure::probe`]).
     pub last_probe: Option<ProbeEvent>,
+    /// Whether that probe was brighter (where most of the frame was dark)
+    /// rather than darker.
+    pub last_probe_brighter: bool,
     /// Whether the frame was taken at a probe's darker exposure.
     pub probe_frame: bool,
 }

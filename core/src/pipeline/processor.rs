@@ -401,7 +401,10 @@ impl Processor {
                 },
             };
             let camera = self.controller.camera_mut(k)?;
-            let (manual, last_probe) = (camera.manual(), camera.last_probe());
+            let (manual, last_probe) = (
+                camera.manual(),
+                (camera.last_probe(), camera.last_probe_brighter()),
+            );
             cameras.push(camera_output(
                 f.meta.taken,
                 m,
@@ -650,7 +653,7 @@ fn camera_output(
     estimate: Option<Estimate>,
     command: Option<ExposureSetting>,
     manual: Option<f64>,
-    last_probe: Option<ProbeEvent>,
+    (last_probe, last_probe_brighter): (Option<ProbeEvent>, bool),
     probe_frame: bool,
 ) -> CameraOutput {
     let thumb = m.luma().iter().map(|&v| thumb_byte(v)).collect();
@@ -669,6 +672,7 @@ fn camera_output(
         command,
         manual,
         last_probe,
+        last_probe_brighter,
         probe_frame,
     }
 }
