@@ -8,7 +8,9 @@
 //!   purpose; shown as it is, its camera's part of the view darkens for a
 //!   set or two. The view shows such a frame at its camera's *display
 //!   exposure* `D`: its samples scaled by `D / E_taken` (a linear sensor's
-//!   brightness follows its exposure) and clipped where the sensor clips,
+//!   brightness follows its exposure; through a camera's tone curve, the
+//!   nearest power's `(D / E_taken)^(1/p)`, and the scene read from the
+//!   mean's light) and clipped where the sensor clips,
 //!   before the view interpolates them. `D` is the exposure of the camera's
 //!   latest frame that was not a probe. The same holds for any frame whose
 //!   exposure dropped by more than `ease_ev` while the scene stayed the
@@ -133,6 +135,12 @@ pub struct DisplayInput {
     /// [0, 1] (the pixels the view shows, about): a seam gain brightens
     /// this no further than [`CLIP_LEVEL`]. 0: no such limit.
     pub bright: f64,
+    /// The camera's tone curve as the nearest power `p` (`L = I^p`;
+    /// [`crate::exposure::ToneCurve::nearest_power`]), 1 for a linear
+    /// camera: a ratio of light `r` records as `r^(1/p)`, so the frame
+    /// shown at the display exposure takes the gain `(D / E_taken)^(1/p)`
+    /// on its recorded values.
+    pub power: f64,
 }
 
 /// The quantile of a camera's metered intensities that a seam gain may not
@@ -192,15 +200,24 @@ impl DisplayGains {
             self.held = vec![None; n];
             self.seam = vec![0.0; n];
         }
-        // Per camera, log2(D / taken).
+        // Per camera, log2(D / taken), in light.
         let mut ease = vec![0.0; n];
+        let power = |f: &DisplayInput| {
+            if f.power.is_finite() && f.power > 0.0 {
+                f.power
+            } else {
+                1.0
+            }
+        };
         for (k, f) in frames.iter().enumerate() {
             if !(f.taken.is_finite() && f.taken > 0.0) {
                 self.held[k] = None;
                 continue;
             }
             let e = f.taken.log2();
-            let scene = (f.mean.max(1e-4) / f.taken).log2();
+            // The scene's light: the mean's, through the camera's curve.
+            let light = f.mean.max(1e-4).powf(power(f));
+            let scene = (light.max(1e-12) / f.taken).log2();
             match (self.held[k], f.probe_frame) {
                 // A darker probe frame is shown at the display exposure; a
                 // brighter one (a mostly black camera probing up) as taken,
@@ -225,6 +242,8 @@ impl DisplayGains {
                 (None, false) => self.held[k] = Some((e, scene)),
             }
         }
+        // The same on the recorded values the view scales.
+        let ease: Vec<f64> = ease.iter().zip(frames).map(|(a, f)| a / power(f)).collect();
         if !settings.compensate {
             self.seam.iter_mut().for_each(|c| *c = 0.0);
         } else if !frames.iter().any(|f| f.probe_frame) {
@@ -316,7 +335,45 @@ mod tests {
             mean,
             probe_frame,
             bright: 0.0,
+            power: 1.0,
         }
+    }
+
+    /// Through a tone curve `L = I^2.2`, a ratio of light `r` records as
+    /// `r^(1/2.2)`: a probe 1 EV darker is shown brightened by `2^(1/2.2)`
+    /// on its recorded values, and a darker jump whose mean moved as the
+    /// curve says is the same scene and eased (read as linear, its mean
+    /// had fallen only 0.45 EV for 1 EV of exposure: a change of light,
+    /// followed at once).
+    #[test]
+    fn through_a_tone_curve_the_gains_are_of_light() {
+        let s = DisplaySettings {
+            compensate: false,
+            ..Default::default()
+        };
+        let toned = |taken: f64, mean: f64, probe: bool| DisplayInput {
+            power: 2.2,
+            ..frame(taken, mean, probe)
+        };
+        // (0.5 of light records as 0.5^(1/2.2).)
+        let half = 0.5f64.powf(1.0 / 2.2);
+        let mut d = DisplayGains::default();
+        d.update(&s, &[toned(1000.0, 0.4, false)], &[]);
+        let g = d.update(&s, &[toned(500.0, 0.4 * half, true)], &[])[0];
+        let want = 2f64.powf(1.0 / 2.2);
+        assert!((f64::from(g.exposure) - want).abs() < 1e-5, "{g:?}");
+        // A darker jump of 1 EV in the same scene: eased, shown brighter
+        // than taken by 0.75 EV of light at first.
+        let mut d = DisplayGains::default();
+        d.update(&s, &[toned(2000.0, 0.8, false)], &[]);
+        let g = d.update(&s, &[toned(1000.0, 0.8 * half, false)], &[])[0];
+        let shown = f64::from(g.exposure).log2() * 2.2;
+        assert!((shown - 0.75).abs() < 1e-4, "{g:?}");
+        // The same frames read as linear: a change of light, no easing.
+        let mut d = DisplayGains::default();
+        d.update(&s, &[frame(2000.0, 0.8, false)], &[]);
+        let g = d.update(&s, &[frame(1000.0, 0.8 * half, false)], &[])[0];
+        assert_eq!(g.exposure, 1.0, "{g:?}");
     }
 
     #[test]

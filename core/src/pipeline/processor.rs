@@ -458,9 +458,20 @@ impl Processor {
                 let view = view.mosaic();
                 let (w, h) = shown_view.size();
                 let mut canvas = take_canvas(&mut self.canvases, w, h, channels);
+                // Each camera's tone curve as its nearest power (1: linear).
+                let powers: Vec<f64> = (0..cameras.len())
+                    .map(|k| {
+                        self.controller
+                            .camera_mut(k)
+                            .ok()
+                            .and_then(|c| c.tone_curve().and_then(|t| t.nearest_power()))
+                            .unwrap_or(1.0)
+                    })
+                    .collect();
                 let inputs: Vec<DisplayInput> = cameras
                     .iter()
-                    .map(|c| DisplayInput {
+                    .zip(&powers)
+                    .map(|(c, &power)| DisplayInput {
                         taken: c.taken.exposure(),
                         mean: f64::from(c.mean),
                         probe_frame: c.probe_frame,
@@ -472,6 +483,7 @@ impl Processor {
                         // neighbours at the seams, showed its sunlit
                         // ground white).
                         bright: f64::from(histogram_quantile(&c.histogram, BRIGHT_QUANTILE)),
+                        power,
                     })
                     .collect();
                 // The seam gains even out the ratios the view shows at its
