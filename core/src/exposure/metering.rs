@@ -1005,9 +1005,6 @@ unsafe fn mono4_block_row_avx2(
     use std::arch::x86_64::*;
     let to_unit = 1.0f32 / 255.0;
     let n = out.len();
-    let ones8 = _mm256_set1_epi8(1);
-    let ones16 = _mm256_set1_epi16(1);
-    let threshold = _mm256_set1_epi8(SATURATED_BYTE as i8);
     let scale = _mm256_set1_ps(to_unit);
     let steps = whole_steps(&rows, 32, n);
     for i in 0..steps {
@@ -1015,26 +1012,11 @@ unsafe fn mono4_block_row_avx2(
         // SAFETY: `at + 32 ≤ 32·steps ≤` every row's length.
         let load = |r: &[u8]| unsafe { _mm256_loadu_si256(r.as_ptr().add(at).cast()) };
         let v = rows.map(load);
-        let pairs = v.map(|v| _mm256_maddubs_epi16(v, ones8));
-        let sums = _mm256_madd_epi16(
-            _mm256_add_epi16(
-                _mm256_add_epi16(pairs[0], pairs[1]),
-                _mm256_add_epi16(pairs[2], pairs[3]),
-            ),
-            ones16,
-        );
-        let luma = _mm256_mul_ps(_mm256_cvtepi32_ps(sums), scale);
+        let luma = _mm256_mul_ps(_mm256_cvtepi32_ps(sums_of_fours(v)), scale);
         // SAFETY: `blocks` lies in `out` (`8·steps ≤ n`).
         unsafe { _mm256_storeu_ps(out[blocks.clone()].as_mut_ptr(), luma) };
         if let Some(sat) = saturated.as_deref_mut() {
-            // All ones (−1) where a byte saturates: minus the count.
-            let mask = v.map(|v| _mm256_cmpeq_epi8(_mm256_max_epu8(v, threshold), v));
-            let minus = _mm256_add_epi8(
-                _mm256_add_epi8(mask[0], mask[1]),
-                _mm256_add_epi8(mask[2], mask[3]),
-            );
-            let minus = _mm256_madd_epi16(_mm256_maddubs_epi16(ones8, minus), ones16);
-            let counts = _mm256_cvtepi32_ps(_mm256_sub_epi32(_mm256_setzero_si256(), minus));
+            let counts = _mm256_cvtepi32_ps(saturated_in_fours(v));
             if let Some(dst) = sat.get_mut(blocks) {
                 // SAFETY: `dst` holds 8 values.
                 unsafe { _mm256_storeu_ps(dst.as_mut_ptr(), counts) };
@@ -1054,6 +1036,48 @@ unsafe fn mono4_block_row_avx2(
             *x = count as f32;
         }
     }
+}
+
+/// Of four rows' 32 bytes each (`v`), the sums of each run of four bytes
+/// down the four rows (16 bytes: a 4×4 block of Mono8, or of one RGB8
+/// channel), as eight 32-bit integers: each row's bytes summed in pairs
+/// by `vpmaddubsw`, the four rows' pairs added in 16 bits (at most 2040),
+/// and `vpmaddwd` adding the pairs of each block.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn sums_of_fours(v: [std::arch::x86_64::__m256i; 4]) -> std::arch::x86_64::__m256i {
+    use std::arch::x86_64::*;
+    let ones8 = _mm256_set1_epi8(1);
+    let pairs = v.map(|v| _mm256_maddubs_epi16(v, ones8));
+    _mm256_madd_epi16(
+        _mm256_add_epi16(
+            _mm256_add_epi16(pairs[0], pairs[1]),
+            _mm256_add_epi16(pairs[2], pairs[3]),
+        ),
+        _mm256_set1_epi16(1),
+    )
+}
+
+/// [`sums_of_fours`] of the bytes at or above [`SATURATED_BYTE`] counted
+/// as 1 (by an unsigned maximum, from their all-ones masks).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn saturated_in_fours(v: [std::arch::x86_64::__m256i; 4]) -> std::arch::x86_64::__m256i {
+    use std::arch::x86_64::*;
+    let threshold = _mm256_set1_epi8(SATURATED_BYTE as i8);
+    // All ones (−1) where a byte saturates: minus the count.
+    let mask = v.map(|v| _mm256_cmpeq_epi8(_mm256_max_epu8(v, threshold), v));
+    let minus = _mm256_add_epi8(
+        _mm256_add_epi8(mask[0], mask[1]),
+        _mm256_add_epi8(mask[2], mask[3]),
+    );
+    let minus = _mm256_madd_epi16(
+        _mm256_maddubs_epi16(_mm256_set1_epi8(1), minus),
+        _mm256_set1_epi16(1),
+    );
+    _mm256_sub_epi32(_mm256_setzero_si256(), minus)
 }
 
 /// The steps of 8 blocks (`bytes` of each row a step) that every one of
@@ -1119,9 +1143,6 @@ unsafe fn rgb4_block_row_avx2(
             masks[ch][t] = unsafe { _mm256_loadu_si256(MASKS[ch][t].as_ptr().cast()) };
         }
     }
-    let ones8 = _mm256_set1_epi8(1);
-    let ones16 = _mm256_set1_epi16(1);
-    let threshold = _mm256_set1_epi8(SATURATED_BYTE as i8);
     let (wr, wg, wb) = (
         _mm256_set1_ps(luma::W_R),
         _mm256_set1_ps(luma::W_G),
@@ -1156,14 +1177,7 @@ unsafe fn rgb4_block_row_avx2(
         }
         let mut sums = [_mm256_setzero_si256(); 3];
         for ch in 0..3 {
-            let pair = |r: usize| _mm256_maddubs_epi16(v[r][ch], ones8);
-            sums[ch] = _mm256_madd_epi16(
-                _mm256_add_epi16(
-                    _mm256_add_epi16(pair(0), pair(1)),
-                    _mm256_add_epi16(pair(2), pair(3)),
-                ),
-                ones16,
-            );
+            sums[ch] = sums_of_fours([v[0][ch], v[1][ch], v[2][ch], v[3][ch]]);
         }
         // `luma::rgb` of the three sums, in its operations.
         let luminance = _mm256_add_ps(
@@ -1179,15 +1193,7 @@ unsafe fn rgb4_block_row_avx2(
         if let Some(sat) = saturated.as_deref_mut() {
             let mut counts = [_mm256_setzero_si256(); 3];
             for ch in 0..3 {
-                // All ones (−1) where a byte saturates: minus the count.
-                let mask =
-                    |r: usize| _mm256_cmpeq_epi8(_mm256_max_epu8(v[r][ch], threshold), v[r][ch]);
-                let minus = _mm256_add_epi8(
-                    _mm256_add_epi8(mask(0), mask(1)),
-                    _mm256_add_epi8(mask(2), mask(3)),
-                );
-                let minus = _mm256_madd_epi16(_mm256_maddubs_epi16(ones8, minus), ones16);
-                counts[ch] = _mm256_sub_epi32(_mm256_setzero_si256(), minus);
+                counts[ch] = saturated_in_fours([v[0][ch], v[1][ch], v[2][ch], v[3][ch]]);
             }
             let hot = _mm256_add_ps(
                 _mm256_add_ps(
