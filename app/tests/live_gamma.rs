@@ -23,7 +23,7 @@ fn live(dir: &std::path::Path, genicam: Option<&std::path::Path>) -> String {
     .arg("--settings")
     .arg(dir.join("settings.yaml"));
     if let Some(g) = genicam {
-        cmd.env("RIGVIEW_FAKE_GENICAM", g);
+        cmd.env(rigview::live::fake::FAKE_GENICAM_ENV, g);
     }
     let out = cmd.output().unwrap();
     let text = format!(

@@ -173,8 +173,8 @@ pub struct CameraController {
     /// return from one: balancing leaves it as it is.
     probe_alone: bool,
     /// Whether the latest frame the camera reacted to was under its own
-    /// law: what its prober learnt does not carry over into balancing or
-    /// out of it.
+    /// law, or PID alone (the two that probe alone): what its prober learnt
+    /// does not carry over into balancing or out of it.
     was_own_law: bool,
     /// The frame of the latest probe that measured no better, kept while
     /// the camera rests after it: scale-and-clip reads from it what the

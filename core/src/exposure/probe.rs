@@ -78,9 +78,9 @@
 //! (docs/exposure-results.md). Balanced cameras do not probe brighter:
 //! their neighbours pull them over such humps. PID probes only brighter
 //! ([`ProbeInput::brighter_only`]): a darker probe at each rest with
-//! saturation in view would disturb its integral for little. A recent frame answers for
-//! a brighter ladder only if one lay as far as its last rung, or one in its
-//! reach measured better.
+//! saturation in view would disturb its integral for little. A recent
+//! frame answers for a brighter ladder only if one lay as far as its last
+//! rung, or one in its reach measured better.
 //!
 //! Under scale-and-clip a balanced camera probes too
 //! ([`ProbeInput::balanced`]), from where balancing holds it at rest:
