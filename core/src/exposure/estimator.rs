@@ -251,6 +251,8 @@ pub struct Estimator {
     tone: Option<ToneCurve>,
     /// The lookup of the anchor being scored through `tone`.
     lut: Vec<f32>,
+    /// The weights of [`Self::texture_recovery`]'s whole blocks.
+    whole: Vec<f32>,
 }
 
 /// The per-pixel parts of [`Source::Declipped`], reused from frame to frame.
@@ -277,6 +279,7 @@ impl Estimator {
             mapped: Vec::new(),
             declip: Declip::default(),
             lut: Vec::new(),
+            whole: Vec::new(),
             tone: config.tone_curve.clone(),
             config,
         })
@@ -421,7 +424,7 @@ impl Estimator {
     /// measured once, on the widest band (down to the smallest anchor), so
     /// that it does not depend on `x`. Needs the information map of
     /// [`Self::current_information`].
-    fn texture_recovery(&self, image: &Metered, xs: &[f64]) -> Vec<f64> {
+    fn texture_recovery(&mut self, image: &Metered, xs: &[f64]) -> Vec<f64> {
         // Through a tone curve, the recorded value of the light `x`.
         let at = |x: f64| self.toned().map_or(x, |c| c.recorded(x)) as f32;
         let widest = at(self.anchors.iter().chain(xs).copied().fold(1.0, f64::min));
@@ -430,24 +433,30 @@ impl Estimator {
             .map(|&x| if x < 1.0 { at(x) } else { x as f32 })
             .collect();
         // Blocks that are partly saturated are edges of saturated areas,
-        // neither saturated surface nor texture: they are left out.
-        let whole: Option<Vec<f32>> = image.saturated_samples().map(|sat| {
-            sat.iter()
-                .enumerate()
-                .map(|(i, &f)| {
-                    let w = image.weight().map_or(1.0, |w| w[i]);
-                    if f > 0.0 && f < 1.0 {
-                        0.0
-                    } else {
-                        w
-                    }
-                })
-                .collect()
-        });
+        // neither saturated surface nor texture: they are left out (in a
+        // loop over slices, which vectorises).
+        let whole = &mut self.whole;
+        whole.clear();
+        let part = |f: f32| f > 0.0 && f < 1.0;
+        let whole = match (image.saturated_samples(), image.weight()) {
+            (Some(sat), Some(weight)) => {
+                whole.extend(
+                    sat.iter()
+                        .zip(weight)
+                        .map(|(&f, &w)| if part(f) { 0.0 } else { w }),
+                );
+                Some(&whole[..])
+            }
+            (Some(sat), None) => {
+                whole.extend(sat.iter().map(|&f| if part(f) { 0.0 } else { 1.0 }));
+                Some(&whole[..])
+            }
+            (None, _) => None,
+        };
         let sums = kernel::saturation_sums(
             self.scratch.isa(),
             image.luma(),
-            whole.as_deref().or(image.weight()),
+            whole.or(image.weight()),
             &self.info,
             image.width(),
             image.height(),

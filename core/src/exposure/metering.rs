@@ -15,6 +15,8 @@
 //! luminance that saturated samples carry ([`Metered::saturated_samples`]),
 //! so that scale-and-clip can scale only the rest.
 
+use std::sync::Arc;
+
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
@@ -96,6 +98,32 @@ impl ImageStats {
             if n == STATS_BLOCK {
                 sums.add(&block);
                 n = 0;
+            }
+        }
+        sums.add(&block[..n]);
+        sums.finish()
+    }
+
+    /// The statistics of the pixels of `pixels` in `runs` (start, end),
+    /// in order: the same values as [`ImageStats::from_pixels`] over them
+    /// (the same blocks of [`STATS_BLOCK`]), copied a run at a time.
+    fn from_runs(pixels: &[f32], runs: &[(usize, usize)]) -> Self {
+        let mut sums = StatsSums::default();
+        let mut block = [0.0f32; STATS_BLOCK];
+        let mut n = 0;
+        for &(start, end) in runs {
+            let Some(mut run) = pixels.get(start..end) else {
+                continue;
+            };
+            while !run.is_empty() {
+                let take = run.len().min(STATS_BLOCK - n);
+                block[n..n + take].copy_from_slice(&run[..take]);
+                n += take;
+                run = &run[take..];
+                if n == STATS_BLOCK {
+                    sums.add(&block);
+                    n = 0;
+                }
             }
         }
         sums.add(&block[..n]);
@@ -265,7 +293,8 @@ pub struct Metered {
     width: usize,
     height: usize,
     luma: Vec<f32>,
-    weight: Option<Vec<f32>>,
+    /// Shared with the prepared mask it came from (not copied per frame).
+    weight: Option<Arc<[f32]>>,
     saturated: Option<Vec<f32>>,
     scale: usize,
     stats: ImageStats,
@@ -323,7 +352,7 @@ impl Metered {
             width,
             height,
             luma,
-            weight,
+            weight: weight.map(Arc::from),
             saturated: None,
             scale: 1,
             stats,
@@ -492,13 +521,15 @@ impl Meter {
             }
         }
         // Statistics use the valid pixels, the metric the eroded ones.
+        let valid_runs = runs_of(&valid);
         Ok(PreparedMask {
             frame_width: width,
             frame_height: height,
             bayer,
             k,
-            weight,
+            weight: Arc::from(weight),
             valid,
+            valid_runs,
         })
     }
 
@@ -562,13 +593,8 @@ impl Meter {
         }
         let (weight, stats) = match mask {
             Some(m) => (
-                Some(m.weight.clone()),
-                ImageStats::from_pixels(
-                    luma.iter()
-                        .zip(&m.valid)
-                        .filter(|(_, &v)| v)
-                        .map(|(l, _)| l),
-                ),
+                Some(Arc::clone(&m.weight)),
+                ImageStats::from_runs(&luma, &m.valid_runs),
             ),
             None => (None, ImageStats::from_slice(&luma)),
         };
@@ -774,10 +800,34 @@ pub struct PreparedMask {
     k: usize,
     /// Per metered pixel, 1 where the metric counts it (the mask eroded by
     /// one metered pixel).
-    weight: Vec<f32>,
+    weight: Arc<[f32]>,
     /// Per metered pixel, whether at least half of its block is masked in
     /// (the statistics count these).
     valid: Vec<bool>,
+    /// The valid pixels as runs of consecutive indices (start, end), in
+    /// order: the statistics copy them run by run rather than test every
+    /// pixel.
+    valid_runs: Vec<(usize, usize)>,
+}
+
+/// The runs of consecutive `true` entries of `flags`, as (start, end).
+fn runs_of(flags: &[bool]) -> Vec<(usize, usize)> {
+    let mut runs = Vec::new();
+    let mut start = None;
+    for (i, &f) in flags.iter().enumerate() {
+        match (f, start) {
+            (true, None) => start = Some(i),
+            (false, Some(s)) => {
+                runs.push((s, i));
+                start = None;
+            }
+            _ => {}
+        }
+    }
+    if let Some(s) = start {
+        runs.push((s, flags.len()));
+    }
+    runs
 }
 
 /// The luminance sums (in [0, 1] units) of `k×k` blocks of an 8-bit frame

@@ -347,6 +347,17 @@ fn blocked_statistics_equal_the_one_by_one_sums() {
             stats_one_by_one(masked()),
             "{len} pixels, masked"
         );
+        // The prepared mask's path: runs of the mask, copied run by run.
+        let runs = runs_of(&mask);
+        assert_eq!(
+            runs.iter().map(|&(a, b)| b - a).sum::<usize>(),
+            mask.iter().filter(|&&m| m).count()
+        );
+        assert_eq!(
+            ImageStats::from_runs(&values, &runs),
+            stats_one_by_one(masked()),
+            "{len} pixels, masked, by runs"
+        );
         if len > 100 {
             assert!(whole.saturated_fraction > 0.1 && whole.dark_fraction > 0.1);
         }
