@@ -932,6 +932,14 @@ impl FusedScratch {
             if let (4, Some(r0), Some(r1), Some(r2), Some(r3)) =
                 (rows.rows.len(), row(0), row(1), row(2), row(3))
             {
+                if rows.c == 1 {
+                    prefetch_rows(
+                        rows.frame,
+                        rows.rows.end + 4 * PREFETCH_BLOCK_ROWS,
+                        4,
+                        width,
+                    );
+                }
                 let four = [r0, r1, r2, r3];
                 // SAFETY: `detect` reports AVX2 only when the CPU has it.
                 #[allow(unsafe_code)]
@@ -1030,6 +1038,38 @@ impl FusedScratch {
             }
         }
     }
+}
+
+/// How many block rows ahead the Mono8 4×4 kernel asks for a frame's
+/// rows: a frame just written by another core (the capture thread) is read
+/// at the latency of that core's caches, which the loads alone wait on.
+/// (For RGB8, three times the bytes a row, asking ahead made the kernel
+/// slower where the frame was already near: not done.)
+const PREFETCH_BLOCK_ROWS: usize = 2;
+
+/// Asks the caches for the first `width` bytes of `count` rows of `frame`
+/// from row `first` (rows past the frame's end are left out).
+#[inline]
+fn prefetch_rows(frame: &FrameView<'_>, first: usize, count: usize, width: usize) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+        for y in first..(first + count).min(frame.height()) {
+            let Some(row) = frame.row(y).get(..width) else {
+                continue;
+            };
+            for line in row.chunks(64) {
+                // SAFETY: a prefetch reads nothing into the program and
+                // never faults; the address lies in the row anyway.
+                #[allow(unsafe_code)]
+                unsafe {
+                    _mm_prefetch::<_MM_HINT_T0>(line.as_ptr().cast::<i8>());
+                }
+            }
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = (frame, first, count, width);
 }
 
 /// The 4×4 blocks of one block row of a Mono8 frame (the live default:
