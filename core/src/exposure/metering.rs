@@ -1040,11 +1040,12 @@ impl FusedScratch {
     }
 }
 
-/// How many block rows ahead the Mono8 4×4 kernel asks for a frame's
-/// rows: a frame just written by another core (the capture thread) is read
-/// at the latency of that core's caches, which the loads alone wait on.
-/// (For RGB8, three times the bytes a row, asking ahead made the kernel
-/// slower where the frame was already near: not done.)
+/// How many block rows past the next one the Mono8 4×4 kernel asks for a
+/// frame's rows (2: the block row three ahead of the one being summed): a
+/// frame just written by another core (the capture thread) is read at the
+/// latency of that core's caches, which the loads alone wait on. (For
+/// RGB8, three times the bytes a row, asking ahead made the kernel slower
+/// where the frame was already near: not done.)
 const PREFETCH_BLOCK_ROWS: usize = 2;
 
 /// Asks the caches for the first `width` bytes of `count` rows of `frame`
