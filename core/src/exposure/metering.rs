@@ -528,7 +528,6 @@ impl Meter {
             bayer,
             k,
             weight: Arc::from(weight),
-            valid,
             valid_runs,
         })
     }
@@ -801,12 +800,9 @@ pub struct PreparedMask {
     /// Per metered pixel, 1 where the metric counts it (the mask eroded by
     /// one metered pixel).
     weight: Arc<[f32]>,
-    /// Per metered pixel, whether at least half of its block is masked in
-    /// (the statistics count these).
-    valid: Vec<bool>,
-    /// The valid pixels as runs of consecutive indices (start, end), in
-    /// order: the statistics copy them run by run rather than test every
-    /// pixel.
+    /// The metered pixels at least half of whose block is masked in (the
+    /// statistics count these), as runs of consecutive indices (start,
+    /// end), in order: the statistics copy them run by run.
     valid_runs: Vec<(usize, usize)>,
 }
 
@@ -1171,6 +1167,25 @@ fn saturated_in_fours(v: [std::arch::x86_64::__m256i; 4]) -> std::arch::x86_64::
     _mm256_sub_epi32(_mm256_setzero_si256(), minus)
 }
 
+/// [`luma::rgb`] of eight blocks' red, green and blue integer sums, in its
+/// operations: `(w_r·r + w_g·g) + w_b·b` (`w`: the weights broadcast).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn rgb_luma(
+    w: [std::arch::x86_64::__m256; 3],
+    rgb: [std::arch::x86_64::__m256i; 3],
+) -> std::arch::x86_64::__m256 {
+    use std::arch::x86_64::*;
+    _mm256_add_ps(
+        _mm256_add_ps(
+            _mm256_mul_ps(w[0], _mm256_cvtepi32_ps(rgb[0])),
+            _mm256_mul_ps(w[1], _mm256_cvtepi32_ps(rgb[1])),
+        ),
+        _mm256_mul_ps(w[2], _mm256_cvtepi32_ps(rgb[2])),
+    )
+}
+
 /// The steps of 8 blocks (`bytes` of each row a step) that every one of
 /// `rows` holds whole, and `n` blocks hold.
 #[inline(always)]
@@ -1234,11 +1249,11 @@ unsafe fn rgb4_block_row_avx2(
             masks[ch][t] = unsafe { _mm256_loadu_si256(MASKS[ch][t].as_ptr().cast()) };
         }
     }
-    let (wr, wg, wb) = (
+    let weights = [
         _mm256_set1_ps(luma::W_R),
         _mm256_set1_ps(luma::W_G),
         _mm256_set1_ps(luma::W_B),
-    );
+    ];
     let scale = _mm256_set1_ps(to_unit);
     let steps = whole_steps(&rows, 96, n);
     for i in 0..steps {
@@ -1270,15 +1285,7 @@ unsafe fn rgb4_block_row_avx2(
         for ch in 0..3 {
             sums[ch] = sums_of_fours([v[0][ch], v[1][ch], v[2][ch], v[3][ch]]);
         }
-        // `luma::rgb` of the three sums, in its operations.
-        let luminance = _mm256_add_ps(
-            _mm256_add_ps(
-                _mm256_mul_ps(wr, _mm256_cvtepi32_ps(sums[0])),
-                _mm256_mul_ps(wg, _mm256_cvtepi32_ps(sums[1])),
-            ),
-            _mm256_mul_ps(wb, _mm256_cvtepi32_ps(sums[2])),
-        );
-        let luminance = _mm256_mul_ps(luminance, scale);
+        let luminance = _mm256_mul_ps(rgb_luma(weights, sums), scale);
         // SAFETY: `blocks` lies in `out` (`8·steps ≤ n`).
         unsafe { _mm256_storeu_ps(out[blocks.clone()].as_mut_ptr(), luminance) };
         if let Some(sat) = saturated.as_deref_mut() {
@@ -1286,13 +1293,7 @@ unsafe fn rgb4_block_row_avx2(
             for ch in 0..3 {
                 counts[ch] = saturated_in_fours([v[0][ch], v[1][ch], v[2][ch], v[3][ch]]);
             }
-            let hot = _mm256_add_ps(
-                _mm256_add_ps(
-                    _mm256_mul_ps(wr, _mm256_cvtepi32_ps(counts[0])),
-                    _mm256_mul_ps(wg, _mm256_cvtepi32_ps(counts[1])),
-                ),
-                _mm256_mul_ps(wb, _mm256_cvtepi32_ps(counts[2])),
-            );
+            let hot = rgb_luma(weights, counts);
             if let Some(dst) = sat.get_mut(blocks) {
                 // SAFETY: `dst` holds 8 values.
                 unsafe { _mm256_storeu_ps(dst.as_mut_ptr(), hot) };
