@@ -243,7 +243,9 @@ impl DisplayGains {
             }
         }
         // The same on the recorded values the view scales.
-        let ease: Vec<f64> = ease.iter().zip(frames).map(|(a, f)| a / power(f)).collect();
+        for (a, f) in ease.iter_mut().zip(frames) {
+            *a /= power(f);
+        }
         if !settings.compensate {
             self.seam.iter_mut().for_each(|c| *c = 0.0);
         } else if !frames.iter().any(|f| f.probe_frame) {
