@@ -1674,6 +1674,13 @@ fn a_camera_keeps_its_levels_and_tone_curve_when_the_settings_change() {
         rig.camera_mut(1).unwrap().estimator_mut().tone_curve(),
         Some(&ToneCurve::Power(1.8))
     );
+    // The power the display reads each curve as follows the curve in force.
+    assert_eq!(rig.camera_mut(0).unwrap().tone_power(), 2.2);
+    assert_eq!(rig.camera_mut(1).unwrap().tone_power(), 1.8);
+    rig.camera_mut(0).unwrap().set_tone_curve(None).unwrap();
+    assert_eq!(rig.camera_mut(0).unwrap().tone_power(), 1.8);
+    rig.set_config(ControllerConfig::default()).unwrap();
+    assert_eq!(rig.camera_mut(1).unwrap().tone_power(), 1.0);
 }
 
 /// Balancing moves exposures by ratios of light: through a camera's tone

@@ -210,6 +210,8 @@ pub struct CameraController {
     level_request: Option<LevelRequest>,
     /// The camera's own tone curve ([`Self::set_tone_curve`]).
     tone: Option<ToneCurve>,
+    /// [`Self::tone_power`], computed when the curve is set.
+    tone_power: f64,
 }
 
 /// A kept frame as the estimator reads it, when it is at least
@@ -240,6 +242,11 @@ struct LevelRequest {
     /// The camera's own desired exposure: balancing moves the request by
     /// the target's ratio to it.
     desired: f64,
+}
+
+/// [`ToneCurve::nearest_power`] of `curve`, 1 without a curve or a power.
+fn nearest_power(curve: Option<&ToneCurve>) -> f64 {
+    curve.and_then(ToneCurve::nearest_power).unwrap_or(1.0)
 }
 
 /// A probe frame kept for the estimator.
@@ -283,6 +290,7 @@ impl CameraController {
             walker: None,
             level_request: None,
             tone: None,
+            tone_power: nearest_power(config.estimator.tone_curve.as_ref()),
         })
     }
 
@@ -301,8 +309,16 @@ impl CameraController {
         // The light tracking reads light under the curve whichever
         // simulation the estimate uses.
         self.light.set_tone_curve(self.estimator.tone_curve());
+        self.tone_power = nearest_power(self.estimator.tone_curve());
         self.tone = curve;
         Ok(())
+    }
+
+    /// The power `p` nearest the curve the camera's frames are read through
+    /// (`L = I^p`; [`ToneCurve::nearest_power`]), 1 for a linear camera or
+    /// a curve without one.
+    pub fn tone_power(&self) -> f64 {
+        self.tone_power
     }
 
     /// The tone curve the camera's frames are read through: its own, or

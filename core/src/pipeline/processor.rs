@@ -463,9 +463,7 @@ impl Processor {
                     .map(|k| {
                         self.controller
                             .camera_mut(k)
-                            .ok()
-                            .and_then(|c| c.tone_curve().and_then(|t| t.nearest_power()))
-                            .unwrap_or(1.0)
+                            .map_or(1.0, |c| c.tone_power())
                     })
                     .collect();
                 let inputs: Vec<DisplayInput> = cameras
