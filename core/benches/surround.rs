@@ -708,6 +708,33 @@ fn panorama(c: &mut Criterion) {
         sum.ransac / calls,
         refine_time / calls,
     );
+    // The detector alone on the first band's first camera, against OpenCV's
+    // `goodFeaturesToTrack` with the same parameters (the corners the
+    // spread and the refinement start from).
+    let band = &sim.bands()[0];
+    let [_, _, bw, bh] = band.rect;
+    let warp = sim
+        .warp_band(&mut Composer::new(), 0, band.i, &sim_views[band.i])
+        .unwrap();
+    let params = rigview_calib::tools::corners::HarrisParams::default();
+    let opencv_corners = || {
+        rigview_calib::tools::corners::opencv_good_features(
+            &warp.data,
+            (bw, bh),
+            Some(&band.search),
+            &params,
+        )
+        .unwrap()
+    };
+    let mut detect_group = group(c, &format!("harris_corners_{bw}x{bh}"), 10);
+    detect_group.bench_function("rigview", |b| {
+        b.iter(|| detect(black_box(&warp.data), bw, bh, &band.search).unwrap());
+    });
+    detect_group.bench_function("opencv_good_features_to_track", |b| {
+        b.iter(|| black_box(opencv_corners()));
+    });
+    detect_group.finish();
+
     let (pairs, _) = sim.match_pairs(&sim_views, &detect, &options).unwrap();
     let mut group = group(c, "panorama_matching_sim_4096x1024", 10);
     group.bench_function("four_pairs", |b| {

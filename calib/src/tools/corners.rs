@@ -1,15 +1,15 @@
-//! Harris corners through OpenCV, spread over the image: the keypoints of
-//! the panorama's feature matches.
+//! Harris corners, spread over the image: the keypoints of the panorama's
+//! feature matches.
 //!
 //! OpenCV's `goodFeaturesToTrack` with the Harris score (3×3 blocks,
-//! k = 0.04) keeps local maxima above a fraction of the best score and
-//! suppresses any corner closer than `min_distance` to a stronger one
+//! k = 0.04; computed in Rust by [`super::harris`], which gives OpenCV's
+//! corners faster) keeps local maxima above a fraction of the best score
+//! and suppresses any corner closer than `min_distance` to a stronger one
 //! (non-maximum suppression). A textured building would then hold most
 //! of the corners; so the image is cut into a grid of cells and each cell
 //! keeps at most its `per_cell` strongest corners (a spatial spread).
 
-use opencv::core::{Mat, MatTraitConst, Point2f, Vector};
-
+use super::harris;
 use crate::error::{cv, CalibError, Result};
 
 /// Parameters of [`harris_corners`].
@@ -70,27 +70,60 @@ pub fn harris_corners(
             "Harris corners: the cell side and the corner count must be positive".into(),
         ));
     }
-    let (rows, cols) = (
-        i32::try_from(height).map_err(|_| CalibError::Argument("image too tall".into()))?,
-        i32::try_from(width).map_err(|_| CalibError::Argument("image too wide".into()))?,
-    );
-    if rows < 3 || cols < 3 {
+    if height < 3 || width < 3 {
         return Ok(Vec::new());
     }
+    let found = harris::good_features(gray, (width, height), mask, params);
+    // Strongest first.
+    let cells_x = width.div_ceil(params.cell);
+    let mut taken = vec![0usize; cells_x * height.div_ceil(params.cell)];
+    let mut out = Vec::new();
+    for [x, y] in found {
+        let (cx, cy) = (x as usize / params.cell, y as usize / params.cell);
+        let Some(n) = taken.get_mut(cy * cells_x + cx.min(cells_x - 1)) else {
+            continue;
+        };
+        if *n < params.per_cell {
+            *n += 1;
+            out.push(if params.subpixel {
+                subpixel_near(gray, width, height, x, y)
+            } else {
+                [x, y]
+            });
+        }
+    }
+    Ok(out)
+}
+
+/// OpenCV's `goodFeaturesToTrack` with the Harris score (3×3 blocks,
+/// k = 0.04) for `params`' corner count, quality and least distance, on
+/// the same input as [`harris_corners`]: whole-pixel positions, strongest
+/// first, before the spread. The reference that [`super::harris`] is
+/// tested and measured against.
+pub fn opencv_good_features(
+    gray: &[u8],
+    (width, height): (usize, usize),
+    mask: Option<&[u8]>,
+    params: &HarrisParams,
+) -> Result<Vec<[f32; 2]>> {
+    use opencv::core::{Mat, MatTraitConst, Point2f, Vector};
+    let size = |v: usize| {
+        i32::try_from(v).map_err(|_| CalibError::Argument(format!("a side of {v} pixels")))
+    };
+    let (rows, cols) = (size(height)?, size(width)?);
     let image = cv(
         "wrapping an image",
         Mat::new_rows_cols_with_data(rows, cols, gray),
     )?;
     let mask = match mask {
         Some(m) => cv(
-            "wrapping a mask",
-            Mat::new_rows_cols_with_data(rows, cols, m),
-        )?
-        .try_clone()
-        .map_err(|source| CalibError::OpenCv {
-            context: "copying a mask".into(),
-            source,
-        })?,
+            "copying a mask",
+            cv(
+                "wrapping a mask",
+                Mat::new_rows_cols_with_data(rows, cols, m),
+            )?
+            .try_clone(),
+        )?,
         None => Mat::default(),
     };
     let mut found = Vector::<Point2f>::new();
@@ -108,28 +141,7 @@ pub fn harris_corners(
             0.04,
         ),
     )?;
-    // OpenCV gives them strongest first.
-    let cells_x = width.div_ceil(params.cell);
-    let mut taken = vec![0usize; cells_x * height.div_ceil(params.cell)];
-    let mut out = Vec::new();
-    for p in found.iter() {
-        if !(p.x >= 0.0 && p.y >= 0.0) {
-            continue;
-        }
-        let (cx, cy) = (p.x as usize / params.cell, p.y as usize / params.cell);
-        let Some(n) = taken.get_mut(cy * cells_x + cx.min(cells_x - 1)) else {
-            continue;
-        };
-        if *n < params.per_cell {
-            *n += 1;
-            out.push(if params.subpixel {
-                subpixel_near(gray, width, height, p.x, p.y)
-            } else {
-                [p.x, p.y]
-            });
-        }
-    }
-    Ok(out)
+    Ok(found.iter().map(|p| [p.x, p.y]).collect())
 }
 
 /// Reflects position `v` into `0..n` as OpenCV's `BORDER_REFLECT_101`.
@@ -146,15 +158,21 @@ fn reflect101(v: i64, n: usize) -> usize {
 }
 
 /// OpenCV's `cornerHarris` response (3×3 Sobel, 3×3 window, k = 0.04,
-/// `BORDER_REFLECT_101`) at pixel (`x`, `y`) of a `w`×`h` grey image, up to
-/// a positive factor: computed at the one pixel instead of the whole image.
-fn harris_at(gray: &[u8], w: usize, h: usize, x: i64, y: i64) -> f64 {
+/// `BORDER_REFLECT_101`), up to a positive factor, at pixel (`x`, `y`) of a
+/// `w`×`h` grey image and at its four neighbours (left, right, above,
+/// below): computed at those five pixels instead of the whole image, from
+/// the 5×5 gradients about the pixel (integers, so the sums are exact).
+fn harris_near(gray: &[u8], w: usize, h: usize, x: i64, y: i64) -> [f64; 5] {
     let px = |u: i64, v: i64| f64::from(gray[reflect101(v, h) * w + reflect101(u, w)]);
-    let (mut xx, mut xy, mut yy) = (0.0, 0.0, 0.0);
-    for dy in -1..=1 {
-        for dx in -1..=1 {
-            // The window reflects the gradient images at the border.
-            let (u, v) = (reflect101(x + dx, w) as i64, reflect101(y + dy, h) as i64);
+    // The gradients at the window's positions, which reflect the gradient
+    // images at the border.
+    let mut g = [[(0.0f64, 0.0f64); 5]; 5];
+    for (j, row) in g.iter_mut().enumerate() {
+        for (i, g) in row.iter_mut().enumerate() {
+            let (u, v) = (
+                reflect101(x + i as i64 - 2, w) as i64,
+                reflect101(y + j as i64 - 2, h) as i64,
+            );
             let gx = px(u + 1, v - 1) + 2.0 * px(u + 1, v) + px(u + 1, v + 1)
                 - px(u - 1, v - 1)
                 - 2.0 * px(u - 1, v)
@@ -163,29 +181,37 @@ fn harris_at(gray: &[u8], w: usize, h: usize, x: i64, y: i64) -> f64 {
                 - px(u - 1, v - 1)
                 - 2.0 * px(u, v - 1)
                 - px(u + 1, v - 1);
-            xx += gx * gx;
-            xy += gx * gy;
-            yy += gy * gy;
+            *g = (gx, gy);
         }
     }
-    xx * yy - xy * xy - 0.04 * (xx + yy) * (xx + yy)
+    let at = |cx: usize, cy: usize| {
+        let (mut xx, mut xy, mut yy) = (0.0, 0.0, 0.0);
+        for row in &g[cy - 1..=cy + 1] {
+            for &(gx, gy) in &row[cx - 1..=cx + 1] {
+                xx += gx * gx;
+                xy += gx * gy;
+                yy += gy * gy;
+            }
+        }
+        xx * yy - xy * xy - 0.04 * (xx + yy) * (xx + yy)
+    };
+    [at(2, 2), at(1, 2), at(3, 2), at(2, 1), at(2, 3)]
 }
 
 /// The peak of the Harris response near pixel (`x`, `y`): along each axis,
 /// the vertex of the parabola through the pixel and its two neighbours
 /// ([`vertex`]; the pixel itself at the border), with the response
-/// computed at those five pixels only ([`harris_at`]; the vertex does not
-/// depend on the response's scale).
+/// computed at those five pixels only ([`harris_near`]; the vertex does
+/// not depend on the response's scale).
 fn subpixel_near(gray: &[u8], w: usize, h: usize, x: f32, y: f32) -> [f32; 2] {
     let (xi, yi) = (x.round() as i64, y.round() as i64);
     if xi < 1 || yi < 1 || xi + 1 >= w as i64 || yi + 1 >= h as i64 {
         return [x, y];
     }
-    let r = |dx: i64, dy: i64| harris_at(gray, w, h, xi + dx, yi + dy);
-    let c = r(0, 0);
+    let [c, left, right, up, down] = harris_near(gray, w, h, xi, yi);
     [
-        xi as f32 + vertex(r(-1, 0), c, r(1, 0)),
-        yi as f32 + vertex(r(0, -1), c, r(0, 1)),
+        xi as f32 + vertex(left, c, right),
+        yi as f32 + vertex(up, c, down),
     ]
 }
 
@@ -202,6 +228,8 @@ fn vertex(a: f64, b: f64, c: f64) -> f32 {
 #[cfg(test)]
 mod tests {
     #![allow(clippy::unwrap_used)]
+    use opencv::core::{Mat, MatTraitConst};
+
     use super::*;
 
     /// A checkerboard of 8-pixel squares: a corner every 8 pixels.

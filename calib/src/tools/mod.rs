@@ -5,6 +5,7 @@
 
 pub mod corners;
 pub mod ground;
+mod harris;
 pub mod intrinsics;
 pub mod render;
 pub mod stereo;

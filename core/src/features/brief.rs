@@ -90,6 +90,79 @@ pub struct Smoothed {
     data: Vec<u8>,
 }
 
+/// The BRIEF smoothing of a packed `width × height` Mono8 image (its size
+/// checked by the caller), with the kernels of the widest instruction set
+/// the CPU has: AVX2 where it has it (the same integer sums, so the same
+/// bytes), baseline x86-64 otherwise.
+fn smooth(gray: &[u8], width: usize, height: usize) -> Vec<u8> {
+    #[cfg(target_arch = "x86_64")]
+    if crate::cpu::Isa::detect() >= crate::cpu::Isa::Avx2 {
+        // SAFETY: `detect` names AVX2 or wider only when the CPU has AVX2,
+        // the one feature `smooth_avx2` is compiled for.
+        #[allow(unsafe_code)]
+        return unsafe { smooth_avx2(gray, width, height) };
+    }
+    smooth_in(gray, width, height)
+}
+
+/// [`smooth_in`] compiled for AVX2.
+///
+/// # Safety
+///
+/// The CPU has AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[allow(unsafe_code)]
+unsafe fn smooth_avx2(gray: &[u8], width: usize, height: usize) -> Vec<u8> {
+    smooth_in(gray, width, height)
+}
+
+/// The body of [`smooth`]: rows, then columns, in integers.
+#[inline(always)]
+fn smooth_in(gray: &[u8], width: usize, height: usize) -> Vec<u8> {
+    let expected = width * height;
+    let clamp = |i: isize, n: usize| i.clamp(0, n as isize - 1) as usize;
+    // Rows: 16-bit sums of up to 255 × 256 (exact in u16). The interior
+    // tap by tap over whole rows (the compiler vectorises it), the
+    // four pixels at each end with the border replicated.
+    let mut rows = vec![0u16; expected];
+    for (src, out) in gray.chunks_exact(width).zip(rows.chunks_exact_mut(width)) {
+        if width > 8 {
+            let inner = width - 8;
+            for (t, &w) in SMOOTHING_KERNEL.iter().enumerate() {
+                let w = w as u16;
+                for (o, &v) in out[4..4 + inner].iter_mut().zip(&src[t..t + inner]) {
+                    *o += w * u16::from(v);
+                }
+            }
+        }
+        for x in (0..width.min(4)).chain(width.saturating_sub(4).max(4)..width) {
+            let mut sum = 0u32;
+            for (t, &w) in SMOOTHING_KERNEL.iter().enumerate() {
+                sum += w * u32::from(src[clamp(x as isize + t as isize - 4, width)]);
+            }
+            out[x] = sum as u16;
+        }
+    }
+    // Columns: each output row sums nine rows (replicated at the top
+    // and bottom), tap by tap over the whole row.
+    let mut data = vec![0u8; expected];
+    let mut acc = vec![0u32; width];
+    for (y, out) in data.chunks_exact_mut(width).enumerate() {
+        acc.fill(0);
+        for (t, &w) in SMOOTHING_KERNEL.iter().enumerate() {
+            let yy = clamp(y as isize + t as isize - 4, height);
+            for (a, &v) in acc.iter_mut().zip(&rows[yy * width..(yy + 1) * width]) {
+                *a += w * u32::from(v);
+            }
+        }
+        for (o, &a) in out.iter_mut().zip(&acc) {
+            *o = ((a + (1 << 15)) >> 16) as u8;
+        }
+    }
+    data
+}
+
 impl Smoothed {
     /// Smooths a packed Mono8 image of `width` × `height`.
     pub fn new(gray: &[u8], width: usize, height: usize) -> Result<Self> {
@@ -116,45 +189,7 @@ impl Smoothed {
                 detail: format!("Mono8 {width}×{height}, packed"),
             });
         }
-        let clamp = |i: isize, n: usize| i.clamp(0, n as isize - 1) as usize;
-        // Rows: 16-bit sums of up to 255 × 256 (exact in u16). The interior
-        // tap by tap over whole rows (the compiler vectorises it), the
-        // four pixels at each end with the border replicated.
-        let mut rows = vec![0u16; expected];
-        for (src, out) in gray.chunks_exact(width).zip(rows.chunks_exact_mut(width)) {
-            if width > 8 {
-                let inner = width - 8;
-                for (t, &w) in SMOOTHING_KERNEL.iter().enumerate() {
-                    let w = w as u16;
-                    for (o, &v) in out[4..4 + inner].iter_mut().zip(&src[t..t + inner]) {
-                        *o += w * u16::from(v);
-                    }
-                }
-            }
-            for x in (0..width.min(4)).chain(width.saturating_sub(4).max(4)..width) {
-                let mut sum = 0u32;
-                for (t, &w) in SMOOTHING_KERNEL.iter().enumerate() {
-                    sum += w * u32::from(src[clamp(x as isize + t as isize - 4, width)]);
-                }
-                out[x] = sum as u16;
-            }
-        }
-        // Columns: each output row sums nine rows (replicated at the top
-        // and bottom), tap by tap over the whole row.
-        let mut data = vec![0u8; expected];
-        let mut acc = vec![0u32; width];
-        for (y, out) in data.chunks_exact_mut(width).enumerate() {
-            acc.fill(0);
-            for (t, &w) in SMOOTHING_KERNEL.iter().enumerate() {
-                let yy = clamp(y as isize + t as isize - 4, height);
-                for (a, &v) in acc.iter_mut().zip(&rows[yy * width..(yy + 1) * width]) {
-                    *a += w * u32::from(v);
-                }
-            }
-            for (o, &a) in out.iter_mut().zip(&acc) {
-                *o = ((a + (1 << 15)) >> 16) as u8;
-            }
-        }
+        let data = smooth(gray, width, height);
         Ok(Self {
             width,
             height,
@@ -361,6 +396,8 @@ mod tests {
             let img: Vec<u8> = (0..w * h).map(|_| rng.gen()).collect();
             let s = Smoothed::new(&img, w, h).unwrap();
             let want = smoothed_by_definition(&img, w, h);
+            // The baseline kernel as well as the dispatched one.
+            assert_eq!(smooth_in(&img, w, h), want, "{w}×{h}, baseline");
             for y in 0..h {
                 for x in 0..w {
                     assert_eq!(s.at(x, y), want[y * w + x], "{w}×{h} at ({x}, {y})");
