@@ -628,6 +628,17 @@ fn panorama(c: &mut Criterion) {
     let mut opencv_canvas = vec![0u8; canvas.data.len()];
     opencv_remap.compose(&pano, &data, &mut opencv_canvas);
     assert_like_opencv_remap(&canvas.data, &opencv_canvas);
+    let contributions: usize = pano
+        .mosaic()
+        .layers()
+        .iter()
+        .map(|l| l.weights[0].iter().filter(|&&w| w > 0).count())
+        .sum();
+    eprintln!(
+        "panorama: {} camera-pixel contributions ({:.2} per canvas pixel)",
+        contributions,
+        contributions as f64 / (4096.0 * 1024.0)
+    );
     let mut compose_group = group(c, "panorama_4x1288x964_to_4096x1024", 6);
     compose_group.bench_function("rigview_linear_rgb", |b| {
         b.iter(|| {
