@@ -1,9 +1,11 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
-//! A GenICam camera's gamma correction reaches the controller as the
-//! camera's tone curve. Aravis's fake cameras have no gamma feature, so
-//! they are described here by Aravis's own GenICam XML (taken from the
-//! installed library with `gresource`, which libaravis-dev brings) with
-//! `GammaEnable` and `Gamma` added, through `RIGVIEW_FAKE_GENICAM`.
+//! A GenICam camera's gamma correction and pixel lookup table reach the
+//! controller as the camera's tone curve. Aravis's fake cameras have
+//! neither, so they are described here by Aravis's own GenICam XML (taken
+//! from the installed library with `gresource`, which libaravis-dev
+//! brings) with `GammaEnable` and `Gamma`, and `LUTEnable`, `LUTIndex`
+//! and `LUTValue` (a table squaring its input, computed from the index by
+//! an `IntSwissKnife`) added, through `RIGVIEW_FAKE_GENICAM`.
 
 use std::process::Command;
 
@@ -36,7 +38,7 @@ fn live(dir: &std::path::Path, genicam: Option<&std::path::Path>) -> String {
 }
 
 #[test]
-fn a_fake_camera_with_gamma_correction_is_read_through_its_curve() {
+fn a_fake_camera_with_gamma_correction_or_a_lookup_table_is_read_through_its_curve() {
     let libdir = Command::new("pkg-config")
         .args(["--variable=libdir", "aravis-0.8"])
         .output()
@@ -53,40 +55,82 @@ fn a_fake_camera_with_gamma_correction_is_read_through_its_curve() {
     let xml = String::from_utf8(xml.stdout).unwrap();
     let end = "</RegisterDescription>";
     assert!(xml.contains(end) && !xml.contains("\"Gamma\""));
-    let with_gamma = |enable: u8| {
-        xml.replace(
-            end,
-            &format!(
-                "\t<Boolean Name=\"GammaEnable\" NameSpace=\"Standard\">\n\
-                 \t\t<Value>{enable}</Value>\n\
-                 \t</Boolean>\n\
-                 \t<Float Name=\"Gamma\" NameSpace=\"Standard\">\n\
-                 \t\t<Value>0.45</Value>\n\
-                 \t\t<Min>0.1</Min>\n\
-                 \t\t<Max>4.0</Max>\n\
-                 \t</Float>\n\
-                 {end}"
+    // A node of the description: its kind, name and lines inside.
+    let node = |kind: &str, name: &str, lines: &[String]| {
+        let inside: String = lines.iter().map(|l| format!("\t\t{l}\n")).collect();
+        format!("\t<{kind} Name=\"{name}\" NameSpace=\"Standard\">\n{inside}\t</{kind}>\n")
+    };
+    let with = |gamma: u8, lut: u8| {
+        let range = |value: &str, max: &str| {
+            vec![
+                value.to_owned(),
+                "<Min>0</Min>".to_owned(),
+                format!("<Max>{max}</Max>"),
+            ]
+        };
+        let nodes = [
+            node(
+                "Boolean",
+                "GammaEnable",
+                &[format!("<Value>{gamma}</Value>")],
             ),
-        )
+            node(
+                "Float",
+                "Gamma",
+                &[
+                    "<Value>0.45</Value>".into(),
+                    "<Min>0.1</Min>".into(),
+                    "<Max>4.0</Max>".into(),
+                ],
+            ),
+            node("Boolean", "LUTEnable", &[format!("<Value>{lut}</Value>")]),
+            node("Integer", "LUTIndex", &range("<Value>7</Value>", "1023")),
+            node(
+                "Integer",
+                "LUTValue",
+                &range("<pValue>LUTSquare</pValue>", "1023"),
+            ),
+            node(
+                "IntSwissKnife",
+                "LUTSquare",
+                &[
+                    "<pVariable Name=\"I\">LUTIndex</pVariable>".into(),
+                    "<Formula>(I*I)/1023</Formula>".into(),
+                ],
+            ),
+        ];
+        xml.replace(end, &format!("{}{end}", nodes.concat()))
     };
     let dir = tempfile::tempdir().unwrap();
-    let genicam = dir.path().join("fake-with-gamma.xml");
-    std::fs::write(&genicam, with_gamma(1)).unwrap();
-    let text = live(dir.path(), Some(&genicam));
+    let curve = |text: &str, p: &str| {
+        text.lines()
+            .filter(|l| {
+                l.contains(&format!(
+                    "gamma correction or lookup table on: frames read through a tone curve of {p}"
+                ))
+            })
+            .count()
+    };
+    let run = |name: &str, gamma: u8, lut: u8| {
+        let genicam = dir.path().join(name);
+        std::fs::write(&genicam, with(gamma, lut)).unwrap();
+        live(dir.path(), Some(&genicam))
+    };
     // 1 / 0.45 = 2.22, for each of the four cameras.
-    let lines = text
-        .lines()
-        .filter(|l| l.contains("gamma correction on: frames read through a tone curve of 2.22"))
-        .count();
-    assert_eq!(lines, 4, "{text}");
-    // Gamma correction off: linear frames.
-    let off = dir.path().join("fake-gamma-off.xml");
-    std::fs::write(&off, with_gamma(0)).unwrap();
-    let text = live(dir.path(), Some(&off));
-    assert!(!text.contains("gamma correction on"), "{text}");
+    let text = run("gamma.xml", 1, 0);
+    assert_eq!(curve(&text, "2.22"), 4, "{text}");
+    // The table squares its input: light is the recorded value's root.
+    let text = run("lut.xml", 0, 1);
+    assert_eq!(curve(&text, "0.50"), 4, "{text}");
+    // Both: (L^0.45)² = L^0.9, so light is the recorded value to 1.11.
+    let text = run("both.xml", 1, 1);
+    assert_eq!(curve(&text, "1.11"), 4, "{text}");
+    // Neither on: linear frames.
+    let text = run("off.xml", 0, 0);
+    assert!(!text.contains("lookup table on"), "{text}");
     assert!(text.contains("fake cameras described by"), "{text}");
     // Aravis's own description: no gamma, linear frames.
     let plain = live(dir.path(), None);
-    assert!(!plain.contains("gamma correction on"), "{plain}");
+    assert!(!plain.contains("lookup table on"), "{plain}");
     assert!(plain.contains("open,"), "{plain}");
 }

@@ -295,17 +295,56 @@ impl Device {
     }
 }
 
-/// The tone curve of the camera's gamma correction, where it has one and
-/// it is on: GenICam's `GammaEnable` (where there is one), then
-/// `GammaSelector` `sRGB` (about 1/2.2) or else `Gamma`, each pixel `P`
-/// output as `P^Gamma` ([`ToneCurve::from_genicam_gamma`]). Scale-and-clip
-/// and the balancing read the frames through it. A pixel lookup table
-/// (`LUTEnable`, applied after the gamma) is not read.
-fn gamma_curve(
+/// The tone curve the camera's frames went through, where it has one:
+/// its gamma correction, where it is on (GenICam's `GammaEnable` where
+/// there is one, then `GammaSelector` `sRGB`, about 1/2.2, or else
+/// `Gamma`: each pixel `P` output as `P^Gamma`,
+/// [`ToneCurve::from_genicam_gamma`]), then its pixel lookup table, where
+/// `LUTEnable` is on (the one `LUTSelector` selects, read through
+/// `LUTIndex` and `LUTValue` at up to [`LUT_SAMPLES`] inputs,
+/// [`ToneCurve::from_genicam_lut`]). Scale-and-clip and the balancing read
+/// the frames through it.
+fn tone_curve(
     camera: &Camera,
     has: &dyn Fn(&str) -> bool,
     named: Named<'_>,
 ) -> Result<Option<ToneCurve>, CameraError> {
+    let gamma = gamma_of(camera, has, named)?;
+    let unexpected =
+        |feature: &'static str, expected: &str, e: rigview_core::Error| CameraError::Unexpected {
+            camera: named.0.to_owned(),
+            feature,
+            expected: expected.into(),
+            found: e.to_string(),
+        };
+    if let Some(lut) = lut_of(camera, has, named)? {
+        return ToneCurve::from_genicam_lut(&lut, gamma).map_err(|e| {
+            unexpected(
+                "LUTValue",
+                "a lookup table whose outputs do not fall as its inputs rise",
+                e,
+            )
+        });
+    }
+    match gamma {
+        Some(g) => ToneCurve::from_genicam_gamma(g).map_err(|e| {
+            unexpected(
+                "Gamma",
+                "a positive gamma (each pixel P output as P^Gamma)",
+                e,
+            )
+        }),
+        None => Ok(None),
+    }
+}
+
+/// The camera's gamma where its gamma correction is on (see
+/// [`tone_curve`]).
+fn gamma_of(
+    camera: &Camera,
+    has: &dyn Fn(&str) -> bool,
+    named: Named<'_>,
+) -> Result<Option<f64>, CameraError> {
     if !has("Gamma") && !has("GammaSelector") {
         return Ok(None);
     }
@@ -321,19 +360,75 @@ fn gamma_curve(
             .string("GammaSelector")
             .map_err(named.read("GammaSelector"))?
             .eq_ignore_ascii_case("sRGB");
-    let gamma = if srgb {
-        1.0 / 2.2
+    Ok(if srgb {
+        Some(1.0 / 2.2)
     } else if has("Gamma") {
-        camera.float("Gamma").map_err(named.read("Gamma"))?
+        Some(camera.float("Gamma").map_err(named.read("Gamma"))?)
     } else {
-        return Ok(None);
-    };
-    ToneCurve::from_genicam_gamma(gamma).map_err(|e| CameraError::Unexpected {
-        camera: named.0.to_owned(),
-        feature: "Gamma",
-        expected: "a positive gamma (each pixel P output as P^Gamma)".into(),
-        found: e.to_string(),
+        None
     })
+}
+
+/// The most inputs of a pixel lookup table that are read (evenly spread
+/// over `LUTIndex`'s range, its ends included): two requests each.
+const LUT_SAMPLES: i64 = 256;
+
+/// The camera's pixel lookup table where `LUTEnable` is on, as (input,
+/// output) pairs normalised to `[0, 1]` (`LUTIndex` and `LUTValue` over
+/// their ranges); `LUTIndex` is set back to where it was.
+fn lut_of(
+    camera: &Camera,
+    has: &dyn Fn(&str) -> bool,
+    named: Named<'_>,
+) -> Result<Option<Vec<(f64, f64)>>, CameraError> {
+    if !(has("LUTEnable") && has("LUTIndex") && has("LUTValue")) {
+        return Ok(None);
+    }
+    if !camera
+        .boolean("LUTEnable")
+        .map_err(named.read("LUTEnable"))?
+    {
+        return Ok(None);
+    }
+    let (lo, hi) = camera
+        .integer_bounds("LUTIndex")
+        .map_err(named.read("LUTIndex"))?;
+    let (_, top) = camera
+        .integer_bounds("LUTValue")
+        .map_err(named.read("LUTValue"))?;
+    if hi <= lo || top <= 0 {
+        return Err(CameraError::Unexpected {
+            camera: named.0.to_owned(),
+            feature: "LUTIndex",
+            expected: "a lookup table of at least two entries and a positive largest value".into(),
+            found: format!("indices {lo} to {hi}, values up to {top}"),
+        });
+    }
+    let inc = camera.integer_increment("LUTIndex").unwrap_or(1).max(1);
+    let stride = ((hi - lo) / inc / LUT_SAMPLES).max(1) * inc;
+    let was = camera.integer("LUTIndex").ok();
+    let mut table = Vec::new();
+    let mut index = lo;
+    loop {
+        camera
+            .set_integer("LUTIndex", index)
+            .map_err(named.set("LUTIndex", index))?;
+        let value = camera.integer("LUTValue").map_err(named.read("LUTValue"))?;
+        table.push((
+            (index - lo) as f64 / (hi - lo) as f64,
+            (value as f64 / top as f64).clamp(0.0, 1.0),
+        ));
+        if index >= hi {
+            break;
+        }
+        index = (index + stride).min(hi);
+    }
+    if let Some(was) = was {
+        camera
+            .set_integer("LUTIndex", was)
+            .map_err(named.set("LUTIndex", was))?;
+    }
+    Ok(Some(table))
 }
 
 fn int(v: u32) -> i32 {
@@ -446,7 +541,7 @@ fn configure(
     }
     let auto_exposure = camera.is_exposure_auto_available().unwrap_or(false);
     let auto_gain = gain != GainUnit::None && camera.is_gain_auto_available().unwrap_or(false);
-    let tone_curve = gamma_curve(&camera, &has, named)?;
+    let tone_curve = tone_curve(&camera, &has, named)?;
     let info = CameraInfo {
         name: name.to_owned(),
         format: config.pixel_format,

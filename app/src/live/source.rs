@@ -202,7 +202,7 @@ impl LiveSource {
                     );
                     if let Some(p) = info.tone_curve.as_ref().and_then(|c| c.nearest_power()) {
                         tracing::info!(
-                            "{}: gamma correction on: frames read through a tone curve of {p:.2}",
+                            "{}: gamma correction or lookup table on: frames read through a tone curve of {p:.2}",
                             info.name
                         );
                     }

@@ -158,6 +158,76 @@ impl ToneCurve {
         Ok(Some(curve))
     }
 
+    /// The curve of a GenICam camera whose pixel lookup table is on
+    /// (`LUTEnable`), read as `lut`: pairs of an input and its output value,
+    /// both normalised to `[0, 1]`, inputs increasing (the camera's
+    /// `LUTIndex` and `LUTValue` over their ranges). The SFNC applies the
+    /// table after the gamma correction, so with `gamma` (the camera's
+    /// `Gamma`, where it is on) the recorded value is `lut(L^gamma)`. The
+    /// table's outputs must not fall (a falling table has no inverse: the
+    /// error names `LUTValue`); recorded values below its first output are
+    /// black and above its last full light. A table of [`TABLE_BINS`] light
+    /// values at evenly spaced recorded values; `None` where the table and
+    /// the gamma change nothing.
+    pub fn from_genicam_lut(lut: &[(f64, f64)], gamma: Option<f64>) -> Result<Option<Self>> {
+        let bad = |what: String| {
+            Err(Error::invalid(
+                "camera",
+                "LUTValue",
+                "a pixel lookup table whose outputs do not fall as its inputs rise, \
+                 over at least two entries in [0, 1]",
+                what,
+            ))
+        };
+        let finite = lut
+            .iter()
+            .all(|&(i, o)| (0.0..=1.0).contains(&i) && (0.0..=1.0).contains(&o));
+        if lut.len() < 2 || !finite {
+            return bad(format!("{} entries", lut.len()));
+        }
+        if let Some(w) = lut.windows(2).find(|w| w[1].0 <= w[0].0 || w[1].1 < w[0].1) {
+            return bad(format!(
+                "{:.4} at {:.4}, then {:.4} at {:.4}",
+                w[0].1, w[0].0, w[1].1, w[1].0
+            ));
+        }
+        let gamma = match gamma {
+            Some(g) => Self::from_genicam_gamma(g)?,
+            None => None,
+        };
+        let identity = lut.iter().all(|&(i, o)| (i - o).abs() < 1e-6)
+            && lut.first().is_some_and(|f| f.0.abs() < 1e-9)
+            && lut.last().is_some_and(|l| (l.0 - 1.0).abs() < 1e-9);
+        if identity {
+            return Ok(gamma);
+        }
+        // The table's input where its output reaches `r` (the first, where
+        // it is flat), then the light of that input through the gamma.
+        let input_of = |r: f64| -> f64 {
+            let above = lut.partition_point(|&(_, o)| o < r);
+            if above == 0 {
+                return lut[0].0 * f64::from(u8::from(r >= lut[0].1));
+            }
+            let Some(&(i1, o1)) = lut.get(above) else {
+                return 1.0;
+            };
+            let (i0, o0) = lut[above - 1];
+            i0 + (i1 - i0) * if o1 > o0 { (r - o0) / (o1 - o0) } else { 0.0 }
+        };
+        let light = |input: f64| gamma.as_ref().map_or(input, |g| g.linear(input));
+        let last = (TABLE_BINS - 1) as f64;
+        let mut table: Vec<f64> = (0..TABLE_BINS)
+            .map(|k| light(input_of(k as f64 / last)).clamp(0.0, 1.0))
+            .collect();
+        // The top recorded value is full light, whatever the table reaches.
+        if let Some(top) = table.last_mut() {
+            *top = 1.0;
+        }
+        let curve = Self::Table(table);
+        curve.validate()?;
+        Ok(Some(curve))
+    }
+
     /// The exponent `p` of the power curve `L = I^p` nearest the curve, by
     /// least squares in logarithms over recorded values from 32/255 to
     /// 224/255 (2.2 for a display gamma, 1 for a linear response); `None`
@@ -223,6 +293,53 @@ mod tests {
         for bad in [0.0, -0.45, f64::NAN, f64::INFINITY] {
             let e = ToneCurve::from_genicam_gamma(bad).unwrap_err().to_string();
             assert!(e.contains("Gamma"), "{e}");
+        }
+    }
+
+    #[test]
+    fn a_genicam_lut_composes_with_the_gamma_and_is_inverted() {
+        // A table squaring its input: light is the recorded value's root.
+        let square: Vec<(f64, f64)> = (0..=255)
+            .map(|i| {
+                let x = f64::from(i) / 255.0;
+                (x, (x * x * 255.0).floor() / 255.0)
+            })
+            .collect();
+        let c = ToneCurve::from_genicam_lut(&square, None).unwrap().unwrap();
+        assert!((c.nearest_power().unwrap() - 0.5).abs() < 0.02, "{c:?}");
+        for r in [0.1, 0.25, 0.5, 0.9] {
+            assert!((c.linear(r) - r.sqrt()).abs() < 0.01, "{r}");
+        }
+        // After a gamma of 0.5 (I = L^0.5, then squared): linear again.
+        let both = ToneCurve::from_genicam_lut(&square, Some(0.5))
+            .unwrap()
+            .unwrap();
+        for r in [0.1, 0.25, 0.5, 0.9] {
+            assert!((both.linear(r) - r).abs() < 0.01, "{r}");
+        }
+        // An identity table changes nothing but the gamma's curve.
+        let identity: Vec<(f64, f64)> = (0..=8)
+            .map(|i| (f64::from(i) / 8.0, f64::from(i) / 8.0))
+            .collect();
+        assert_eq!(ToneCurve::from_genicam_lut(&identity, None).unwrap(), None);
+        assert_eq!(
+            ToneCurve::from_genicam_lut(&identity, Some(0.45)).unwrap(),
+            ToneCurve::from_genicam_gamma(0.45).unwrap()
+        );
+        // A table that stops at half scale: recorded values above it are
+        // full light; one with an offset: below it, black.
+        let half: Vec<(f64, f64)> = vec![(0.0, 0.0), (1.0, 0.5)];
+        let c = ToneCurve::from_genicam_lut(&half, None).unwrap().unwrap();
+        assert!((c.linear(0.25) - 0.5).abs() < 1e-3 && c.linear(0.75) == 1.0);
+        let offset: Vec<(f64, f64)> = vec![(0.0, 0.2), (1.0, 1.0)];
+        let c = ToneCurve::from_genicam_lut(&offset, None).unwrap().unwrap();
+        assert!(c.linear(0.1) == 0.0 && (c.linear(0.6) - 0.5).abs() < 1e-3);
+        // A falling table, or too short a one, is refused naming LUTValue.
+        for bad in [vec![(0.0, 0.0), (0.5, 0.6), (1.0, 0.4)], vec![(0.0, 0.0)]] {
+            let e = ToneCurve::from_genicam_lut(&bad, None)
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains("LUTValue"), "{e}");
         }
     }
 
