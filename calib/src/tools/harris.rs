@@ -461,4 +461,35 @@ mod tests {
             }
         }
     }
+
+    #[test]
+    fn small_flat_and_masked_out_images_have_the_corners_opencv_finds() {
+        let params = HarrisParams::default();
+        let mut rng = ChaCha8Rng::seed_from_u64(11);
+        // Random images down to 3×3, whole and masked: OpenCV's corners.
+        for (w, h) in [(3, 3), (3, 7), (7, 3), (4, 4), (9, 5), (31, 17)] {
+            let gray: Vec<u8> = (0..w * h).map(|_| rng.gen()).collect();
+            let mask: Vec<u8> = (0..w * h)
+                .map(|_| u8::from(rng.gen_bool(0.6)) * 255)
+                .collect();
+            for mask in [None, Some(&mask[..])] {
+                let ours = good_features(&gray, (w, h), mask, &params);
+                let theirs = opencv_good_features(&gray, (w, h), mask, &params).unwrap();
+                assert_eq!(ours, theirs, "{w}×{h}, mask {}", mask.is_some());
+            }
+        }
+        // A flat image, and a mask that allows nothing: no corners.
+        let (w, h) = (40, 30);
+        let gray: Vec<u8> = (0..w * h).map(|_| rng.gen()).collect();
+        assert!(good_features(&vec![90; w * h], (w, h), None, &params).is_empty());
+        assert!(good_features(&gray, (w, h), Some(&vec![0; w * h]), &params).is_empty());
+        // The corner count caps the list, strongest first.
+        let few = HarrisParams {
+            max_corners: 5,
+            ..params.clone()
+        };
+        let all = good_features(&gray, (w, h), None, &params);
+        assert!(all.len() > 5);
+        assert_eq!(good_features(&gray, (w, h), None, &few), all[..5]);
+    }
 }
