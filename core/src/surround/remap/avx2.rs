@@ -23,14 +23,15 @@ macro_rules! steps {
         match ($cams.len(), $image(0), $image(1)) {
             (1, Some(a), _) => {
                 let ga = ops::broadcast($gain(0));
+                // Fixed-size chunks: no division by a chunk length at
+                // run time, once per run.
                 let chunks = $dst
-                    .chunks_exact_mut($bytes)
-                    .zip($index.chunks_exact($n))
-                    .zip($weights.chunks_exact($n));
+                    .as_chunks_mut::<{ $bytes }>()
+                    .0
+                    .iter_mut()
+                    .zip($index.as_chunks::<{ $n }>().0)
+                    .zip($weights.as_chunks::<{ $n }>().0);
                 for ((d, i), w) in chunks {
-                    let (Some(i), Some(w)) = (i.first_chunk(), w.first_chunk()) else {
-                        break;
-                    };
                     // SAFETY: see the macro's docs.
                     let s = unsafe { $sample(a.bytes, a.width, i, w, &$k) };
                     $store(d, $scale(s, ga), &$k);
@@ -42,18 +43,22 @@ macro_rules! steps {
                 let (ia, ib) = $index.split_at($len);
                 let (wa, wb) = $weights.split_at($len);
                 let chunks = $dst
-                    .chunks_exact_mut($bytes)
-                    .zip(ia.chunks_exact($n).zip(wa.chunks_exact($n)))
-                    .zip(ib.chunks_exact($n).zip(wb.chunks_exact($n)));
+                    .as_chunks_mut::<{ $bytes }>()
+                    .0
+                    .iter_mut()
+                    .zip(
+                        ia.as_chunks::<{ $n }>()
+                            .0
+                            .iter()
+                            .zip(wa.as_chunks::<{ $n }>().0),
+                    )
+                    .zip(
+                        ib.as_chunks::<{ $n }>()
+                            .0
+                            .iter()
+                            .zip(wb.as_chunks::<{ $n }>().0),
+                    );
                 for ((d, (ia, wa)), (ib, wb)) in chunks {
-                    let (Some(ia), Some(wa), Some(ib), Some(wb)) = (
-                        ia.first_chunk(),
-                        wa.first_chunk(),
-                        ib.first_chunk(),
-                        wb.first_chunk(),
-                    ) else {
-                        break;
-                    };
                     // SAFETY: see the macro's docs.
                     let (sa, sb) = unsafe {
                         (
