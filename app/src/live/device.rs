@@ -406,6 +406,9 @@ fn lut_of(
     }
     let inc = camera.integer_increment("LUTIndex").unwrap_or(1).max(1);
     let stride = ((hi - lo) / inc / LUT_SAMPLES).max(1) * inc;
+    // The last index the increment reaches (the range's end, on a camera
+    // whose range is whole increments).
+    let last = lo + (hi - lo) / inc * inc;
     let was = camera.integer("LUTIndex").ok();
     let mut table = Vec::new();
     let mut index = lo;
@@ -418,10 +421,10 @@ fn lut_of(
             (index - lo) as f64 / (hi - lo) as f64,
             (value as f64 / top as f64).clamp(0.0, 1.0),
         ));
-        if index >= hi {
+        if index >= last {
             break;
         }
-        index = (index + stride).min(hi);
+        index = (index + stride).min(last);
     }
     if let Some(was) = was {
         camera
