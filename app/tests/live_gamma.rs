@@ -3,9 +3,10 @@
 //! controller as the camera's tone curve. Aravis's fake cameras have
 //! neither, so they are described here by Aravis's own GenICam XML (taken
 //! from the installed library with `gresource`, which libaravis-dev
-//! brings) with `GammaEnable` and `Gamma`, and `LUTEnable`, `LUTIndex`
-//! and `LUTValue` (a table squaring its input, computed from the index by
-//! an `IntSwissKnife`) added, through `RIGVIEW_FAKE_GENICAM`.
+//! brings) with `GammaEnable` and `Gamma`, `LUTEnable`, `LUTIndex` and
+//! `LUTValue` (a table squaring its input, computed from the index by an
+//! `IntSwissKnife`), and Basler's `BslColorSpace` added, through
+//! `RIGVIEW_FAKE_GENICAM`.
 
 use std::process::Command;
 
@@ -60,7 +61,7 @@ fn a_fake_camera_with_gamma_correction_or_a_lookup_table_is_read_through_its_cur
         let inside: String = lines.iter().map(|l| format!("\t\t{l}\n")).collect();
         format!("\t<{kind} Name=\"{name}\" NameSpace=\"Standard\">\n{inside}\t</{kind}>\n")
     };
-    let with = |gamma: u8, lut: u8| {
+    let with = |gamma: u8, lut: u8, space: u8| {
         let range = |value: &str, max: &str| {
             vec![
                 value.to_owned(),
@@ -84,6 +85,15 @@ fn a_fake_camera_with_gamma_correction_or_a_lookup_table_is_read_through_its_cur
                 ],
             ),
             node("Boolean", "LUTEnable", &[format!("<Value>{lut}</Value>")]),
+            node(
+                "Enumeration",
+                "BslColorSpace",
+                &[
+                    "<EnumEntry Name=\"Off\"><Value>0</Value></EnumEntry>".into(),
+                    "<EnumEntry Name=\"sRgb\"><Value>1</Value></EnumEntry>".into(),
+                    format!("<Value>{space}</Value>"),
+                ],
+            ),
             node("Integer", "LUTIndex", &range("<Value>7</Value>", "1023")),
             node(
                 "Integer",
@@ -111,22 +121,28 @@ fn a_fake_camera_with_gamma_correction_or_a_lookup_table_is_read_through_its_cur
             })
             .count()
     };
-    let run = |name: &str, gamma: u8, lut: u8| {
+    let run = |name: &str, gamma: u8, lut: u8, space: u8| {
         let genicam = dir.path().join(name);
-        std::fs::write(&genicam, with(gamma, lut)).unwrap();
+        std::fs::write(&genicam, with(gamma, lut, space)).unwrap();
         live(dir.path(), Some(&genicam))
     };
     // 1 / 0.45 = 2.22, for each of the four cameras.
-    let text = run("gamma.xml", 1, 0);
+    let text = run("gamma.xml", 1, 0, 0);
     assert_eq!(curve(&text, "2.22"), 4, "{text}");
     // The table squares its input: light is the recorded value's root.
-    let text = run("lut.xml", 0, 1);
+    let text = run("lut.xml", 0, 1, 0);
     assert_eq!(curve(&text, "0.50"), 4, "{text}");
     // Both: (L^0.45)² = L^0.9, so light is the recorded value to 1.11.
-    let text = run("both.xml", 1, 1);
+    let text = run("both.xml", 1, 1, 0);
     assert_eq!(curve(&text, "1.11"), 4, "{text}");
+    // Basler's sRGB colour space (about 1/2.2), alone and on top of the
+    // gamma (0.45 / 2.2: 4.89).
+    let text = run("srgb.xml", 0, 0, 1);
+    assert_eq!(curve(&text, "2.20"), 4, "{text}");
+    let text = run("srgb-gamma.xml", 1, 0, 1);
+    assert_eq!(curve(&text, "4.89"), 4, "{text}");
     // Neither on: linear frames.
-    let text = run("off.xml", 0, 0);
+    let text = run("off.xml", 0, 0, 0);
     assert!(!text.contains("lookup table on"), "{text}");
     assert!(text.contains("fake cameras described by"), "{text}");
     // Aravis's own description: no gamma, linear frames.

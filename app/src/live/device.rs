@@ -299,7 +299,8 @@ impl Device {
 /// its gamma correction, where it is on (GenICam's `GammaEnable` where
 /// there is one, then `GammaSelector` `sRGB`, about 1/2.2, or else
 /// `Gamma`: each pixel `P` output as `P^Gamma`,
-/// [`ToneCurve::from_genicam_gamma`]), then its pixel lookup table, where
+/// [`ToneCurve::from_genicam_gamma`]; an sRGB colour space on top,
+/// [`gamma_of`]), then its pixel lookup table, where
 /// `LUTEnable` is on (the one `LUTSelector` selects, read through
 /// `LUTIndex` and `LUTValue` at up to [`LUT_SAMPLES`] inputs,
 /// [`ToneCurve::from_genicam_lut`]). Scale-and-clip and the balancing read
@@ -339,8 +340,35 @@ fn tone_curve(
 }
 
 /// The camera's gamma where its gamma correction is on (see
-/// [`tone_curve`]).
+/// [`tone_curve`]), times that of an sRGB colour space where the camera
+/// has one selected (`BslColorSpace`, `BslColorSpaceMode` or `ColorSpace`
+/// `sRGB`, Basler's, applied on top of `Gamma`: about 1/2.2).
 fn gamma_of(
+    camera: &Camera,
+    has: &dyn Fn(&str) -> bool,
+    named: Named<'_>,
+) -> Result<Option<f64>, CameraError> {
+    let gamma = own_gamma(camera, has, named)?;
+    let space = COLOUR_SPACES.into_iter().find(|f| has(f));
+    let srgb = match space {
+        Some(f) => camera
+            .string(f)
+            .map_err(named.read(f))?
+            .eq_ignore_ascii_case("sRGB"),
+        None => false,
+    };
+    Ok(match (gamma, srgb) {
+        (g, false) => g,
+        (Some(g), true) => Some(g / 2.2),
+        (None, true) => Some(1.0 / 2.2),
+    })
+}
+
+/// The features that select a camera's colour space (Basler's).
+const COLOUR_SPACES: [&str; 3] = ["BslColorSpace", "BslColorSpaceMode", "ColorSpace"];
+
+/// The camera's own gamma correction, where it is on.
+fn own_gamma(
     camera: &Camera,
     has: &dyn Fn(&str) -> bool,
     named: Named<'_>,
