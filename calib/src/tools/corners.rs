@@ -145,7 +145,7 @@ pub fn opencv_good_features(
 }
 
 /// Reflects position `v` into `0..n` as OpenCV's `BORDER_REFLECT_101`.
-fn reflect101(v: i64, n: usize) -> usize {
+pub(super) fn reflect101(v: i64, n: usize) -> usize {
     let n = n as i64;
     let mut v = v;
     if n == 1 {

@@ -36,7 +36,7 @@
 //! positive has no corners (OpenCV would return points of negative
 //! response: there is no corner there).
 
-use super::corners::HarrisParams;
+use super::corners::{reflect101, HarrisParams};
 
 /// Corners of a `w × h` grey image (`w`, `h` ≥ 3; `gray` and `mask` of
 /// `w·h` bytes, checked by the caller), as OpenCV's `goodFeaturesToTrack`
@@ -132,19 +132,6 @@ unsafe fn maxima_avx2(gray: &[u8], size: (usize, usize), mask: Option<&[u8]>) ->
     maxima_in(gray, size, mask)
 }
 
-/// Reflects row or column `v` (−1 to `n`) into `0..n` as
-/// `BORDER_REFLECT_101` does (`n` ≥ 2).
-#[inline(always)]
-fn reflect(v: isize, n: usize) -> usize {
-    if v < 0 {
-        1
-    } else if v as usize >= n {
-        n - 2
-    } else {
-        v as usize
-    }
-}
-
 /// Row `y`'s products of the Sobel derivatives (`xx`, `xy`, `yy`),
 /// summed over each pixel's three columns, into `out`; `s` and `d` are
 /// scratch rows of `w`.
@@ -158,9 +145,9 @@ fn box_row(
 ) {
     let row = |r: usize| &gray[r * w..(r + 1) * w];
     let (up, mid, down) = (
-        row(reflect(y as isize - 1, h)),
+        row(reflect101(y as i64 - 1, h)),
         row(y),
-        row(reflect(y as isize + 1, h)),
+        row(reflect101(y as i64 + 1, h)),
     );
     // Down each column: the smoothing [1 2 1] and the difference [−1 0 1].
     for ((((s, d), &u), &m), &b) in s.iter_mut().zip(d.iter_mut()).zip(up).zip(mid).zip(down) {
@@ -235,8 +222,8 @@ fn maxima_in(gray: &[u8], (w, h): (usize, usize), mask: Option<&[u8]>) -> Option
         }
         // Rows y − 1 and y + 1, reflected at the ends.
         let (above, below) = (
-            reflect(y as isize - 1, h) % 3,
-            reflect(y as isize + 1, h) % 3,
+            reflect101(y as i64 - 1, h) % 3,
+            reflect101(y as i64 + 1, h) % 3,
         );
         let r = &mut response[y % 3];
         {
