@@ -310,7 +310,6 @@ fn tone_curve(
     has: &dyn Fn(&str) -> bool,
     named: Named<'_>,
 ) -> Result<Option<ToneCurve>, CameraError> {
-    let gamma = gamma_of(camera, has, named)?;
     let unexpected =
         |feature: &'static str, expected: &str, e: rigview_core::Error| CameraError::Unexpected {
             camera: named.0.to_owned(),
@@ -318,24 +317,25 @@ fn tone_curve(
             expected: expected.into(),
             found: e.to_string(),
         };
-    if let Some(lut) = lut_of(camera, has, named)? {
-        return ToneCurve::from_genicam_lut(&lut, gamma).map_err(|e| {
-            unexpected(
-                "LUTValue",
-                "a lookup table whose outputs do not fall as its inputs rise",
-                e,
-            )
-        });
-    }
-    match gamma {
+    let gamma = match gamma_of(camera, has, named)? {
         Some(g) => ToneCurve::from_genicam_gamma(g).map_err(|e| {
             unexpected(
                 "Gamma",
                 "a positive gamma (each pixel P output as P^Gamma)",
                 e,
             )
+        })?,
+        None => None,
+    };
+    match lut_of(camera, has, named)? {
+        Some(lut) => ToneCurve::from_genicam_lut(&lut, gamma.as_ref()).map_err(|e| {
+            unexpected(
+                "LUTValue",
+                "a lookup table whose outputs do not fall as its inputs rise",
+                e,
+            )
         }),
-        None => Ok(None),
+        None => Ok(gamma),
     }
 }
 

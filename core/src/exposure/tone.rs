@@ -162,14 +162,15 @@ impl ToneCurve {
     /// (`LUTEnable`), read as `lut`: pairs of an input and its output value,
     /// both normalised to `[0, 1]`, inputs increasing (the camera's
     /// `LUTIndex` and `LUTValue` over their ranges). The SFNC applies the
-    /// table after the gamma correction, so with `gamma` (the camera's
-    /// `Gamma`, where it is on) the recorded value is `lut(L^gamma)`. The
+    /// table after the gamma correction, so with `gamma` (the curve of the
+    /// camera's gamma where it is on, [`ToneCurve::from_genicam_gamma`])
+    /// the recorded value is `lut(gamma(L))`. The
     /// table's outputs must not fall (a falling table has no inverse: the
     /// error names `LUTValue`); recorded values below its first output are
     /// black and above its last full light. A table of [`TABLE_BINS`] light
     /// values at evenly spaced recorded values; `None` where the table and
     /// the gamma change nothing.
-    pub fn from_genicam_lut(lut: &[(f64, f64)], gamma: Option<f64>) -> Result<Option<Self>> {
+    pub fn from_genicam_lut(lut: &[(f64, f64)], gamma: Option<&Self>) -> Result<Option<Self>> {
         let bad = |what: String| {
             Err(Error::invalid(
                 "camera",
@@ -191,15 +192,11 @@ impl ToneCurve {
                 w[0].1, w[0].0, w[1].1, w[1].0
             ));
         }
-        let gamma = match gamma {
-            Some(g) => Self::from_genicam_gamma(g)?,
-            None => None,
-        };
         let identity = lut.iter().all(|&(i, o)| (i - o).abs() < 1e-6)
             && lut.first().is_some_and(|f| f.0.abs() < 1e-9)
             && lut.last().is_some_and(|l| (l.0 - 1.0).abs() < 1e-9);
         if identity {
-            return Ok(gamma);
+            return Ok(gamma.cloned());
         }
         // The table's input where its output reaches `r` (the first, where
         // it is flat), then the light of that input through the gamma.
@@ -214,7 +211,7 @@ impl ToneCurve {
             let (i0, o0) = lut[above - 1];
             i0 + (i1 - i0) * if o1 > o0 { (r - o0) / (o1 - o0) } else { 0.0 }
         };
-        let light = |input: f64| gamma.as_ref().map_or(input, |g| g.linear(input));
+        let light = |input: f64| gamma.map_or(input, |g| g.linear(input));
         let last = (TABLE_BINS - 1) as f64;
         let mut table: Vec<f64> = (0..TABLE_BINS)
             .map(|k| light(input_of(k as f64 / last)).clamp(0.0, 1.0))
@@ -311,7 +308,8 @@ mod tests {
             assert!((c.linear(r) - r.sqrt()).abs() < 0.01, "{r}");
         }
         // After a gamma of 0.5 (I = L^0.5, then squared): linear again.
-        let both = ToneCurve::from_genicam_lut(&square, Some(0.5))
+        let half = ToneCurve::from_genicam_gamma(0.5).unwrap();
+        let both = ToneCurve::from_genicam_lut(&square, half.as_ref())
             .unwrap()
             .unwrap();
         for r in [0.1, 0.25, 0.5, 0.9] {
@@ -323,7 +321,11 @@ mod tests {
             .collect();
         assert_eq!(ToneCurve::from_genicam_lut(&identity, None).unwrap(), None);
         assert_eq!(
-            ToneCurve::from_genicam_lut(&identity, Some(0.45)).unwrap(),
+            ToneCurve::from_genicam_lut(
+                &identity,
+                ToneCurve::from_genicam_gamma(0.45).unwrap().as_ref()
+            )
+            .unwrap(),
             ToneCurve::from_genicam_gamma(0.45).unwrap()
         );
         // A table that stops at half scale: recorded values above it are
