@@ -468,7 +468,14 @@ impl SimConfig {
             })
         };
         let scene = match doc.scene {
-            PresetOr::Inline(s) => s,
+            PresetOr::Inline(mut s) => {
+                if let Some(e) = &mut s.environment {
+                    if e.file.is_relative() {
+                        e.file = base.join(&e.file);
+                    }
+                }
+                s
+            }
             PresetOr::Preset(name) => scene_preset(&name).ok_or_else(|| {
                 field(
                     "scene",

@@ -5,6 +5,8 @@
 //!   calibration mat, buildings, walls, parked cars, the rig's own vehicle,
 //!   a sky with a sun; sunlit and shadowed regions (10⁴ and more of dynamic
 //!   range in one scene).
+//! - [`environment`]: real scenes: an HDR panorama's radiance in place of
+//!   the procedural world.
 //! - [`script`]: illumination over time: constant, steps, ramps, tunnels.
 //! - [`sensor`]: the camera: a linear EMVA 1288 sensor with full-well
 //!   saturation, shot, read and quantisation noise, 8- or 12-bit output,
@@ -40,6 +42,7 @@
 pub mod actuation;
 pub mod camera_ae;
 pub mod config;
+pub mod environment;
 pub mod render;
 pub mod rig;
 pub mod scene;

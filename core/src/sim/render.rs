@@ -132,7 +132,7 @@ impl SimRender {
             ));
         }
         let rig = scale_rig(&rig, config.scale)?;
-        let built = Built::new(&config.scene);
+        let built = Built::new(&config.scene)?;
         for c in &rig.cameras {
             let Some(pose) = &c.pose else {
                 return Err(Error::invalid(

@@ -25,6 +25,37 @@ pub struct Scene {
     /// The sky.
     #[serde(default)]
     pub sky: Sky,
+    /// A real scene: an HDR panorama's radiance in place of the ground and
+    /// the sky (`null`: none; see [`crate::sim::environment`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub environment: Option<Environment>,
+}
+
+/// A real scene's radiance map and how it lies around the rig.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Environment {
+    /// The equirectangular radiance map (Radiance `.hdr`); a relative path
+    /// is taken from the simulation file's folder.
+    pub file: std::path::PathBuf,
+    /// Multiplies the map's values into the scene's unit of radiance.
+    #[serde(default = "default_env_level")]
+    pub level: f64,
+    /// The azimuth the map's centre column looks along, degrees from +x
+    /// towards +y.
+    #[serde(default)]
+    pub yaw_deg: f64,
+    /// How high above the ground the panorama was taken, metres.
+    #[serde(default = "default_env_height")]
+    pub height_m: f64,
+}
+
+fn default_env_level() -> f64 {
+    1.0
+}
+
+fn default_env_height() -> f64 {
+    1.7
 }
 
 fn default_ego() -> Option<Ego> {
@@ -40,6 +71,7 @@ impl Default for Scene {
             ego: default_ego(),
             sun: Sun::default(),
             sky: Sky::default(),
+            environment: None,
         }
     }
 }

@@ -5,6 +5,8 @@ use nalgebra::Vector3;
 
 use super::shading::{AoGrid, Skin};
 use super::{ObstacleKind, Scene};
+use crate::error::Result;
+use crate::sim::environment::EnvironmentMap;
 use crate::sim::texture::{hash2, mix};
 
 /// An oriented box standing on (or above) the ground.
@@ -138,6 +140,8 @@ pub(crate) struct Built {
     pub(super) sun_dir: Vector3<f64>,
     pub(super) sun_up: bool,
     pub(super) cos_disc: f64,
+    /// A real scene's radiance map, loaded ([`crate::sim::environment`]).
+    pub(super) environment: Option<std::sync::Arc<EnvironmentMap>>,
 }
 
 /// What a ray hit first.
@@ -196,8 +200,13 @@ fn car_solids(
 }
 
 impl Built {
-    /// Builds the solids of a (validated) scene.
-    pub fn new(scene: &Scene) -> Self {
+    /// Builds the solids of a (validated) scene and loads its environment
+    /// map, if it has one (the error names the map's file).
+    pub fn new(scene: &Scene) -> Result<Self> {
+        let environment = match &scene.environment {
+            Some(e) => Some(std::sync::Arc::new(EnvironmentMap::load(&e.file)?)),
+            None => None,
+        };
         let mut solids = Vec::new();
         for (k, o) in scene.obstacles.iter().enumerate() {
             let seed = mix(scene.seed ^ mix(k as u64 + 1));
@@ -249,14 +258,15 @@ impl Built {
         }
         let (se, ce) = scene.sun.elevation_deg.to_radians().sin_cos();
         let (sa, ca) = scene.sun.azimuth_deg.to_radians().sin_cos();
-        Self {
+        Ok(Self {
             scene: scene.clone(),
             ao: AoGrid::new(&solids),
             solids,
             sun_dir: Vector3::new(ce * ca, ce * sa, se),
             sun_up: scene.sun.elevation_deg > 0.0,
             cos_disc: scene.sun.disc_radius_deg.to_radians().cos(),
-        }
+            environment,
+        })
     }
 
     /// The unit vector towards the sun.

@@ -44,7 +44,7 @@ mod shading;
 mod validation;
 
 pub use description::{
-    Asphalt, Ego, Ground, Lane, Mat, Obstacle, ObstacleKind, Patch, Scene, Sky, Sun,
+    Asphalt, Ego, Environment, Ground, Lane, Mat, Obstacle, ObstacleKind, Patch, Scene, Sky, Sun,
 };
 pub(crate) use geometry::{Built, Hit};
 pub use shading::Class;

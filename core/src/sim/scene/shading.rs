@@ -240,7 +240,22 @@ impl Built {
     pub fn shade(&self, o: &Vector3<f64>, d: &Vector3<f64>, pixel: f64) -> (Shade, Class) {
         let level = self.scene.sun.level;
         let sky_level = self.scene.sky.level;
-        match self.first_hit(o, d) {
+        let hit = self.first_hit(o, d);
+        if let (Some(map), Some(e)) = (&self.environment, &self.scene.environment) {
+            // A real scene: the map's radiance in the ray's direction, or
+            // in the direction the panorama saw the ground point from.
+            let yaw = e.yaw_deg.to_radians();
+            let seen = match hit {
+                Hit::Sky => Some((*d, Class::Sky)),
+                Hit::Ground(t) => Some((o + d * t - Vector3::z() * e.height_m, Class::Ground)),
+                Hit::Solid(..) => None,
+            };
+            if let Some((dir, class)) = seen {
+                let sky = e.level * map.radiance(&dir, yaw);
+                return (Shade { sun: 0.0, sky }, class);
+            }
+        }
+        match hit {
             Hit::Sky => (self.sky_radiance(d), Class::Sky),
             Hit::Ground(t) => {
                 let p = o + d * t;
@@ -471,7 +486,7 @@ mod tests {
                 },
                 ..Default::default()
             };
-            let b = Built::new(&scene);
+            let b = Built::new(&scene).expect("a scene without a map");
             let eye = Vector3::new(0.0, 0.0, 1.0);
             let d = (Vector3::new(2.0, 0.0, 0.0) - eye).normalize();
             let (s, class) = b.shade(&eye, &d, 1e-3);
@@ -543,7 +558,7 @@ mod tests {
             },
             ..Default::default()
         };
-        let b = Built::new(&scene);
+        let b = Built::new(&scene).expect("a scene without a map");
         let eye = Vector3::new(0.0, 0.0, 1.0);
         let at = |y: f64| {
             let d = (Vector3::new(0.0, y, 0.0) - eye).normalize();

@@ -256,6 +256,36 @@ impl Scene {
             1e3,
             "a relative radiance ≥ 0",
         )?;
+        if let Some(e) = &self.environment {
+            check(
+                "scene.environment.level",
+                e.level,
+                1e-9,
+                1e9,
+                "a positive factor on the map's radiance",
+            )?;
+            check(
+                "scene.environment.yaw_deg",
+                e.yaw_deg,
+                -360.0,
+                360.0,
+                "an angle in degrees in [-360, 360]",
+            )?;
+            check(
+                "scene.environment.height_m",
+                e.height_m,
+                0.05,
+                100.0,
+                "a height in metres in [0.05, 100]",
+            )?;
+            if !self.obstacles.is_empty() {
+                return Err(FieldError::new(
+                    "scene.obstacles",
+                    "none with an environment map (the map holds the scene's solids)",
+                    format!("{} obstacles", self.obstacles.len()),
+                ));
+            }
+        }
         Ok(())
     }
 }
