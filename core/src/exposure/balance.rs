@@ -360,9 +360,10 @@ pub fn balance_with(
     }
 }
 
-/// Where balancing may take a camera: a balanced `target` darker than the
-/// camera's own `unary` exposure, moved back up until the camera's estimate
-/// predicts at least `1 − max_loss` of the best `M` its anchors show.
+/// Where balancing may take a camera: a balanced `target` darker (or
+/// brighter) than the camera's own `unary` exposure, moved back towards it
+/// until the camera's estimate predicts at least `1 − max_loss` of the best
+/// `M` its anchors show.
 ///
 /// Eq. 5 weighs the neighbours as much as the camera's own law at rest
 /// (`α = ½`), whatever that costs the camera. Where neighbours see their
@@ -378,13 +379,17 @@ pub fn balance_with(
 /// keeps its own pace). A target beyond the anchors' span is judged by
 /// the nearest end.
 ///
-/// Only a pull darker is guarded. A pull brighter can lead a camera over
-/// a hump of `M(E)` the anchors cannot see past: on the `tunnel-exit`
-/// preset at full resolution the front camera's own law rests on a lower
-/// hump at 2^10.4 µs and its neighbours pull it to 2^15.7, near its best;
-/// guarded both ways it stayed at 2^10.7. The γ-mapping's scores are not
-/// an exposure's and the target stands; so it does for a flat estimate and
-/// for `max_loss ≥ 1`.
+/// A pull brighter is guarded the same way, from the target down towards
+/// the best anchor and the unary. On the real courtyard
+/// (`assets/sim/courtyard.sim.yaml`) the front camera faces a sunlit yard
+/// and its neighbours the shade under a roof: pulled brighter unguarded it
+/// clipped the yard and kept 50 % of its best `M`, guarded 88 %. A pull
+/// brighter once led the `tunnel-exit` preset's front camera over a hump of
+/// `M(E)` its anchors cannot see past (its own law rests at 2^10.4 µs, its
+/// best is 2^15.8); balanced cameras now probe brighter themselves where
+/// most of a frame is dark ([`super::probe`]), which finds it. The
+/// γ-mapping's scores are not an exposure's and the target stands; so it
+/// does for a flat estimate and for `max_loss ≥ 1`.
 pub fn guard_m(target: f64, unary: f64, taken: f64, estimate: &Estimate, max_loss: f64) -> f64 {
     if estimate.simulation != Simulation::ScaleClip || estimate.flat {
         return target;
@@ -443,14 +448,18 @@ pub fn guard_m_by(
     }
     let u_best = best.x.ln();
     let u_unary = (unary / taken).ln();
-    // Only a pull darker is guarded (the best anchor lies above the
-    // target), and the unary must lie above it too: the guard only gives
-    // back what the neighbours' pull took.
+    // The best anchor and the unary must lie on the same side of the
+    // target: the guard only gives back what the neighbours' pull took.
     let from = u_target.clamp(lo, hi);
-    if u_best < from || u_unary <= u_target {
+    let stop = if u_unary > u_target && u_best >= from {
+        // A pull darker.
+        u_unary.min(u_best)
+    } else if u_unary < u_target && u_best <= from {
+        // A pull brighter.
+        u_unary.max(u_best)
+    } else {
         return target;
-    }
-    let stop = u_unary.min(u_best);
+    };
     const STEPS: usize = 64;
     let mut u = stop;
     for k in 1..=STEPS {
@@ -798,7 +807,7 @@ mod tests {
     }
 
     #[test]
-    fn a_pull_darker_is_guarded_and_a_pull_brighter_is_not() {
+    fn a_pull_either_way_is_guarded() {
         // M peaks at s = 1 and falls off 30 per EV-ish on both sides.
         let a = scores(|u| 100.0 - 40.0 * u.abs());
         let up = guard_m_by(0.55, 1.1, 1.0, &a, 0.1);
@@ -808,9 +817,15 @@ mod tests {
             "M̂ at {up}: {}",
             100.0 - 40.0 * up.ln().abs()
         );
-        // A pull brighter is left to Eq. 5: the anchors cannot see past a
-        // hump of `M` to a better exposure that neighbours may lead to.
-        assert_eq!(guard_m_by(1.85, 0.9, 1.0, &a, 0.1), 1.85);
+        // A pull brighter comes back down until M̂ keeps 90 % of the best.
+        let down = guard_m_by(1.85, 0.9, 1.0, &a, 0.1);
+        assert!(down > 1.0 && down < 1.85, "{down}");
+        let m = 100.0 - 40.0 * down.ln();
+        assert!((89.0..=91.5).contains(&m), "M̂ at {down}: {m}");
+        // Not past the unary, and not when M̂ at the target holds.
+        assert_eq!(guard_m_by(1.2, 0.9, 1.0, &a, 0.1), 1.2);
+        let to_unary = guard_m_by(1.85, 1.3, 1.0, &a, 0.02);
+        assert!((to_unary - 1.3).abs() < 1e-9, "{to_unary}");
     }
 
     #[test]

@@ -75,8 +75,10 @@
 //! simulations: at the rig's resolution a tunnel exit's front camera rests
 //! with the exit resolved and two thirds of its ground black, on a hump of
 //! `M(E)` a quarter as high as the walls' texture 5.4 EV up
-//! (docs/exposure-results.md). Balanced cameras do not probe brighter:
-//! their neighbours pull them over such humps. PID probes only brighter
+//! (docs/exposure-results.md). Balanced cameras probe brighter too: the
+//! guard of balancing ([`super::balance::guard_m`]) keeps their
+//! neighbours from pulling them over such humps, as it keeps them from
+//! pulling a camera into saturation. PID probes only brighter
 //! ([`ProbeInput::brighter_only`]): a darker probe at each rest with
 //! saturation in view would disturb its integral for little. A recent
 //! frame answers for a brighter ladder only if one lay as far as its last
@@ -692,7 +694,7 @@ impl Prober {
             };
         // Mostly dark (the texture in the noise floor): brighter, by a
         // ladder. Otherwise, with saturation in view: darker.
-        let brighter = !input.balanced && input.dark >= params.min_dark;
+        let brighter = input.dark >= params.min_dark;
         if frames >= params.settle_frames && (brighter || saturated >= params.min_saturated) {
             let home_m = m_sum / f64::from(frames);
             let (step, rungs) = if brighter {
