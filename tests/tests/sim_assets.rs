@@ -113,3 +113,43 @@ fn a_simulation_file_can_name_a_rig_file() {
     assert!(err.contains("vehicle frame"), "{err}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// Every simulation file in `assets/sim` loads and renders (at an eighth
+/// of its resolution), the real scenes with their panoramas; and each real
+/// scene's ground is lit by its map (no pixel of a camera's ground black).
+#[test]
+fn every_simulation_file_in_the_assets_renders() {
+    let mut real = 0;
+    let mut files: Vec<_> = std::fs::read_dir(assets().join("sim"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.to_string_lossy().ends_with(".sim.yaml"))
+        .collect();
+    files.sort();
+    assert!(files.len() >= 16, "{files:?}");
+    for path in files {
+        let config = SimConfig {
+            scale: 0.125,
+            supersample: 1,
+            ..SimConfig::load(&path).unwrap()
+        };
+        let render = SimRender::new(&config).unwrap();
+        if config.scene.environment.is_some() {
+            real += 1;
+            let info = &render.cameras()[0];
+            let light = render.irradiance(0, 0.0).unwrap();
+            let ground: Vec<f32> = (0..info.height)
+                .flat_map(|y| (0..info.width).map(move |x| (x, y)))
+                .filter(|&(x, y)| render.class(0, x, y) == Some(rigview_core::sim::Class::Ground))
+                .map(|(x, y)| light[y * info.width + x])
+                .collect();
+            assert!(!ground.is_empty(), "{}", path.display());
+            assert!(
+                ground.iter().all(|v| *v > 0.0),
+                "{}: a ground pixel is black",
+                path.display()
+            );
+        }
+    }
+    assert_eq!(real, 5, "the real scenes");
+}
