@@ -496,3 +496,37 @@ fn on_real_panoramas_the_gradient_laws_keep_the_best_m() {
         }
     }
 }
+
+/// A rig that starts with every frame saturated (the courtyard from 4 EV
+/// above) still follows a uniform change of light later: the light
+/// tracking takes its reference from the first frames at rest that have
+/// pixels in range, not from the saturated first frame (which measured
+/// nothing and, kept, held the front and left cameras 3 EV too dark for
+/// 2 s after −4 stops).
+#[test]
+fn after_a_saturated_start_the_light_is_still_followed() {
+    let (script, duration_s) = rigview_core::sim::config::script_preset("steps").unwrap();
+    let config = SimConfig {
+        scale: SCALE,
+        script,
+        duration_s,
+        ..config("courtyard.sim.yaml")
+    };
+    let render = Arc::new(SimRender::new(&config).unwrap());
+    // −4 stops at 5 s: set 100.
+    for s in [EvalStrategy::NonlinearSc, EvalStrategy::MultiSc] {
+        let trace = closed_loop::run(&render, s.settings_as_run(), 110, &mut || {}).unwrap();
+        for (cam, e) in trace.log2_e.iter().enumerate() {
+            let moved = e[108] - e[98];
+            println!(
+                "{}, camera {cam}: {moved:+.2} EV from set 98 to 108",
+                s.label()
+            );
+            assert!(
+                (3.5..=4.5).contains(&moved),
+                "{}, camera {cam}: {moved:+.2} EV after −4 stops",
+                s.label()
+            );
+        }
+    }
+}

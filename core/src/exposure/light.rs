@@ -265,7 +265,8 @@ impl LightTracker {
     }
 
     /// Makes `metered`, taken at exposure `taken`, the reference, with
-    /// `best` the best exposure the law predicts on it.
+    /// `best` the best exposure the law predicts on it; with fewer than
+    /// `min_pixels` pixels in range it leaves no reference.
     pub fn set_reference(
         &mut self,
         params: &LightParams,
@@ -291,14 +292,22 @@ impl LightTracker {
                 radiance.push(v);
             }
         }
-        self.reference = (taken.is_finite() && taken > 0.0 && best.is_finite() && best > 0.0)
-            .then_some(Reference {
-                width,
-                height,
-                stride,
-                radiance,
-                best,
-            });
+        // A frame with too few pixels in range (all but saturated, or all
+        // but black) can measure no change: it is no reference, and the
+        // next frame at rest is taken instead.
+        let usable = radiance.iter().filter(|v| !v.is_nan()).count();
+        self.reference = (taken.is_finite()
+            && taken > 0.0
+            && best.is_finite()
+            && best > 0.0
+            && usable >= params.min_pixels.max(4))
+        .then_some(Reference {
+            width,
+            height,
+            stride,
+            radiance,
+            best,
+        });
     }
 
     /// Replaces the best exposure of the reference (the exposure finally
@@ -438,6 +447,25 @@ mod tests {
         t.set_reference(&p, &before, 0.25, 0.3);
         t.set_tone_curve(None);
         assert!(t.has_reference(), "the same curve keeps it");
+    }
+
+    /// A camera that comes to rest in a frame all but saturated (a start
+    /// far too bright) keeps no reference from it: such a reference
+    /// measures nothing, and the next frame at rest must be able to take
+    /// its place.
+    #[test]
+    fn a_frame_with_too_few_pixels_in_range_is_no_reference() {
+        let p = LightParams::default();
+        let mut t = LightTracker::default();
+        let white = frame(160, 120, 0.5, 64.0, 0);
+        assert!(white.stats().saturated_fraction > 0.97);
+        t.set_reference(&p, &white, 0.5, 0.55);
+        assert!(!t.has_reference());
+        let black = frame(160, 120, 0.5, 0.001, 0);
+        t.set_reference(&p, &black, 0.5, 0.55);
+        assert!(!t.has_reference());
+        t.set_reference(&p, &frame(160, 120, 0.5, 1.0, 0), 0.5, 0.55);
+        assert!(t.has_reference());
     }
 
     #[test]
