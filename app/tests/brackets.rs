@@ -187,8 +187,14 @@ fn emulated_evaluation(dir: &std::path::Path) {
     }
     let (h, rows) = common::csv(&out.join("brackets_start.csv"));
     assert_eq!(rows.len(), 4 * 13, "{h:?}");
+    let reach = h.iter().position(|c| c == "frames_to_90pct_m").unwrap();
     for r in &rows {
         println!("{}", r.join(" "));
+        // Empty (never), or a frame of the sequence.
+        assert!(
+            r[reach].is_empty() || r[reach].parse::<usize>().is_ok_and(|f| f < FRAMES),
+            "{r:?}"
+        );
     }
     let html = std::fs::read_to_string(out.join("report.html")).unwrap();
     assert!(html.contains("From the start") && html.contains("emulated"));

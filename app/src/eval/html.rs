@@ -138,9 +138,11 @@ fn seams_headline(r: &Results) -> String {
 fn start_headline(r: &Results) -> String {
     let mut h = String::from(
         "<h3>From the start: frames to settle within 0.1 EV (median over cameras; cameras that \
-         never settled), largest overshoot (EV), flicker at rest (mean and largest step of log2 E \
-         from frame to frame, EV)</h3>\n<table><tr><th>strategy</th><th>frames to settle</th>\
-         <th>never settled</th><th>overshoot</th><th>flicker, mean</th><th>flicker, largest</th></tr>\n",
+         never settled), frames until M stays at 90 % of the best or more (largest over cameras; \
+         cameras that never did), largest overshoot (EV), flicker at rest (mean and largest step \
+         of log2 E from frame to frame, EV)</h3>\n<table><tr><th>strategy</th>\
+         <th>frames to settle</th><th>never settled</th><th>frames to 90 % of the best M</th>\
+         <th>never</th><th>overshoot</th><th>flicker, mean</th><th>flicker, largest</th></tr>\n",
     );
     for s in EvalStrategy::ALL {
         let rows: Vec<_> = r.start.iter().filter(|x| x.strategy == s).collect();
@@ -154,6 +156,9 @@ fn start_headline(r: &Results) -> String {
             .collect();
         let never = rows.len() - settle.len();
         let settle = crate::report::quantile(&mut settle, 0.5);
+        let reach: Vec<usize> = rows.iter().filter_map(|x| x.reach_frames).collect();
+        let never_reach = rows.len() - reach.len();
+        let reach = reach.iter().max().map_or(f64::NAN, |&f| f as f64);
         let max = |f: fn(&super::start::StartRow) -> f64| {
             rows.iter()
                 .map(|x| f(x))
@@ -167,9 +172,11 @@ fn start_headline(r: &Results) -> String {
             .collect();
         let _ = writeln!(
             h,
-            "<tr><td>{}</td><td>{}</td><td>{never}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+            "<tr><td>{}</td><td>{}</td><td>{never}</td><td>{}</td><td>{never_reach}</td>\
+             <td>{}</td><td>{}</td><td>{}</td></tr>",
             swatch(s),
             num(settle, 0),
+            num(reach, 0),
             num(max(|x| x.overshoot_ev), 2),
             num(crate::report::mean(&flicker), 3),
             num(max(|x| x.flicker_max_ev), 3)

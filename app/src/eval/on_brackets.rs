@@ -224,7 +224,11 @@ pub fn run(plan: &Plan, dir: &Path, mode: BracketMode, out: &Path) -> Result<Res
             stereo_views
                 .extend(meter.stereo_views(NAME, strategy, &names, |set| !trace.probe_set(set)));
         }
-        start.extend(StartRow::of(strategy, &trace, &names));
+        start.extend(StartRow::of(strategy, &trace, &names, |cam, log2_e| {
+            sweeps.get(cam).map(|s| {
+                s.sweep.score_at(log2_e.exp2()) / s.sweep.best_score.max(f64::MIN_POSITIVE)
+            })
+        }));
         if let Some(view) = &view {
             let canvas = trace
                 .canvas
