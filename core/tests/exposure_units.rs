@@ -10,7 +10,7 @@
 
 use rigview_core::exposure::balance::{self, NeighbourGraph, PatchPair};
 use rigview_core::exposure::baselines::{MeanIntensityParams, PidParams, PidState};
-use rigview_core::exposure::estimator::{fit, fit_in, AnchorScore, FitVariable, Polynomial};
+use rigview_core::exposure::estimator::{fit, fit_in, AnchorScore, Bound, FitVariable, Polynomial};
 use rigview_core::exposure::laws::{linear_ratio, nonlinear_r, nonlinear_ratio};
 use rigview_core::exposure::metering::SATURATED_LEVEL;
 use rigview_core::exposure::split::{Clamped, ExposureRange, SplitParams, Splitter};
@@ -1034,11 +1034,16 @@ fn reference_frame_size_and_roi_mask() {
 
 #[test]
 fn the_controller_commands_every_frame_and_never_reacts_twice() {
-    // Eq. 4: a step anchored to the frame it was computed from.
+    // Eq. 4 under the γ-mapping: a step anchored to the frame it was
+    // computed from.
     let config = ControllerConfig {
         balancing: None,
         law: LawParams {
             kind: LawKind::Nonlinear,
+            ..Default::default()
+        },
+        estimator: EstimatorConfig {
+            simulation: Simulation::Gamma,
             ..Default::default()
         },
         ..Default::default()
@@ -1067,6 +1072,62 @@ fn the_controller_commands_every_frame_and_never_reacts_twice() {
     let u = cam.unary(&config, &at(2, cmd.shutter_us), &shown).unwrap();
     assert_eq!(u.hold, None);
     assert_eq!(cam.in_flight(), 0);
+}
+
+#[test]
+fn under_scale_and_clip_the_law_goes_on_from_the_command_in_flight() {
+    // Eq. 4 under scale-and-clip: ŝ places the fixed point, so a frame
+    // taken before the first command showed applies the law again from
+    // where that command leaves the camera, as the estimate sees it from
+    // there, and never past the fixed point the frame shows.
+    let config = ControllerConfig {
+        balancing: None,
+        probe: None,
+        law: LawParams {
+            kind: LawKind::Nonlinear,
+            ..Default::default()
+        },
+        estimator: EstimatorConfig {
+            simulation: Simulation::ScaleClip,
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    let dark = metered_scene(1500.0);
+    let mut cam = CameraController::new(&config, ExposureRange::default()).unwrap();
+    let u = cam.unary(&config, &at(0, 1500.0), &dark).unwrap();
+    let e = u.estimate.clone().unwrap();
+    // The estimate is ahead of the law's step: more than one step away.
+    let first = u.desired;
+    let law = config.law.ratio(&e, dark.stats());
+    assert!(
+        close(first, 1500.0 * law, 1e-9),
+        "{first} against {}",
+        1500.0 * law
+    );
+    assert!(
+        e.x_hat > law * law,
+        "ŝ {} and the law's ratio {law}",
+        e.x_hat
+    );
+    let (cmd, _) = cam.command(first, at(0, 1500.0).taken);
+    assert!(cmd.is_some());
+    let u = cam.unary(&config, &at(1, 1500.0), &dark).unwrap();
+    let e1 = u.estimate.clone().unwrap();
+    let best = 1500.0 * e1.x_hat;
+    let expected = first * nonlinear_ratio(1.0, 0.8, first / best);
+    assert!(
+        close(u.desired, expected, 1e-9),
+        "{} against {expected}",
+        u.desired
+    );
+    assert!(u.desired > first && u.desired < best);
+    let (again, _) = cam.command(u.desired, at(1, 1500.0).taken);
+    assert!(
+        again.is_some(),
+        "the law goes on from the command in flight"
+    );
+    assert_eq!(cam.in_flight(), 2);
 }
 
 #[test]
@@ -1778,4 +1839,38 @@ fn balancing_reads_overlap_ratios_as_light_through_tone_curves() {
             "camera {k}: the recorded ratio alone moves it the same: {linear_137:?}"
         );
     }
+}
+
+/// Scale-and-clip brightens exactly, so where its maximiser sits at the
+/// brightest anchor it searches span after span beyond it: a frame 3 EV
+/// under the fixed point is placed there, not at the first span's end
+/// (1.9² ≈ 3.6), and the laws take the step that distance asks for.
+#[test]
+fn scale_and_clip_searches_span_after_span_beyond_its_brightest_anchor() {
+    let mut s = Estimator::new(EstimatorConfig {
+        simulation: Simulation::ScaleClip,
+        ..Default::default()
+    })
+    .unwrap();
+    // The fixed point, found from near it.
+    let mut e = 20000.0;
+    for _ in 0..6 {
+        let est = s.estimate(&metered_scene(e)).unwrap();
+        e *= est.x_hat;
+    }
+    let near = s.estimate(&metered_scene(e)).unwrap();
+    assert!(near.x_hat.log2().abs() < 0.05, "{}", near.x_hat);
+    let dark = metered_scene(e / 8.0);
+    let plain = s.estimate(&dark).unwrap();
+    assert_eq!(plain.at_bound, Some(Bound::Upper));
+    let options = EstimateOptions {
+        extend: true,
+        ..Default::default()
+    };
+    let far = s.estimate_with(&dark, options).unwrap();
+    println!("fixed point {e:.0} µs; from 3 EV under: ŝ {:.2}", far.x_hat);
+    assert!(far.extended && far.at_bound.is_none(), "{far:?}");
+    assert!((far.x_hat.log2() - 3.0).abs() < 0.3, "ŝ {}", far.x_hat);
+    assert!(far.x_hat > 1.9f64.powi(2));
+    assert!((far.gamma_hat - 1.0 / far.x_hat).abs() < 1e-12);
 }

@@ -473,6 +473,12 @@ impl CameraController {
         let base = self.base(info.taken).exposure();
         let needs_estimate = matches!(config.mode, ControlMode::Gradient | ControlMode::Pid);
         let wants_slope = config.mode == ControlMode::Gradient && config.law.kind == LawKind::Fast;
+        // Every gradient law under scale-and-clip searches beyond the
+        // brightest anchor (span after span, where brightening is exact):
+        // γ̂ at the anchors' end (0.53) asks a law for 0.44–0.56 EV a step
+        // wherever the best lies; the distance searched asks for more.
+        let extends_up = config.mode == ControlMode::Gradient
+            && self.estimator.config().simulation == Simulation::ScaleClip;
         // Mostly saturated frames under scale-and-clip start a
         // reacquisition: the camera probes with a ladder where it rests
         // again.
@@ -582,7 +588,7 @@ impl CameraController {
                 EstimateOptions {
                     slope: wants_slope,
                     darker,
-                    extend: wants_slope,
+                    extend: wants_slope || extends_up,
                     ..Default::default()
                 },
             )?;
@@ -624,6 +630,13 @@ impl CameraController {
                 )
             }
             _ => LawStep::Relative(1.0),
+        };
+        // On fixed levels the walker adds up what each frame asks: a step
+        // from the commands in flight would count them twice.
+        let step = if self.walker.is_some() {
+            step.anchored()
+        } else {
+            step
         };
         // Under the camera's own law, between frames that do not ask
         // towards each other.

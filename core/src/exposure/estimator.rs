@@ -228,13 +228,21 @@ pub struct EstimateOptions<'a> {
     /// Where the maximiser sits at an end of the anchors' span, search
     /// once more beyond it: on the image mapped by the end anchor, with the
     /// same anchors, whose estimate composes with it (`(I^a)^b = I^(ab)`,
-    /// `min(1, b·min(1, a·I)) = min(1, ab·I)` for `a, b ≥ 1`). This covers
-    /// the squared span (about ±1.9 EV by default) where a change of light
-    /// left the camera far from its best exposure. Scale-and-clip
-    /// searches beyond its upper end only: below its lower end, darkening
-    /// rests on assumptions about the saturated pixels.
+    /// `min(1, b·min(1, a·I)) = min(1, ab·I)` for `a, b ≥ 1`). The
+    /// γ-mapping searches one span further (about ±1.9 EV by default),
+    /// where a change of light left the camera far from its best exposure.
+    /// Scale-and-clip searches beyond its upper end only, span after span
+    /// while the maximiser stays at the end, up to [`EXTEND_SPANS`] (1.9⁴,
+    /// 3.7 EV by default): brightening is simulated exactly, whereas
+    /// below its lower end darkening rests on assumptions about the
+    /// saturated pixels.
     pub extend: bool,
 }
+
+/// How many spans beyond its brightest anchor scale-and-clip searches
+/// ([`EstimateOptions::extend`]): with the default anchors, up to 1.9⁴ ≈ 13
+/// (3.7 EV).
+pub const EXTEND_SPANS: usize = 3;
 
 /// Computes [`Estimate`]s; holds buffers reused from frame to frame.
 #[derive(Clone, Debug)]
@@ -759,34 +767,50 @@ impl Estimator {
             Bound::Lower => lo,
             Bound::Upper => hi,
         };
-        let e = end as f32;
-        let mapped = match self.config.simulation {
-            Simulation::Gamma => map_luma(image, |v| v.powf(e))?,
-            Simulation::ScaleClip => match self.tone.clone() {
-                Some(c) => {
-                    let e = f64::from(e);
-                    map_luma(image, |v| {
-                        c.recorded((e * c.linear(f64::from(v))).min(1.0)) as f32
-                    })?
-                }
-                None => map_luma(image, |v| (v * e).min(1.0))?,
-            },
+        // Scale-and-clip brightens exactly, so it searches span after
+        // span while the maximiser stays at the upper end.
+        let spans = match self.config.simulation {
+            Simulation::Gamma => 1,
+            Simulation::ScaleClip => EXTEND_SPANS,
         };
-        let beyond = self.estimate_inner(&mapped, false, None)?;
-        // The second search answers only if it looks further out: at its
-        // end towards the first search it would say the first end itself.
         let back = match bound {
             Bound::Lower => Bound::Upper,
             Bound::Upper => Bound::Lower,
         };
-        if beyond.flat || beyond.at_bound == Some(back) {
-            return Ok(());
+        let mut base = 1.0;
+        let mut current: Option<Metered> = None;
+        for _ in 0..spans {
+            let e = end as f32;
+            let from = current.as_ref().unwrap_or(image);
+            let mapped = match self.config.simulation {
+                Simulation::Gamma => map_luma(from, |v| v.powf(e))?,
+                Simulation::ScaleClip => match self.tone.clone() {
+                    Some(c) => {
+                        let e = f64::from(e);
+                        map_luma(from, |v| {
+                            c.recorded((e * c.linear(f64::from(v))).min(1.0)) as f32
+                        })?
+                    }
+                    None => map_luma(from, |v| (v * e).min(1.0))?,
+                },
+            };
+            base *= end;
+            let beyond = self.estimate_inner(&mapped, false, None)?;
+            // The next search answers only if it looks further out: at its
+            // end towards the last search it would say that end itself.
+            if beyond.flat || beyond.at_bound == Some(back) {
+                break;
+            }
+            let x = base * beyond.x_hat;
+            estimate.x_hat = x;
+            estimate.gamma_hat = self.config.simulation.gamma_equivalent(x);
+            estimate.at_bound = beyond.at_bound;
+            estimate.extended = true;
+            if beyond.at_bound.is_none() {
+                break;
+            }
+            current = Some(mapped);
         }
-        let x = end * beyond.x_hat;
-        estimate.x_hat = x;
-        estimate.gamma_hat = self.config.simulation.gamma_equivalent(x);
-        estimate.at_bound = beyond.at_bound;
-        estimate.extended = true;
         Ok(())
     }
 }

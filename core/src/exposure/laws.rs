@@ -30,7 +30,10 @@
 //!     default), which absorbs estimation noise without a visible overshoot.
 //!
 //! In all laws `α = 1/2` when `γ̂ ≥ 1` and `α = 1` when `γ̂ < 1`, and every
-//! law bounds the change per frame to `[1/max_step, max_step]`. Under a
+//! law bounds the change per frame to `[1/max_step, max_step]`. Under
+//! scale-and-clip, while `ŝ` puts the fixed point [`AHEAD_MIN_EV`] or more
+//! away, the linear and nonlinear laws go on from where the commands in
+//! flight will leave the camera ([`LawStep::Ahead`]), as the fast law does. Under a
 //! camera's own law, where two frames of one scene do not ask towards each
 //! other (each stays on its side of their midpoint), the controller
 //! follows the one with more gradient information
@@ -144,8 +147,31 @@ impl LawParams {
             // At an end of the span the best exposure lies beyond what the
             // estimate sees: the whole step, undamped.
             LawKind::Fast => LawStep::AtLeast(self.bound(fast_ratio(1.0, estimate, stats))),
+            // Scale-and-clip's ŝ is the ratio to the estimator's fixed
+            // point, which lets the law be applied again from where the
+            // commands in flight will leave the camera, while that is far.
+            LawKind::Linear | LawKind::Nonlinear
+                if estimate.simulation == Simulation::ScaleClip
+                    && !estimate.flat
+                    && estimate.x_hat > 0.0
+                    && estimate.x_hat.log2().abs() >= AHEAD_MIN_EV =>
+            {
+                LawStep::Ahead {
+                    ratio: self.ratio(estimate, stats),
+                    best: estimate.x_hat,
+                }
+            }
             LawKind::Linear | LawKind::Nonlinear => LawStep::Relative(self.ratio(estimate, stats)),
         }
+    }
+
+    /// Eq. 3 or Eq. 4 at `gamma_hat`, bounded (the fast law: 1).
+    fn paper_ratio(&self, gamma_hat: f64) -> f64 {
+        self.bound(match self.kind {
+            LawKind::Linear => linear_ratio(self.kp, gamma_hat),
+            LawKind::Nonlinear => nonlinear_ratio(self.kp, self.d, gamma_hat),
+            LawKind::Fast => 1.0,
+        })
     }
 
     /// The exposure to command next, for a frame taken at `taken` and
@@ -160,6 +186,15 @@ impl LawParams {
     ///   for the step on top of it.
     /// - [`LawStep::AtLeast`]: as `Relative`, except that commands in flight
     ///   that already go further that way stand.
+    /// - [`LawStep::Ahead`]: as `Relative` with nothing in flight. With
+    ///   commands in flight, the law is applied where they leave the
+    ///   camera, to the estimate as seen from there: the fixed point at
+    ///   `best · taken / base` of `base`, so `base` times the law's ratio
+    ///   at `γ̂ = base / (best · taken)`; when the commands in flight reach
+    ///   the fixed point already (or go past it), they stand. Without
+    ///   this, a camera whose commands take two frames to show steps only
+    ///   every other frame: the frame before a command shows asks for the
+    ///   same exposure again.
     /// - [`LawStep::Predicted`]: the best exposure is `taken · ratio`; the
     ///   command moves `damping` of the way there from `base`, in log
     ///   exposure (times [`FAST_SMALL_DAMPING`] between [`FAST_SMALL_MIN_EV`]
@@ -170,6 +205,19 @@ impl LawParams {
     pub fn next_exposure(&self, step: LawStep, taken: f64, base: f64, damp_small: bool) -> f64 {
         match step {
             LawStep::Relative(r) => taken * r,
+            LawStep::Ahead { ratio, .. } if (base / taken).ln().abs() < 1e-12 => taken * ratio,
+            LawStep::Ahead { ratio, best } => {
+                let ahead = best * taken / base;
+                if ahead.ln() * ratio.ln() <= 0.0 {
+                    // (A step that the commands in flight already went
+                    // past: the frame's own step, as with `Relative`.)
+                    if (base / (taken * ratio)).ln() * ratio.ln() >= 0.0 {
+                        return base;
+                    }
+                    return taken * ratio;
+                }
+                base * self.paper_ratio(1.0 / ahead)
+            }
             LawStep::AtLeast(r) => {
                 let target = taken * r;
                 if (base / target).ln() * r.ln() > 0.0 {
@@ -205,7 +253,19 @@ impl LawStep {
     /// the ratio to the frame's exposure.
     pub fn frame_ev(self) -> f64 {
         match self {
-            Self::Relative(r) | Self::AtLeast(r) | Self::Predicted { ratio: r } => r.log2(),
+            Self::Relative(r)
+            | Self::AtLeast(r)
+            | Self::Predicted { ratio: r }
+            | Self::Ahead { ratio: r, .. } => r.log2(),
+        }
+    }
+
+    /// The step anchored to the frame: [`LawStep::Ahead`] as
+    /// [`LawStep::Relative`], every other step as it is.
+    pub fn anchored(self) -> Self {
+        match self {
+            Self::Ahead { ratio, .. } => Self::Relative(ratio),
+            other => other,
         }
     }
 
@@ -214,7 +274,9 @@ impl LawStep {
     pub fn with_frame_ev(self, ev: f64) -> Self {
         let r = ev.exp2();
         match self {
-            Self::Relative(_) => Self::Relative(r),
+            // (A step the repeller moved is its own, from the frame.)
+            Self::Ahead { ratio, .. } if (ratio.log2() - ev).abs() < 1e-12 => self,
+            Self::Relative(_) | Self::Ahead { .. } => Self::Relative(r),
             Self::AtLeast(_) => Self::AtLeast(r),
             Self::Predicted { .. } => Self::Predicted { ratio: r },
         }
@@ -229,6 +291,16 @@ pub enum LawStep {
     /// Move at least to `ratio` times the frame's exposure: the best
     /// exposure lies beyond what the estimate can see.
     AtLeast(f64),
+    /// The linear or nonlinear law's step `ratio` from the frame, whose
+    /// estimate puts the fixed point at `best` times the frame's exposure
+    /// (scale-and-clip's ŝ): [`LawParams::next_exposure`] applies the law
+    /// again from where the commands in flight leave the camera.
+    Ahead {
+        /// The law's ratio at the frame.
+        ratio: f64,
+        /// The estimator's fixed point over the frame's exposure.
+        best: f64,
+    },
     /// The best exposure is predicted at `ratio` times the frame's
     /// exposure.
     Predicted {
@@ -282,6 +354,13 @@ pub const FAST_SMALL_MIN_EV: f64 = 0.03;
 
 /// The share of a small correction ([`FAST_SMALL_EV`]) the fast law makes.
 pub const FAST_SMALL_DAMPING: f64 = 0.5;
+
+/// The linear and nonlinear laws go on from the commands in flight
+/// ([`LawStep::Ahead`]) only while scale-and-clip puts the fixed point this
+/// far (EV) from the frame: closer, two commands per frame of latency
+/// would double the loop's gain where the estimate's own noise (up to
+/// ±0.15 EV frame to frame at full resolution) is what it follows.
+pub const AHEAD_MIN_EV: f64 = 0.5;
 
 /// Mean intensity the fast law aims for when the estimate is at a bound.
 pub const FAST_MEAN_TARGET: f64 = 0.45;
@@ -339,4 +418,81 @@ pub fn fast_ratio(damping: f64, estimate: &Estimate, stats: &ImageStats) -> f64 
         (false, _) => predicted,
     };
     predicted.powf(damping)
+}
+
+#[cfg(test)]
+#[allow(clippy::float_cmp)]
+mod tests {
+    use super::*;
+
+    fn nonlinear() -> LawParams {
+        LawParams {
+            kind: LawKind::Nonlinear,
+            ..Default::default()
+        }
+    }
+
+    #[test]
+    fn ahead_with_nothing_in_flight_is_the_frames_own_step() {
+        let law = nonlinear();
+        let step = LawStep::Ahead {
+            ratio: 1.5,
+            best: 8.0,
+        };
+        assert_eq!(law.next_exposure(step, 1000.0, 1000.0, true), 1500.0);
+    }
+
+    #[test]
+    fn ahead_goes_on_from_the_commands_in_flight_towards_the_frames_fixed_point() {
+        let law = nonlinear();
+        // Brighter: the fixed point at 8000, a command in flight to 1500.
+        let step = LawStep::Ahead {
+            ratio: 1.5,
+            best: 8.0,
+        };
+        let next = law.next_exposure(step, 1000.0, 1500.0, true);
+        let expected = 1500.0 * nonlinear_ratio(1.0, 0.8, 1500.0 / 8000.0);
+        assert!((next - expected).abs() < 1e-9, "{next} against {expected}");
+        assert!(next > 1500.0 && next < 8000.0);
+        // Darker, the same way.
+        let step = LawStep::Ahead {
+            ratio: 0.8,
+            best: 0.55,
+        };
+        let next = law.next_exposure(step, 1000.0, 800.0, true);
+        let expected = 800.0 * nonlinear_ratio(1.0, 0.8, 800.0 / 550.0);
+        assert!((next - expected).abs() < 1e-9, "{next} against {expected}");
+        assert!(next < 800.0 && next > 550.0);
+    }
+
+    #[test]
+    fn ahead_never_passes_the_fixed_point_nor_steps_back_from_a_command_past_it() {
+        let law = LawParams {
+            kind: LawKind::Linear,
+            ..Default::default()
+        };
+        // In flight to 1300, the frame's fixed point at 1200: the command
+        // stands (no step back from the frame's own 1150).
+        let step = LawStep::Ahead {
+            ratio: 1.15,
+            best: 1.2,
+        };
+        assert_eq!(law.next_exposure(step, 1000.0, 1300.0, true), 1300.0);
+        // Far ahead, with any in-flight command short of it, the step stays
+        // short of the fixed point.
+        for base in [1001.0, 1100.0, 1190.0, 1199.0] {
+            let next = law.next_exposure(step, 1000.0, base, true);
+            assert!(next > base && next <= 1200.0, "{base}: {next}");
+        }
+    }
+
+    #[test]
+    fn a_step_the_repeller_moves_is_the_frames_own() {
+        let step = LawStep::Ahead {
+            ratio: 1.5,
+            best: 8.0,
+        };
+        assert_eq!(step.with_frame_ev(1.5f64.log2()), step);
+        assert_eq!(step.with_frame_ev(0.25), LawStep::Relative(0.25f64.exp2()));
+    }
 }
