@@ -1074,13 +1074,9 @@ fn the_controller_commands_every_frame_and_never_reacts_twice() {
     assert_eq!(cam.in_flight(), 0);
 }
 
-#[test]
-fn under_scale_and_clip_the_law_goes_on_from_the_command_in_flight() {
-    // Eq. 4 under scale-and-clip: ŝ places the fixed point, so a frame
-    // taken before the first command showed applies the law again from
-    // where that command leaves the camera, as the estimate sees it from
-    // there, and never past the fixed point the frame shows.
-    let config = ControllerConfig {
+/// A camera alone under Eq. 4, without probes.
+fn nonlinear_alone(simulation: Simulation) -> ControllerConfig {
+    ControllerConfig {
         balancing: None,
         probe: None,
         law: LawParams {
@@ -1088,11 +1084,20 @@ fn under_scale_and_clip_the_law_goes_on_from_the_command_in_flight() {
             ..Default::default()
         },
         estimator: EstimatorConfig {
-            simulation: Simulation::ScaleClip,
+            simulation,
             ..Default::default()
         },
         ..Default::default()
-    };
+    }
+}
+
+#[test]
+fn under_scale_and_clip_the_law_goes_on_from_the_command_in_flight() {
+    // Eq. 4 under scale-and-clip: ŝ places the fixed point, so a frame
+    // taken before the first command showed applies the law again from
+    // where that command leaves the camera, as the estimate sees it from
+    // there, and never past the fixed point the frame shows.
+    let config = nonlinear_alone(Simulation::ScaleClip);
     let dark = metered_scene(1500.0);
     let mut cam = CameraController::new(&config, ExposureRange::default()).unwrap();
     let u = cam.unary(&config, &at(0, 1500.0), &dark).unwrap();
@@ -1873,4 +1878,31 @@ fn scale_and_clip_searches_span_after_span_beyond_its_brightest_anchor() {
     assert!((far.x_hat.log2() - 3.0).abs() < 0.3, "ŝ {}", far.x_hat);
     assert!(far.x_hat > 1.9f64.powi(2));
     assert!((far.gamma_hat - 1.0 / far.x_hat).abs() < 1e-12);
+}
+
+/// A mostly saturated frame under scale-and-clip says the best lies below
+/// where the commands in flight will leave the camera too: the next frame
+/// taken before the first command showed steps on from it (the
+/// mean-intensity fallback's step, again), where the γ-mapping's waits.
+#[test]
+fn a_saturated_frame_steps_on_from_the_command_in_flight_under_scale_and_clip() {
+    for (simulation, compounds) in [(Simulation::ScaleClip, true), (Simulation::Gamma, false)] {
+        let config = nonlinear_alone(simulation);
+        let e = 400_000.0;
+        let bright = metered_scene(e);
+        assert!(bright.stats().saturated_fraction > 0.8);
+        let mut cam = CameraController::new(&config, ExposureRange::default()).unwrap();
+        let u = cam.unary(&config, &at(0, e), &bright).unwrap();
+        assert!(u.fallback);
+        let first = u.desired;
+        assert!(first < e);
+        cam.command(first, at(0, e).taken);
+        let u = cam.unary(&config, &at(1, e), &bright).unwrap();
+        let expected = if compounds { first * first / e } else { first };
+        assert!(
+            close(u.desired, expected, 1e-9),
+            "{simulation:?}: {} against {expected}",
+            u.desired
+        );
+    }
 }

@@ -618,7 +618,23 @@ impl CameraController {
                     && (e.flat || stats.saturated_fraction > SATURATED_FALLBACK) =>
             {
                 fallback = true;
-                LawStep::Relative(config.law.bound(config.mean.ratio(f64::from(stats.mean))))
+                let ratio = config.law.bound(config.mean.ratio(f64::from(stats.mean)));
+                // A mostly saturated frame under scale-and-clip: the best
+                // lies below what the commands in flight will show too, so
+                // they are followed by the same step.
+                if config.mode == ControlMode::Gradient
+                    && e.simulation == Simulation::ScaleClip
+                    && stats.saturated_fraction > SATURATED_FALLBACK
+                    && ratio < 1.0
+                {
+                    LawStep::Ahead {
+                        ratio,
+                        best: ratio,
+                        beyond: true,
+                    }
+                } else {
+                    LawStep::Relative(ratio)
+                }
             }
             (ControlMode::Gradient, Some(e)) => config.law.step(e, stats),
             // (A probe frame is the prober's, not the integral's.)

@@ -159,6 +159,7 @@ impl LawParams {
                 LawStep::Ahead {
                     ratio: self.ratio(estimate, stats),
                     best: estimate.x_hat,
+                    beyond: false,
                 }
             }
             LawKind::Linear | LawKind::Nonlinear => LawStep::Relative(self.ratio(estimate, stats)),
@@ -206,7 +207,14 @@ impl LawParams {
         match step {
             LawStep::Relative(r) => taken * r,
             LawStep::Ahead { ratio, .. } if (base / taken).ln().abs() < 1e-12 => taken * ratio,
-            LawStep::Ahead { ratio, best } => {
+            // The best lies beyond what the frame shows: the commands in
+            // flight have not reached it yet either.
+            LawStep::Ahead {
+                ratio,
+                beyond: true,
+                ..
+            } => base * ratio,
+            LawStep::Ahead { ratio, best, .. } => {
                 let ahead = best * taken / base;
                 if ahead.ln() * ratio.ln() <= 0.0 {
                     // (A step that the commands in flight already went
@@ -300,6 +308,13 @@ pub enum LawStep {
         ratio: f64,
         /// The estimator's fixed point over the frame's exposure.
         best: f64,
+        /// Set when the best lies beyond what the frame shows at all (a
+        /// mostly saturated frame's step down, which the controller sets):
+        /// the commands in flight are followed by the same step. (An
+        /// estimate at an end of its span is not such a frame: followed by
+        /// the same step, the linear law on a pair's whole frames, sky and
+        /// all, ran 2 EV past its best and kept 24 % of it.)
+        beyond: bool,
     },
     /// The best exposure is predicted at `ratio` times the frame's
     /// exposure.
@@ -438,6 +453,7 @@ mod tests {
         let step = LawStep::Ahead {
             ratio: 1.5,
             best: 8.0,
+            beyond: false,
         };
         assert_eq!(law.next_exposure(step, 1000.0, 1000.0, true), 1500.0);
     }
@@ -449,6 +465,7 @@ mod tests {
         let step = LawStep::Ahead {
             ratio: 1.5,
             best: 8.0,
+            beyond: false,
         };
         let next = law.next_exposure(step, 1000.0, 1500.0, true);
         let expected = 1500.0 * nonlinear_ratio(1.0, 0.8, 1500.0 / 8000.0);
@@ -458,6 +475,7 @@ mod tests {
         let step = LawStep::Ahead {
             ratio: 0.8,
             best: 0.55,
+            beyond: false,
         };
         let next = law.next_exposure(step, 1000.0, 800.0, true);
         let expected = 800.0 * nonlinear_ratio(1.0, 0.8, 800.0 / 550.0);
@@ -476,6 +494,7 @@ mod tests {
         let step = LawStep::Ahead {
             ratio: 1.15,
             best: 1.2,
+            beyond: false,
         };
         assert_eq!(law.next_exposure(step, 1000.0, 1300.0, true), 1300.0);
         // Far ahead, with any in-flight command short of it, the step stays
@@ -491,6 +510,7 @@ mod tests {
         let step = LawStep::Ahead {
             ratio: 1.5,
             best: 8.0,
+            beyond: false,
         };
         assert_eq!(step.with_frame_ev(1.5f64.log2()), step);
         assert_eq!(step.with_frame_ev(0.25), LawStep::Relative(0.25f64.exp2()));
