@@ -254,7 +254,7 @@ impl Outline {
 
 /// The vehicle model as triangles: per vertex its position, the face's
 /// normal and the colour (linear RGB, 0–1) with its opacity, lit by the
-/// renderer as [`super::vehicle`] lights it.
+/// renderer as `bowl::vehicle` lights it.
 #[derive(Clone, Debug, Default)]
 pub struct VehicleTriangles {
     /// Three vertices a triangle: position, normal, colour and opacity.

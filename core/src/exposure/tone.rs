@@ -167,7 +167,7 @@ impl ToneCurve {
     /// the recorded value is `lut(gamma(L))`. The
     /// table's outputs must not fall (a falling table has no inverse: the
     /// error names `LUTValue`); recorded values below its first output are
-    /// black and above its last full light. A table of [`TABLE_BINS`] light
+    /// black and above its last full light. A table of `TABLE_BINS` light
     /// values at evenly spaced recorded values; `None` where the table and
     /// the gamma change nothing.
     pub fn from_genicam_lut(lut: &[(f64, f64)], gamma: Option<&Self>) -> Result<Option<Self>> {

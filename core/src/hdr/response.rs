@@ -31,7 +31,7 @@ pub enum Response {
     Curve {
         /// The linear value of each code 0..=255.
         inverse: Vec<f32>,
-        /// The code nearest each of [`FORWARD_BINS`] linear values evenly
+        /// The code nearest each of `FORWARD_BINS` linear values evenly
         /// spaced over `[0, 255]`.
         forward: Vec<u8>,
     },

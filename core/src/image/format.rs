@@ -65,7 +65,7 @@ const BAYER: [[PixelFormat; 3]; 4] = [
     ],
 ];
 
-/// The colour orders' names, as [`BAYER`]'s rows.
+/// The colour orders' names, as `BAYER`'s rows.
 pub const BAYER_PATTERNS: [&str; 4] = ["RGGB", "GRBG", "GBRG", "BGGR"];
 
 impl PixelFormat {

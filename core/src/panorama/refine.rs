@@ -147,7 +147,7 @@ impl Panorama {
     /// rig, which [`Panorama::refine_rays`] refines from, and which can be
     /// pooled with other frame sets' ([`InlierRays::extend`]).
     ///
-    /// Where most inliers (at least [`ALIGNED_SHARE`]) were aligned by
+    /// Where most inliers (at least `ALIGNED_SHARE`) were aligned by
     /// their patches, the cameras see the overlaps alike enough for patches
     /// to tell, and only the aligned ones are taken: an inlier whose
     /// patches do not align is then likely no single scene point (an edge

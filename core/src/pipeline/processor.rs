@@ -300,7 +300,7 @@ impl Processor {
         Ok(())
     }
 
-    /// Uses a new calibration (see [`Control::Calibration`]).
+    /// Uses a new calibration (see [`super::settings::Control::Calibration`]).
     pub fn set_calibration(&mut self, view: Option<View>, graph: NeighbourGraph) -> Result<()> {
         if let Some(v) = &view {
             check_view(v.mosaic(), &self.cameras)?;

@@ -53,15 +53,15 @@ pub struct ControllerConfig {
     /// Frames to wait for a command to show before reacting anyway.
     pub latency_timeout_frames: u32,
     /// Probing darker where saturation hides what darkening would show
-    /// ([`super::probe`]), for cameras under their own gradient law
+    /// ([`crate::exposure::probe`]), for cameras under their own gradient law
     /// (`None`: never).
     #[serde(default = "default_probe")]
     pub probe: Option<ProbeParams>,
     /// The bracket that keeps a camera's own law from circling
-    /// ([`super::bracket`]).
+    /// ([`crate::exposure::bracket`]).
     pub bracket: BracketParams,
     /// Following a uniform change of light measured against a reference
-    /// frame ([`super::light`]), under every gradient law (`None`: never).
+    /// frame ([`crate::exposure::light`]), under every gradient law (`None`: never).
     #[serde(default = "default_light")]
     pub light: Option<LightParams>,
 }

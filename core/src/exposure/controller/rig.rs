@@ -65,7 +65,7 @@ pub struct CameraStep {
     /// Whether the mean-intensity fallback replaced an empty metric.
     pub fallback: bool,
     /// What a probe (darker or brighter) did on this frame
-    /// ([`super::probe`]).
+    /// ([`crate::exposure::probe`]).
     pub probe: Option<ProbeEvent>,
     /// Whether the frame was taken at a probe's exposure.
     pub probe_frame: bool,

@@ -70,7 +70,7 @@ pub struct EstimatorConfig {
     /// `M` of the highest are blended, near or far, and γ̂ is their
     /// weighted mean, so that it moves continuously as their heights
     /// cross; 0: the highest alone. No maximum counts higher than this band
-    /// above the anchors around it ([`Polynomial::argmax_supported`]).
+    /// above the anchors around it ([`super::Polynomial::argmax_supported`]).
     #[serde(default = "default_plateau")]
     pub plateau: f64,
     /// The cameras' tone curve, when their frames are not linear:
