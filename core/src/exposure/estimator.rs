@@ -777,22 +777,22 @@ impl Estimator {
             Bound::Lower => Bound::Upper,
             Bound::Upper => Bound::Lower,
         };
+        let e = end as f32;
+        // (Cloned once: the searches below borrow the estimator.)
+        let tone = self.tone.clone();
         let mut base = 1.0;
         let mut current: Option<Metered> = None;
         for _ in 0..spans {
-            let e = end as f32;
             let from = current.as_ref().unwrap_or(image);
-            let mapped = match self.config.simulation {
-                Simulation::Gamma => map_luma(from, |v| v.powf(e))?,
-                Simulation::ScaleClip => match self.tone.clone() {
-                    Some(c) => {
-                        let e = f64::from(e);
-                        map_luma(from, |v| {
-                            c.recorded((e * c.linear(f64::from(v))).min(1.0)) as f32
-                        })?
-                    }
-                    None => map_luma(from, |v| (v * e).min(1.0))?,
-                },
+            let mapped = match (self.config.simulation, &tone) {
+                (Simulation::Gamma, _) => map_luma(from, |v| v.powf(e))?,
+                (Simulation::ScaleClip, Some(c)) => {
+                    let e = f64::from(e);
+                    map_luma(from, |v| {
+                        c.recorded((e * c.linear(f64::from(v))).min(1.0)) as f32
+                    })?
+                }
+                (Simulation::ScaleClip, None) => map_luma(from, |v| (v * e).min(1.0))?,
             };
             base *= end;
             let beyond = self.estimate_inner(&mapped, false, None)?;
