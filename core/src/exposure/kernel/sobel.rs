@@ -42,6 +42,9 @@ pub(crate) struct Rows {
     exponent: Aligned<i32>,
     info: Aligned<f32>,
     column: Aligned<f32>,
+    /// The image row each ring slot holds (slot `r % 3` for row `r`),
+    /// `usize::MAX` for none.
+    tags: [usize; 3],
 }
 
 /// `Σ w·ln q` over the interior pixels of the `w×h` image `src` (0 when it
@@ -185,50 +188,65 @@ impl Rows {
         }
         self.sv.reset(w + 2 * MAX_LANES, 0.0);
         self.dv.reset(w + 2 * MAX_LANES, 0.0);
+        self.tags = [usize::MAX; 3];
     }
 
-    /// Maps the rows the first output row needs.
+    /// Maps whichever of rows `y − 1`, `y` and `y + 1` the ring does not
+    /// hold yet (going down the image row by row, only `y + 1`; after rows
+    /// left out, up to all three).
     #[inline(always)]
-    fn start<const FMA: bool>(&mut self, src: &Source<'_>, w: usize, scale: f32) {
-        src.map_row::<FMA>(0, w, scale, &mut self.ring[0]);
-        src.map_row::<FMA>(1, w, scale, &mut self.ring[1]);
+    fn ensure<const FMA: bool>(&mut self, src: &Source<'_>, w: usize, scale: f32, y: usize) {
+        for r in y - 1..=y + 1 {
+            let slot = r % 3;
+            if self.tags[slot] != r {
+                src.map_row::<FMA>(r, w, scale, &mut self.ring[slot]);
+                self.tags[slot] = r;
+            }
+        }
     }
 
-    /// Maps row `y + 1` into the ring.
+    /// The vertical Sobel passes centred on row `y` (rows `y ± 1` mapped)
+    /// over the columns `cols`: smoothing for ∂x into `sv`, difference for
+    /// ∂y into `dv`.
     #[inline(always)]
-    fn map_next<const FMA: bool>(&mut self, src: &Source<'_>, w: usize, scale: f32, y: usize) {
-        let [r0, r1, r2] = &mut self.ring;
-        let c = match (y + 1) % 3 {
-            0 => r0,
-            1 => r1,
-            _ => r2,
-        };
-        src.map_row::<FMA>(y + 1, w, scale, c);
-    }
-
-    /// Maps row `y + 1` and runs the vertical Sobel passes centred on row
-    /// `y`: smoothing for ∂x into `sv`, difference for ∂y into `dv`.
-    #[inline(always)]
-    fn advance<const FMA: bool>(&mut self, src: &Source<'_>, w: usize, scale: f32, y: usize) {
-        self.map_next::<FMA>(src, w, scale, y);
-        self.vertical::<FMA>(w, y);
-    }
-
-    /// The vertical Sobel passes centred on row `y` (rows `y ± 1` mapped).
-    #[inline(always)]
-    fn vertical<const FMA: bool>(&mut self, w: usize, y: usize) {
+    fn vertical<const FMA: bool>(&mut self, cols: std::ops::Range<usize>, y: usize) {
         let [a, b, c] = ring_rows(&self.ring, y);
-        for (((sv, dv), (&a, &b)), &c) in self
-            .sv
+        let (a, b, c) = (&a[cols.clone()], &b[cols.clone()], &c[cols.clone()]);
+        for (((sv, dv), (&a, &b)), &c) in self.sv[cols.clone()]
             .iter_mut()
-            .zip(self.dv.iter_mut())
-            .zip(a[..w].iter().zip(&b[..w]))
-            .zip(&c[..w])
+            .zip(self.dv[cols].iter_mut())
+            .zip(a.iter().zip(b))
+            .zip(c)
         {
             *sv = madd::<FMA>(2.0, b, a + c);
             *dv = c - a;
         }
     }
+}
+
+/// The interior pixels of a row that count, given their weights (`n` of
+/// them): `from..to`, `from` rounded down to a multiple of
+/// [`MAX_LANES`], `to` one past the last weight above 0; `0..0` when none
+/// is. Whole vectors are tested at a time.
+#[inline(always)]
+pub(super) fn counted_span(weight: &[f32]) -> (usize, usize) {
+    let (chunks, rest) = weight.as_chunks::<MAX_LANES>();
+    let any = |c: &[f32]| c.iter().fold(false, |any, &v| any | (v > 0.0));
+    let tail = chunks.len() * MAX_LANES;
+    let first = match chunks.iter().position(|c| any(c)) {
+        Some(k) => k * MAX_LANES,
+        None if any(rest) => tail,
+        None => return (0, 0),
+    };
+    let last = match rest.iter().rposition(|&v| v > 0.0) {
+        Some(i) => tail + i,
+        None => {
+            // Some chunk counts (`first` found one, and `rest` none).
+            let k = chunks.iter().rposition(|c| any(c)).unwrap_or(0);
+            k * MAX_LANES + chunks[k].iter().rposition(|&v| v > 0.0).unwrap_or(0)
+        }
+    };
+    (first, last + 1)
 }
 
 /// `q` of one pixel from its vertical passes.
@@ -248,12 +266,15 @@ trait Sink<const L: usize> {
     fn take(&mut self, x: usize, q: &[f32; L]);
 }
 
-/// Runs `sink.take(x, q)` over the `n` interior pixels of one row, `L` at a
-/// time, from its vertical passes (padded by at least `L + 2`).
+/// Runs `sink.take(x, q)` over the interior pixels `from..to` of one row
+/// of `n` (`from` a multiple of `L`), `L` at a time, from its vertical
+/// passes (padded by at least `L + 2`). The `q`s of pixels past `to` in
+/// the last vector are of whatever the passes hold there.
 #[inline(always)]
 fn for_each_q<const L: usize, const FMA: bool>(
     sv: &[f32],
     dv: &[f32],
+    (from, to): (usize, usize),
     n: usize,
     p: &Params,
     sink: &mut impl Sink<L>,
@@ -266,8 +287,16 @@ fn for_each_q<const L: usize, const FMA: bool>(
     let (d, _) = dv[1..span + 1].as_chunks::<L>();
     let (e, _) = dv[2..span + 2].as_chunks::<L>();
     let full = n / L;
-    let mut x = 0;
-    for ((((a, b), c), d), e) in a.iter().zip(b).zip(c).zip(d).zip(e).take(full) {
+    let (k0, k1) = (from / L, to.div_ceil(L).min(chunks));
+    let whole = k0..k1.min(full);
+    let mut x = whole.start * L;
+    for ((((a, b), c), d), e) in a[whole.clone()]
+        .iter()
+        .zip(&b[whole.clone()])
+        .zip(&c[whole.clone()])
+        .zip(&d[whole.clone()])
+        .zip(&e[whole.clone()])
+    {
         let mut q = [0.0f32; L];
         for l in 0..L {
             q[l] = q_of::<FMA>(a[l], b[l], c[l], d[l], e[l], p);
@@ -275,7 +304,8 @@ fn for_each_q<const L: usize, const FMA: bool>(
         sink.take(x, &q);
         x += L;
     }
-    if full < chunks {
+    if full < k1 {
+        let x = full * L;
         let rest = n - x;
         let mut q = [0.0f32; L];
         for l in 0..L {
@@ -444,19 +474,35 @@ impl Kernel for SumLnQ<'_> {
         });
         // The product passes fused on AVX-512 (no vertical pass rows).
         let fused = avx512 && log2.is_none() && (weight.is_none() || binary);
-        rows.start::<FMA>(&src, w, p.scale);
         for y in 1..h - 1 {
+            // Only the pixels that count (and their neighbours) are
+            // mapped and scored: a metering mask leaves most rows out.
+            let cols = match weight {
+                Some(wt) => counted_span(&wt[y * w + 1..y * w + 1 + n]),
+                None => (0, n),
+            };
+            if cols.0 >= cols.1 {
+                continue;
+            }
+            rows.ensure::<FMA>(&src, w, p.scale, y);
             if fused {
-                rows.map_next::<FMA>(&src, w, p.scale, y);
                 #[cfg(target_arch = "x86_64")]
                 {
+                    let (from, to) = cols;
                     let [a, b, c] = ring_rows(&rows.ring, y);
-                    let mask = weight.map(|wt| &wt[y * w + 1..y * w + 1 + n]);
-                    // SAFETY: `avx512` is set only when the CPU has AVX-512F,
-                    // AVX2 and FMA (`Isa::supported`).
+                    let mask = weight.map(|wt| &wt[y * w + 1 + from..y * w + 1 + to]);
+                    // SAFETY: `avx512` is set only when the CPU has
+                    // AVX-512F, AVX2 and FMA (`Isa::supported`).
                     #[allow(unsafe_code)]
-                    let done =
-                        unsafe { product_row_avx512([a, b, c], &mut rows.product, mask, n, &p) };
+                    let done = unsafe {
+                        product_row_avx512(
+                            [&a[from..], &b[from..], &c[from..]],
+                            &mut rows.product[from..],
+                            mask,
+                            to - from,
+                            &p,
+                        )
+                    };
                     if done {
                         taken += 1;
                         if taken == p.group {
@@ -466,10 +512,8 @@ impl Kernel for SumLnQ<'_> {
                         continue;
                     }
                 }
-                rows.vertical::<FMA>(w, y);
-            } else {
-                rows.advance::<FMA>(&src, w, p.scale, y);
             }
+            rows.vertical::<FMA>(cols.0..(cols.1 + 2).min(w), y);
             match (weight, log2) {
                 (None, Some(log2)) => {
                     let mut sink = ProductDotSink::<L, FMA> {
@@ -477,7 +521,7 @@ impl Kernel for SumLnQ<'_> {
                         dot: [0.0; L],
                         log2: &log2[y * w + 1..y * w + 1 + n],
                     };
-                    for_each_q::<L, FMA>(&rows.sv, &rows.dv, n, &p, &mut sink);
+                    for_each_q::<L, FMA>(&rows.sv, &rows.dv, cols, n, &p, &mut sink);
                     dot_total += total(&sink.dot);
                     taken += 1;
                     if taken == p.group {
@@ -489,7 +533,7 @@ impl Kernel for SumLnQ<'_> {
                     let mut sink = ProductSink {
                         product: &mut rows.product,
                     };
-                    for_each_q::<L, FMA>(&rows.sv, &rows.dv, n, &p, &mut sink);
+                    for_each_q::<L, FMA>(&rows.sv, &rows.dv, cols, n, &p, &mut sink);
                     taken += 1;
                     if taken == p.group {
                         normalise(&mut rows.product, &mut rows.exponent);
@@ -501,7 +545,7 @@ impl Kernel for SumLnQ<'_> {
                         product: &mut rows.product,
                         weight: &wt[y * w + 1..y * w + 1 + n],
                     };
-                    for_each_q::<L, FMA>(&rows.sv, &rows.dv, n, &p, &mut sink);
+                    for_each_q::<L, FMA>(&rows.sv, &rows.dv, cols, n, &p, &mut sink);
                     taken += 1;
                     if taken == p.group {
                         normalise(&mut rows.product, &mut rows.exponent);
@@ -514,8 +558,9 @@ impl Kernel for SumLnQ<'_> {
                         out: &mut rows.info,
                         weight: Some(&wt[span]),
                     };
-                    for_each_q::<L, FMA>(&rows.sv, &rows.dv, n, &p, &mut sink);
-                    for (s, &v) in rows.column.iter_mut().zip(rows.info.iter()) {
+                    for_each_q::<L, FMA>(&rows.sv, &rows.dv, cols, n, &p, &mut sink);
+                    let (from, to) = cols;
+                    for (s, &v) in rows.column[from..to].iter_mut().zip(&rows.info[from..to]) {
                         *s += v;
                     }
                 }
@@ -559,19 +604,34 @@ impl Kernel for Information<'_> {
         row.reset(n.div_ceil(L) * L, 0.0);
         let mut sum = vec![0.0f32; n];
         let mut dot = vec![0.0f32; n];
-        rows.start::<FMA>(&src, w, p.scale);
         for y in 1..h - 1 {
-            rows.advance::<FMA>(&src, w, p.scale, y);
             let span = y * w + 1..y * w + 1 + n;
+            let cols = match weight {
+                Some(wt) => counted_span(&wt[span.clone()]),
+                None => (0, n),
+            };
+            if cols.0 >= cols.1 {
+                continue;
+            }
+            rows.ensure::<FMA>(&src, w, p.scale, y);
+            rows.vertical::<FMA>(cols.0..(cols.1 + 2).min(w), y);
             let mut sink = InfoSink::<L, FMA> {
                 out: &mut row,
                 weight: weight.map(|wt| &wt[span.clone()]),
             };
-            for_each_q::<L, FMA>(&rows.sv, &rows.dv, n, &p, &mut sink);
-            let v = &row[..n];
-            accumulate::<FMA>(&mut sum, &mut dot, v, log2.map_or(v, |l| &l[span.clone()]));
+            for_each_q::<L, FMA>(&rows.sv, &rows.dv, cols, n, &p, &mut sink);
+            // (Past the pixels that count, every value is 0.)
+            let (from, to) = cols;
+            let v = &row[from..to];
+            let at = span.start + from..span.start + to;
+            accumulate::<FMA>(
+                &mut sum[from..to],
+                &mut dot[from..to],
+                v,
+                log2.map_or(v, |l| &l[at.clone()]),
+            );
             if let Some(map) = map.as_deref_mut() {
-                map[span].copy_from_slice(v);
+                map[at].copy_from_slice(v);
             }
         }
         rows.product = row;

@@ -392,3 +392,90 @@ fn saturation_sums_match_double_precision_on_every_isa() {
         }
     }
 }
+
+#[test]
+fn counted_spans_bound_the_weights_above_zero() {
+    let mut wt = vec![0.0f32; 70];
+    assert_eq!(sobel::counted_span(&wt), (0, 0));
+    wt[69] = 0.5;
+    // Only in the tail past the whole vectors: from the tail's start.
+    assert_eq!(sobel::counted_span(&wt), (64, 70));
+    wt[20] = 1.0;
+    assert_eq!(sobel::counted_span(&wt), (16, 70));
+    wt[69] = 0.0;
+    wt[37] = 1.0;
+    assert_eq!(sobel::counted_span(&wt), (16, 38));
+    wt[0] = 1.0;
+    assert_eq!(sobel::counted_span(&wt), (0, 38));
+    assert_eq!(sobel::counted_span(&[]), (0, 0));
+}
+
+#[test]
+fn rows_and_columns_a_mask_leaves_out_are_not_scored() {
+    // A mask like a ground region: rows without a counted pixel above, a
+    // span in the middle of each row below it, one row counting a lone
+    // pixel past the last whole vector.
+    for (w, h) in [(150usize, 40usize), (37, 12)] {
+        let img = textured(w, h, 5);
+        let binary: Vec<f32> = (0..w * h)
+            .map(|i| {
+                let (x, y) = (i % w, i / w);
+                let inside = y > h / 3 && x > 2 + y % 5 && x < w - 3 - y % 7;
+                f32::from(inside || (y == 2 && x == w - 2))
+            })
+            .collect();
+        let fraction: Vec<f32> = binary
+            .iter()
+            .enumerate()
+            .map(|(i, &b)| b * (0.25 + (i % 4) as f32 / 4.0))
+            .collect();
+        let p = Params::new(1000.0, 0.06, SOBEL_NORM);
+        for wt in [binary.as_slice(), fraction.as_slice()] {
+            let want = reference(&img, w, h, Some(wt), 1000.0);
+            for isa in Isa::available() {
+                let src = Source::Scale { luma: &img, s: 1.3 };
+                let scaled: Vec<f32> = img.iter().map(|v| (v * 1.3).min(1.0)).collect();
+                let want_scaled = reference(&scaled, w, h, Some(wt), 1000.0);
+                let mut rows = Rows::default();
+                let got = sum_ln_q(isa, src, w, h, Some(wt), p, &mut rows);
+                assert!(
+                    (got - want_scaled).abs() <= 1e-5 * want_scaled,
+                    "{isa:?} {w}×{h}: {got} vs {want_scaled}"
+                );
+                let got = sum_ln_q(isa, Source::Plain(&img), w, h, Some(wt), p, &mut rows);
+                assert!(
+                    (got - want).abs() <= 1e-5 * want,
+                    "{isa:?}: {got} vs {want}"
+                );
+                let mut map = Vec::new();
+                let (sum, _) = information(
+                    isa,
+                    &img,
+                    None,
+                    w,
+                    h,
+                    Some(wt),
+                    p,
+                    &mut rows,
+                    Some(&mut map),
+                );
+                assert!(
+                    (sum - want).abs() <= 1e-5 * want,
+                    "{isa:?} map sum {sum} vs {want}"
+                );
+                // Each pixel's value where it counts, 0 elsewhere.
+                for y in 1..h - 1 {
+                    for x in 1..w - 1 {
+                        let i = y * w + x;
+                        let v = f64::from(wt[i]) * reference_ln_q(&img, w, x, y, 1000.0);
+                        assert!(
+                            (f64::from(map[i]) - v).abs() <= 1e-4 * v.max(1.0),
+                            "{isa:?} ({x}, {y}): {} vs {v}",
+                            map[i]
+                        );
+                    }
+                }
+            }
+        }
+    }
+}
