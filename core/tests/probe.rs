@@ -195,6 +195,47 @@ fn a_law_creeping_in_small_steps_has_not_settled() {
 }
 
 #[test]
+fn a_law_creeping_darker_with_saturation_in_view_probes_from_where_it_came() {
+    let params = ProbeParams::default();
+    // Steps of 0.03 EV down (a law whose held pixels put its fixed point
+    // too high): the creep goes where the probe would look, and counts as
+    // settling; the probe goes from the third frame's exposure.
+    let mut p = Prober::default();
+    let creep = |k: u32, step: f64| 1000.0 * (-step * f64::from(k)).exp2();
+    let events: Vec<_> = (0..3)
+        .map(|k| {
+            let e0 = creep(k, 0.03);
+            p.step(&params, frame(e0, 100.0, e0 * (-0.03f64).exp2())).1
+        })
+        .collect();
+    assert_eq!(&events[..2], &[None, None]);
+    match events[2] {
+        Some(ProbeEvent::Sent { from, to }) => {
+            assert!((from - creep(2, 0.03)).abs() < 1e-9, "from {from}");
+            assert!((to - from / 1.9).abs() < 1e-6, "to {to}");
+        }
+        ref other => panic!("expected a probe, got {other:?}"),
+    }
+    // Steps of 0.1 EV down are a move, not a creep; creeping down with
+    // nothing saturated has nothing to probe for.
+    for (step, saturated) in [(0.1, 0.3), (0.03, 0.0)] {
+        let mut p = Prober::default();
+        for k in 0..20 {
+            let e0 = creep(k, step);
+            let input = ProbeInput {
+                saturated,
+                ..frame(e0, 100.0, e0 * (-step).exp2())
+            };
+            let (_, e) = p.step(&params, input);
+            assert_eq!(
+                e, None,
+                "step {step}, saturated {saturated}: probed at frame {k}"
+            );
+        }
+    }
+}
+
+#[test]
 fn a_recent_frame_in_the_probes_range_answers_without_a_probe() {
     let params = params();
     let mut p = Prober::default();

@@ -13,7 +13,10 @@
 //! A [`Prober`] finds out by measuring instead of simulating. When a
 //! camera's own law has settled (for `settle_frames` frames, its steps and
 //! its exposure's drift from the first of them within `settle_ev`: a law
-//! still creeping towards its fixed point has not) and at least
+//! still creeping towards its fixed point has not, unless it is the
+//! camera's own law creeping darker, by steps of at most twice
+//! `settle_ev`, with saturation in view: that goes where the probe would
+//! look, a step at a time) and at least
 //! `min_saturated` of its metered
 //! pixels are saturated, it takes one frame `step_ev` darker and compares
 //! `M` measured there with `M` measured at the settled exposure:
@@ -431,6 +434,10 @@ pub struct Prober {
 }
 
 /// |log2 a/b|.
+/// How many settled steps (`settle_ev`) a frame a law creeping darker
+/// with saturation in view may move and still count as settling.
+const CREEP_STEPS: f64 = 2.0;
+
 fn ev(a: f64, b: f64) -> f64 {
     (a / b).log2().abs()
 }
@@ -670,6 +677,22 @@ impl Prober {
         } = input;
         // (A camera that probes only brighter has no darker probe to make.)
         let saturated = if input.brighter_only { 0.0 } else { saturated };
+        // A camera's own law creeping darker by small steps (up to
+        // `CREEP_STEPS` settled steps a frame) with saturation in view goes
+        // where a probe would look, a step at a time: under scale-and-clip the held pixels put
+        // its fixed point too high, and it creeps on until a probe shows
+        // the better exposure below. The creep counts as settling, and the
+        // probe goes from where the camera has come.
+        let creep = !input.balanced
+            && saturated >= params.min_saturated
+            && input.dark < params.min_dark
+            && desired <= taken
+            && ev(desired, taken) <= CREEP_STEPS * params.settle_ev;
+        let creeping = |home: f64, frames: u32| {
+            creep
+                && taken < home
+                && ev(taken, home) <= f64::from(frames + 1) * CREEP_STEPS * params.settle_ev
+        };
         let (home, m_sum, frames) =
             if saturated >= params.min_saturated && self.circling(params, taken) {
                 // A law that circles a jump of its estimate never settles:
@@ -679,16 +702,24 @@ impl Prober {
                     m * f64::from(params.settle_frames),
                     params.settle_frames,
                 )
-            } else if ev(desired, taken) > params.settle_ev {
-                self.state = State::Watching;
-                return (desired, None);
             } else {
                 match self.state {
                     State::Settling {
                         home,
                         m_sum,
                         frames,
-                    } if ev(taken, home) <= params.settle_ev => (home, m_sum + m, frames + 1),
+                    } if ev(desired, taken) <= params.settle_ev
+                        && ev(taken, home) <= params.settle_ev =>
+                    {
+                        (home, m_sum + m, frames + 1)
+                    }
+                    State::Settling { home, frames, .. } if creeping(home, frames) => {
+                        (taken, m * f64::from(frames + 1), frames + 1)
+                    }
+                    _ if ev(desired, taken) > params.settle_ev && !creep => {
+                        self.state = State::Watching;
+                        return (desired, None);
+                    }
                     _ => (taken, m, 1),
                 }
             };
