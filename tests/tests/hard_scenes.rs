@@ -483,10 +483,11 @@ fn on_real_panoramas_the_gradient_laws_keep_the_best_m() {
         // 14–20 before it searched beyond its anchors and went on from the
         // commands in flight), balanced cameras from the twelfth (6–11).
         // From 4 EV above, mostly saturated frames step on from the
-        // commands in flight too: the nonlinear law by set 16 (6–15; 8–23
-        // before), the fast law by set 16 (6–13; 10–62 before, 6–20 while
-        // a creep darker under held saturation waited to settle before it
-        // probed).
+        // commands in flight too: the nonlinear law by set 12 (6–11; 8–23
+        // before, 6–15 while a frame that predated a command in flight
+        // could undo it), the fast law by set 14 (6–13; 10–62 before, 6–20
+        // while a creep darker under held saturation waited to settle
+        // before it probed).
         let limits: &[(EvalStrategy, usize)] = if from_below {
             &[
                 (EvalStrategy::FastSc, 10),
@@ -494,7 +495,7 @@ fn on_real_panoramas_the_gradient_laws_keep_the_best_m() {
                 (EvalStrategy::MultiSc, 12),
             ]
         } else {
-            &[(EvalStrategy::FastSc, 16), (EvalStrategy::NonlinearSc, 16)]
+            &[(EvalStrategy::FastSc, 14), (EvalStrategy::NonlinearSc, 12)]
         };
         for &(s, sets) in limits {
             let reach = &m.reach.iter().find(|r| r.0 == s).unwrap().1;

@@ -648,9 +648,14 @@ impl CameraController {
             _ => LawStep::Relative(1.0),
         };
         // On fixed levels the walker adds up what each frame asks: a step
-        // from the commands in flight would count them twice.
+        // from the commands in flight would count them twice. A balanced
+        // camera's commands in flight carry balancing's moves, which its own
+        // step near rest does not stand by (that left balanced cameras up to
+        // 0.25 EV off their best on the real-light brackets).
         let step = if self.walker.is_some() {
             step.anchored()
+        } else if let (LawStep::Standing(r), false) = (step, own_law) {
+            LawStep::Relative(r)
         } else {
             step
         };

@@ -33,7 +33,9 @@
 //! law bounds the change per frame to `[1/max_step, max_step]`. Under
 //! scale-and-clip, while `ŝ` puts the fixed point [`AHEAD_MIN_EV`] or more
 //! away, the linear and nonlinear laws go on from where the commands in
-//! flight will leave the camera ([`LawStep::Ahead`]), as the fast law does. Under a
+//! flight will leave the camera ([`LawStep::Ahead`]), as the fast law does;
+//! nearer, their step is the frame's own, but commands in flight that
+//! already go further that way stand ([`LawStep::Standing`]). Under a
 //! camera's own law, where two frames of one scene do not ask towards each
 //! other (each stays on its side of their midpoint), the controller
 //! follows the one with more gradient information
@@ -162,6 +164,15 @@ impl LawParams {
                     beyond: false,
                 }
             }
+            // Nearer, scale-and-clip's step is the frame's own, but the
+            // commands in flight that already go further that way stand: a
+            // frame that predates them would undo them (with two frames of
+            // latency, the nonlinear law rang between two exposures).
+            LawKind::Linear | LawKind::Nonlinear
+                if estimate.simulation == Simulation::ScaleClip && !estimate.flat =>
+            {
+                LawStep::Standing(self.ratio(estimate, stats))
+            }
             LawKind::Linear | LawKind::Nonlinear => LawStep::Relative(self.ratio(estimate, stats)),
         }
     }
@@ -185,8 +196,9 @@ impl LawParams {
     ///   frame is anchored to the frame, so a frame taken before the
     ///   previous command showed asks for the same exposure again, never
     ///   for the step on top of it.
-    /// - [`LawStep::AtLeast`]: as `Relative`, except that commands in flight
-    ///   that already go further that way stand.
+    /// - [`LawStep::AtLeast`] and [`LawStep::Standing`]: as `Relative`,
+    ///   except that commands in flight that already go further that way
+    ///   stand.
     /// - [`LawStep::Ahead`]: as `Relative` with nothing in flight. With
     ///   commands in flight, the law is applied where they leave the
     ///   camera, to the estimate as seen from there: the fixed point at
@@ -226,7 +238,7 @@ impl LawParams {
                 }
                 base * self.paper_ratio(1.0 / ahead)
             }
-            LawStep::AtLeast(r) => {
+            LawStep::AtLeast(r) | LawStep::Standing(r) => {
                 let target = taken * r;
                 if (base / target).ln() * r.ln() > 0.0 {
                     base
@@ -263,16 +275,18 @@ impl LawStep {
         match self {
             Self::Relative(r)
             | Self::AtLeast(r)
+            | Self::Standing(r)
             | Self::Predicted { ratio: r }
             | Self::Ahead { ratio: r, .. } => r.log2(),
         }
     }
 
-    /// The step anchored to the frame: [`LawStep::Ahead`] as
-    /// [`LawStep::Relative`], every other step as it is.
+    /// The step anchored to the frame: [`LawStep::Ahead`] and
+    /// [`LawStep::Standing`] as [`LawStep::Relative`], every other step as
+    /// it is.
     pub fn anchored(self) -> Self {
         match self {
-            Self::Ahead { ratio, .. } => Self::Relative(ratio),
+            Self::Ahead { ratio, .. } | Self::Standing(ratio) => Self::Relative(ratio),
             other => other,
         }
     }
@@ -286,6 +300,7 @@ impl LawStep {
             Self::Ahead { ratio, .. } if (ratio.log2() - ev).abs() < 1e-12 => self,
             Self::Relative(_) | Self::Ahead { .. } => Self::Relative(r),
             Self::AtLeast(_) => Self::AtLeast(r),
+            Self::Standing(_) => Self::Standing(r),
             Self::Predicted { .. } => Self::Predicted { ratio: r },
         }
     }
@@ -299,6 +314,14 @@ pub enum LawStep {
     /// Move at least to `ratio` times the frame's exposure: the best
     /// exposure lies beyond what the estimate can see.
     AtLeast(f64),
+    /// The linear or nonlinear law's step `ratio` from the frame near
+    /// scale-and-clip's fixed point: as [`LawStep::Relative`], except that
+    /// commands in flight that already go further that way stand (a frame
+    /// taken before they showed would undo them). Anchored to the frame
+    /// (on fixed levels, whose walker adds up what each frame asks), it is
+    /// [`LawStep::Relative`]; so it is for a balanced camera (the
+    /// controller's choice).
+    Standing(f64),
     /// The linear or nonlinear law's step `ratio` from the frame, whose
     /// estimate puts the fixed point at `best` times the frame's exposure
     /// (scale-and-clip's ŝ): [`LawParams::next_exposure`] applies the law
@@ -445,6 +468,24 @@ mod tests {
             kind: LawKind::Nonlinear,
             ..Default::default()
         }
+    }
+
+    #[test]
+    fn a_standing_step_keeps_commands_in_flight_that_go_further() {
+        let law = nonlinear();
+        // The frame at 1000 asks 10 % down; a command in flight to 800
+        // already goes further down: it stands.
+        let step = LawStep::Standing(0.9);
+        assert_eq!(law.next_exposure(step, 1000.0, 800.0, true), 800.0);
+        // One to 950 does not go as far, one to 1100 goes the other way:
+        // the frame's own step.
+        for base in [950.0, 1100.0, 1000.0] {
+            let e = law.next_exposure(step, 1000.0, base, true);
+            assert!((e - 900.0).abs() < 1e-9, "from {base}: {e}");
+        }
+        // Anchored to the frame (fixed levels), it is the frame's step.
+        assert_eq!(step.anchored(), LawStep::Relative(0.9));
+        assert_eq!(step.with_frame_ev(0.5), LawStep::Standing(0.5f64.exp2()));
     }
 
     #[test]
