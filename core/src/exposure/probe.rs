@@ -433,11 +433,11 @@ pub struct Prober {
     recent: VecDeque<(f64, f64)>,
 }
 
-/// |log2 a/b|.
 /// How many settled steps (`settle_ev`) a frame a law creeping darker
 /// with saturation in view may move and still count as settling.
 const CREEP_STEPS: f64 = 2.0;
 
+/// |log2 a/b|.
 fn ev(a: f64, b: f64) -> f64 {
     (a / b).log2().abs()
 }
@@ -679,9 +679,9 @@ impl Prober {
         let saturated = if input.brighter_only { 0.0 } else { saturated };
         // A camera's own law creeping darker by small steps (up to
         // `CREEP_STEPS` settled steps a frame) with saturation in view goes
-        // where a probe would look, a step at a time: under scale-and-clip the held pixels put
-        // its fixed point too high, and it creeps on until a probe shows
-        // the better exposure below. The creep counts as settling, and the
+        // where a probe would look, a step at a time: under scale-and-clip
+        // the held pixels put its fixed point too high, and it creeps on
+        // until a probe shows the better exposure below. The creep counts as settling, and the
         // probe goes from where the camera has come.
         let creep = !input.balanced
             && saturated >= params.min_saturated
