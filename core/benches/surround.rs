@@ -34,6 +34,12 @@
 //!
 //! - `rgb_to_mono_4x1288x964`: `image::rgb8_to_mono8` of the four frames
 //!   (what "mono from RGB" composes from) against `cvtColor RGB2GRAY`.
+//! - `patch_means_4x1288x964`: the balancing's patch means of the view's
+//!   overlaps (`SurroundView::pair_observations`, each camera's samples
+//!   read in one sweep in memory order) against reading them patch by
+//!   patch (what it did before), from Mono8 and RGB8 frames. The frames of
+//!   eight sets are cycled (40 MB of Mono8, more than the last-level
+//!   cache), as each set's frames arrive fresh in the pipeline.
 //! - `distance_transform_1000x1000`: `image::distance_to_zero` of the
 //!   complement of the front camera's exclusive region (once per camera
 //!   when a view is built) against `distanceTransform` `DIST_L2` with
@@ -536,6 +542,94 @@ fn rgb_to_mono(c: &mut Criterion) {
     core::set_num_threads(threads).unwrap();
 }
 
+/// The balancing's patch means of the surround view's overlaps: rigview's
+/// sweep per camera against the patch-by-patch reading, over eight sets'
+/// frames in turn.
+fn patch_means(c: &mut Criterion) {
+    const SETS: usize = 8;
+    let view =
+        SurroundView::build(&rig(), &CanvasSpec::default(), &SurroundOptions::default()).unwrap();
+    let data = frames();
+    // Each set's frames: the base frames with every byte offset by the set.
+    let sets = |bytes: &dyn Fn(&[u8]) -> Vec<u8>| -> Vec<Vec<Vec<u8>>> {
+        (0..SETS as u8)
+            .map(|k| {
+                data.iter()
+                    .map(|d| bytes(d).iter().map(|&v| v.wrapping_add(k)).collect())
+                    .collect()
+            })
+            .collect()
+    };
+    let rgb = sets(&|d| d.to_vec());
+    let mono = sets(&|d| d.chunks_exact(3).map(|p| p[1]).collect());
+    let patches: usize = view.overlaps().iter().map(|o| o.patches.len()).sum();
+    eprintln!("patch means: {patches} patches");
+    // The reading before: patch by patch, at most 64 samples each.
+    let per_patch = |frames: &[FrameView<'_>]| -> Vec<(f32, f32)> {
+        let side = |f: &FrameView<'_>, idx: &[u32]| {
+            let (mut sum, mut sat, mut n) = (0.0f64, 0usize, 0usize);
+            f.for_each_luma(idx.iter().step_by(idx.len().div_ceil(64).max(1)), |v| {
+                sum += f64::from(v);
+                sat += usize::from(v >= rigview_core::exposure::metering::SATURATED_LEVEL);
+                n += 1;
+            });
+            ((sum / n.max(1) as f64) as f32, sat as f32 / n.max(1) as f32)
+        };
+        view.overlaps()
+            .iter()
+            .flat_map(|o| {
+                o.patches.iter().flat_map(move |p| {
+                    [
+                        side(&frames[o.i], &p.pixels_i),
+                        side(&frames[o.j], &p.pixels_j),
+                    ]
+                })
+            })
+            .collect()
+    };
+    let mut group = group(c, "patch_means_4x1288x964", 2);
+    for (name, format, sets) in [
+        ("mono8", PixelFormat::Mono8, &mono),
+        ("rgb8", PixelFormat::Rgb8, &rgb),
+    ] {
+        let views: Vec<Vec<FrameView<'_>>> = sets
+            .iter()
+            .map(|set| {
+                set.iter()
+                    .map(|d| FrameView::new(format, W, H, d).unwrap())
+                    .collect()
+            })
+            .collect();
+        // The same means both ways.
+        let swept: Vec<(f32, f32)> = view
+            .pair_observations(&views[0])
+            .unwrap()
+            .iter()
+            .flat_map(|o| {
+                o.patches
+                    .iter()
+                    .flat_map(|p| [(p.mean_i, p.saturated_i), (p.mean_j, p.saturated_j)])
+            })
+            .collect();
+        let read = per_patch(&views[0]);
+        assert_eq!(swept, read, "{name}");
+        let mut k = 0;
+        group.bench_function(format!("rigview_{name}"), |b| {
+            b.iter(|| {
+                k = (k + 1) % SETS;
+                black_box(view.pair_observations(&views[k]).unwrap())
+            });
+        });
+        group.bench_function(format!("per_patch_{name}"), |b| {
+            b.iter(|| {
+                k = (k + 1) % SETS;
+                black_box(per_patch(&views[k]))
+            });
+        });
+    }
+    group.finish();
+}
+
 /// The distance transform a view build runs per camera, rigview's and
 /// OpenCV's.
 fn distance_transform(c: &mut Criterion) {
@@ -769,5 +863,12 @@ fn panorama(c: &mut Criterion) {
     core::set_num_threads(threads).unwrap();
 }
 
-criterion_group!(benches, compose, rgb_to_mono, distance_transform, panorama);
+criterion_group!(
+    benches,
+    compose,
+    rgb_to_mono,
+    patch_means,
+    distance_transform,
+    panorama
+);
 criterion_main!(benches);

@@ -12,9 +12,12 @@
 //!   `quantile(v, 0.5)` of an even count is the upper middle value, not
 //!   the median's mean).
 //!
-//! Both order by `total_cmp`, so a NaN in the sample sorts to one end
+//! [`quantiles`] gives several quantiles of one sample, each selected
+//! among the values the last one left above it.
+//!
+//! All order by `total_cmp`, so a NaN in the sample sorts to one end
 //! (above every number when positive, below when negative) instead of
-//! making the order depend on where it sits. Both reorder the slice they
+//! making the order depend on where it sits. All reorder the slice they
 //! are given (a selection, O(n), not a sort) and give `None` for an empty
 //! one, so that each caller says what an empty sample means to it.
 
@@ -71,6 +74,27 @@ pub fn quantile<T: Sample>(values: &mut [T], q: f64) -> Option<T> {
     let last = values.len().checked_sub(1)?;
     let k = (last as f64 * q.clamp(0.0, 1.0)).round() as usize;
     Some(select(values, k.min(last)))
+}
+
+/// The `qs`-quantiles of `values` (reordered) by nearest rank, as
+/// [`quantile`] gives each; `None` when empty. In ascending order each
+/// selection is made among the values above the last one's rank only.
+pub fn quantiles<T: Sample, const N: usize>(values: &mut [T], qs: [f64; N]) -> Option<[T; N]> {
+    let last = values.len().checked_sub(1)?;
+    let mut out = [*values.first()?; N];
+    // The rank selected last, and its value: every value before it is at
+    // most that, every value after it at least.
+    let mut prev: Option<(usize, T)> = None;
+    for (o, q) in out.iter_mut().zip(qs) {
+        let k = ((last as f64 * q.clamp(0.0, 1.0)).round() as usize).min(last);
+        *o = match prev {
+            Some((p, v)) if p == k => v,
+            Some((p, _)) if p < k => select(&mut values[p + 1..], k - p - 1),
+            _ => select(values, k),
+        };
+        prev = Some((k, *o));
+    }
+    Some(out)
 }
 
 #[cfg(test)]
@@ -144,6 +168,18 @@ mod tests {
                         bits(quantile(&mut v.clone(), q)),
                         bits(sorted_quantile(&v, q))
                     );
+                }
+                // Several at once, ascending, repeated and out of order.
+                for qs in [
+                    [0.25, 0.5, 0.75],
+                    [0.1, 0.1, 0.9],
+                    [0.75, 0.25, 0.5],
+                    [0.0, 1.0, 0.99],
+                ] {
+                    let got = quantiles(&mut v.clone(), qs).map(|q| q.map(f64::to_bits));
+                    let want =
+                        (n > 0).then(|| qs.map(|q| sorted_quantile(&v, q).map_or(0, f64::to_bits)));
+                    assert_eq!(got, want, "{qs:?} of {n}");
                 }
             }
         }

@@ -37,7 +37,7 @@ use serde::{Deserialize, Serialize};
 use super::metering::Metered;
 use super::tone::{self, ToneCurve};
 use crate::error::{check_range, Result};
-use crate::stats::quantile;
+use crate::stats::{quantile, quantiles};
 
 /// Parameters of the light tracking.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -198,40 +198,95 @@ enum Pixel {
     Bright(f32),
 }
 
-/// [`classify`] with the value as light: through `linear` (the light of
-/// recorded values evenly spaced over `[0, 1]`, interpolated) when given.
-fn classify_light(
-    params: &LightParams,
-    metered: &Metered,
-    k: usize,
-    linear: Option<&[f32]>,
-) -> Pixel {
-    let pixel = classify(params, metered, k);
-    let Some(table) = linear else {
-        return pixel;
-    };
-    let light = |v: f32| tone::interpolate(table, v);
-    match pixel {
-        Pixel::Out => Pixel::Out,
-        Pixel::Usable(v) => Pixel::Usable(light(v)),
-        Pixel::Dark(v) => Pixel::Dark(light(v)),
-        Pixel::Bright(v) => Pixel::Bright(light(v)),
+/// A pixel of a metered frame, classified when asked ([`At::pixel`]).
+struct At<'a> {
+    params: &'a LightParams,
+    /// The frame's planes from the pixel's row on (the weights and
+    /// saturated samples where it has them).
+    luma: &'a [f32],
+    weight: Option<&'a [f32]>,
+    saturated: Option<&'a [f32]>,
+    /// The light of recorded values evenly spaced over `[0, 1]`, for
+    /// frames that went through a tone curve.
+    linear: Option<&'a [f32]>,
+    /// The pixel's column.
+    x: usize,
+}
+
+impl At<'_> {
+    /// The pixel as the tracking sees it, its value as light.
+    #[inline(always)]
+    fn pixel(&self) -> Pixel {
+        let light = |v: f32| match self.linear {
+            Some(table) => tone::interpolate(table, v),
+            None => v,
+        };
+        match classify(self.params, self.luma, self.weight, self.saturated, self.x) {
+            Pixel::Out => Pixel::Out,
+            Pixel::Usable(v) => Pixel::Usable(light(v)),
+            Pixel::Dark(v) => Pixel::Dark(light(v)),
+            Pixel::Bright(v) => Pixel::Bright(light(v)),
+        }
     }
 }
 
-fn classify(params: &LightParams, metered: &Metered, k: usize) -> Pixel {
-    let Some(&v) = metered.luma().get(k) else {
+/// Calls `f` with every `stride`-th pixel of every `stride`-th row of
+/// `metered`, in row-major order, read through `linear` when given. The
+/// rows of the metered frame's planes are looked up once a row, and a
+/// pixel is classified only when `f` asks.
+fn for_each_pixel(
+    params: &LightParams,
+    metered: &Metered,
+    stride: usize,
+    linear: Option<&[f32]>,
+    mut f: impl FnMut(At<'_>),
+) {
+    let (w, h) = (metered.width(), metered.height());
+    let (luma, weight, saturated) = (
+        metered.luma(),
+        metered.weight(),
+        metered.saturated_samples(),
+    );
+    // The part of a plane from pixel `start` on.
+    fn from(plane: &[f32], start: usize) -> &[f32] {
+        plane.get(start..).unwrap_or(&[])
+    }
+    for y in (0..h).step_by(stride) {
+        let (luma, weight, saturated) = (
+            from(luma, y * w),
+            weight.map(|p| from(p, y * w)),
+            saturated.map(|p| from(p, y * w)),
+        );
+        for x in (0..w).step_by(stride) {
+            f(At {
+                params,
+                luma,
+                weight,
+                saturated,
+                linear,
+                x,
+            });
+        }
+    }
+}
+
+/// Pixel `k` of the planes `luma`, `weight` and `saturated` (the metered
+/// frame's; the weights and saturated samples where it has them).
+#[inline(always)]
+fn classify(
+    params: &LightParams,
+    luma: &[f32],
+    weight: Option<&[f32]>,
+    saturated: Option<&[f32]>,
+    k: usize,
+) -> Pixel {
+    let Some(&v) = luma.get(k) else {
         return Pixel::Out;
     };
-    if metered
-        .weight()
-        .is_some_and(|w| w.get(k).is_none_or(|&w| w <= 0.0))
-    {
+    if weight.is_some_and(|w| w.get(k).is_none_or(|&w| w <= 0.0)) {
         return Pixel::Out;
     }
-    let clipped = metered
-        .saturated_samples()
-        .is_some_and(|s| s.get(k).is_some_and(|&s| s > 0.0));
+    let clipped = saturated.is_some_and(|s| s.get(k).is_some_and(|&s| s > 0.0));
     if clipped || v > params.high {
         Pixel::Bright(v.max(params.high))
     } else if v < params.low {
@@ -283,15 +338,12 @@ impl LightTracker {
         };
         radiance.clear();
         let inv = (1.0 / taken) as f32;
-        for y in (0..h).step_by(stride) {
-            for x in (0..w).step_by(stride) {
-                let v = match classify_light(params, metered, y * w + x, self.linear.as_deref()) {
-                    Pixel::Usable(v) => v * inv,
-                    _ => f32::NAN,
-                };
-                radiance.push(v);
-            }
-        }
+        for_each_pixel(params, metered, stride, self.linear.as_deref(), |at| {
+            radiance.push(match at.pixel() {
+                Pixel::Usable(v) => v * inv,
+                _ => f32::NAN,
+            });
+        });
         // A frame with too few pixels in range (all but saturated, or all
         // but black) can measure no change: it is no reference, and the
         // next frame at rest is taken instead.
@@ -345,22 +397,18 @@ impl LightTracker {
         // Ratios known only to be at least (pixels now too bright) or at
         // most (now too dark) this.
         let (mut above, mut below) = (Vec::new(), Vec::new());
-        let mut k = 0;
-        for y in (0..h).step_by(r.stride) {
-            for x in (0..w).step_by(r.stride) {
-                let before = r.radiance[k];
-                k += 1;
-                if before.is_nan() {
-                    continue;
-                }
-                match classify_light(params, metered, y * w + x, self.linear.as_deref()) {
-                    Pixel::Usable(v) => ratios.push(v / before),
-                    Pixel::Bright(v) => above.push(v / before),
-                    Pixel::Dark(v) => below.push(v / before),
-                    Pixel::Out => {}
-                }
+        let mut reference = r.radiance.iter();
+        for_each_pixel(params, metered, r.stride, self.linear.as_deref(), |at| {
+            let Some(&before) = reference.next().filter(|v| !v.is_nan()) else {
+                return;
+            };
+            match at.pixel() {
+                Pixel::Usable(v) => ratios.push(v / before),
+                Pixel::Bright(v) => above.push(v / before),
+                Pixel::Dark(v) => below.push(v / before),
+                Pixel::Out => {}
             }
-        }
+        });
         let ev = |r: f32| (f64::from(r) * inv).log2();
         let change = |ev: f64, spread_ev: f64, pixels: usize, bound: bool| LightChange {
             ev,
@@ -374,11 +422,8 @@ impl LightTracker {
             // Quantiles of the ratios are the ratios of the quantiles of
             // their logarithms: one log2 per quantile, not per pixel.
             let pixels = ratios.len();
-            let q1 = quantile(&mut ratios, 0.25).map(ev);
-            let q3 = quantile(&mut ratios, 0.75).map(ev);
-            let median = quantile(&mut ratios, 0.5).map(ev);
-            if let (Some(q1), Some(q3), Some(median)) = (q1, q3, median) {
-                return Some(change(median, q3 - q1, pixels, false));
+            if let Some([q1, median, q3]) = quantiles(&mut ratios, [0.25, 0.5, 0.75]) {
+                return Some(change(ev(median), ev(q3) - ev(q1), pixels, false));
             }
         }
         // Too few pixels left in range: when most of the reference's went

@@ -131,6 +131,33 @@ impl<'a> FrameView<'a> {
         out[0]
     }
 
+    /// Asks the CPU to bring the first byte of each pixel of `pixels`
+    /// (row-major indices) into its caches, without waiting: for reads
+    /// that follow soon. Reads nothing into the program.
+    pub(crate) fn prefetch(&self, pixels: &[u32]) {
+        #[cfg(target_arch = "x86_64")]
+        {
+            use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+            let (w, stride) = (self.width, self.stride);
+            let bpp = self.format.bytes_per_pixel();
+            for &p in pixels {
+                let p = p as usize;
+                let at = self
+                    .data
+                    .as_ptr()
+                    .wrapping_add(p / w * stride + p % w * bpp);
+                // SAFETY: a prefetch reads nothing into the program and
+                // never faults, whatever the address.
+                #[allow(unsafe_code)]
+                unsafe {
+                    _mm_prefetch::<_MM_HINT_T0>(at.cast::<i8>());
+                }
+            }
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = pixels;
+    }
+
     /// Calls `f` with the luminance of each pixel `p` of `pixels` (row-major
     /// indices, `y · width + x`, in the frame), in order: the values of
     /// [`FrameView::luma_at`], with the format looked at once rather than

@@ -641,6 +641,102 @@ pub(crate) mod tests {
     }
 
     #[test]
+    fn patch_means_swept_camera_by_camera_are_the_patch_by_patch_ones() {
+        use super::mosaic::patch_stats;
+        use crate::image::PixelFormat;
+        use rand::{Rng, SeedableRng};
+        let (sw, sh) = (160usize, 120usize);
+        let view = small_view(sw as u32, sh as u32);
+        let patches: usize = view.overlaps().iter().map(|o| o.patches.len()).sum();
+        assert!(patches > 10, "{patches} patches");
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+        for format in [
+            PixelFormat::Mono8,
+            PixelFormat::Rgb8,
+            PixelFormat::BayerGb8,
+            PixelFormat::Mono16,
+            PixelFormat::BayerRg12,
+        ] {
+            // Samples a pixel (three for RGB), of one or two bytes.
+            let (samples, top): (usize, u32) = match format {
+                PixelFormat::Rgb8 => (3 * sw * sh, 255),
+                PixelFormat::Mono16 => (sw * sh, 65535),
+                PixelFormat::BayerRg12 => (sw * sh, 4095),
+                _ => (sw * sh, 255),
+            };
+            // Per camera, another light: black with its smallest levels
+            // (the smallest lumas), noise over the whole range, bright,
+            // and saturated.
+            let data: Vec<Vec<u8>> = (0..4u8)
+                .map(|k| {
+                    let level = |rng: &mut rand_chacha::ChaCha8Rng| match k {
+                        0 => rng.gen_range(0..=1),
+                        1 => rng.gen_range(0..=top),
+                        2 => rng.gen_range(top * 4 / 5..=top),
+                        _ => top,
+                    };
+                    (0..samples)
+                        .flat_map(|_| {
+                            let v = level(&mut rng);
+                            if top > 255 {
+                                (v as u16).to_le_bytes().to_vec()
+                            } else {
+                                vec![v as u8]
+                            }
+                        })
+                        .collect()
+                })
+                .collect();
+            let frames: Vec<_> = data
+                .iter()
+                .map(|d| FrameView::new(format, sw, sh, d).unwrap())
+                .collect();
+            let got = view.pair_observations(&frames).unwrap();
+            assert_eq!(got.len(), view.overlaps().len());
+            for (obs, o) in got.iter().zip(view.overlaps()) {
+                assert_eq!((obs.i, obs.j), (o.i, o.j));
+                assert_eq!(obs.patches.len(), o.patches.len());
+                for (pair, patch) in obs.patches.iter().zip(&o.patches) {
+                    let want_i = patch_stats(&frames[o.i], &patch.pixels_i);
+                    let want_j = patch_stats(&frames[o.j], &patch.pixels_j);
+                    let bits = |(m, s): (f32, f32)| (m.to_bits(), s.to_bits());
+                    assert_eq!(
+                        (
+                            bits((pair.mean_i, pair.saturated_i)),
+                            bits((pair.mean_j, pair.saturated_j))
+                        ),
+                        (bits(want_i), bits(want_j)),
+                        "{format:?}, cameras {} and {}",
+                        o.i,
+                        o.j
+                    );
+                }
+            }
+            // The frames' light shows: the saturated camera's side is
+            // saturated, the black one's dark.
+            let side = |k: usize| {
+                got.iter()
+                    .flat_map(|obs| {
+                        obs.patches.iter().filter_map(move |p| {
+                            (obs.i == k)
+                                .then_some((p.mean_i, p.saturated_i))
+                                .or((obs.j == k).then_some((p.mean_j, p.saturated_j)))
+                        })
+                    })
+                    .collect::<Vec<_>>()
+            };
+            assert!(
+                side(3).iter().all(|&(m, s)| m >= 0.99 && s >= 1.0),
+                "{format:?}"
+            );
+            assert!(
+                side(0).iter().all(|&(m, s)| m < 0.01 && s <= 0.0),
+                "{format:?}"
+            );
+        }
+    }
+
+    #[test]
     fn compositions_are_within_a_level_of_the_exact_blend_in_every_mode() {
         use crate::image::PixelFormat;
         use rand::{Rng, SeedableRng};
