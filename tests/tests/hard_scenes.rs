@@ -543,3 +543,57 @@ fn after_a_saturated_start_the_light_is_still_followed() {
         }
     }
 }
+
+/// A probe is a glance its camera returns from, so a balanced camera does
+/// not follow a neighbour's: on the car park and the courtyard from 4 EV
+/// above (balanced, scale-and-clip), at every probe that starts after the
+/// first 20 sets, each neighbour that is not probing itself stays within
+/// 0.1 EV of where it was over the three frames from the probe's first
+/// (its commands sent while the probe was in flight, and while it
+/// showed). The car park's front and back cameras stepped 0.16 and
+/// 0.18 EV down with the left camera's probe while balancing took the
+/// probe in flight for where the left camera would rest.
+#[test]
+fn a_neighbours_probe_does_not_move_a_balanced_camera() {
+    for scene in ["city.sim.yaml", "courtyard.sim.yaml"] {
+        let render = render(scene);
+        let mut settings = EvalStrategy::MultiSc.settings_as_run();
+        settings.roi = MeterRoi::Ground;
+        let trace = closed_loop::run(&render, settings, FRAMES, &mut || {}).unwrap();
+        let (e, probe) = (&trace.log2_e, &trace.probe);
+        let (mut seen, mut worst) = (0, 0.0f64);
+        for k in 0..e.len() {
+            let neighbours: Vec<usize> = trace
+                .pairs
+                .iter()
+                .filter_map(|&(i, j)| (i == k).then_some(j).or((j == k).then_some(i)))
+                .collect();
+            for i in 20..FRAMES - 2 {
+                if !probe[k][i] || probe[k][i - 1] {
+                    continue;
+                }
+                for &j in &neighbours {
+                    if (i - 1..=i + 2).any(|t| probe[j][t]) {
+                        continue;
+                    }
+                    let moved = (i..=i + 2)
+                        .map(|t| (e[j][t] - e[j][i - 1]).abs())
+                        .fold(0.0, f64::max);
+                    println!(
+                        "{scene}: camera {k} probes at set {i}, camera {j} moves {moved:.3} EV"
+                    );
+                    seen += 1;
+                    worst = worst.max(moved);
+                }
+            }
+        }
+        assert!(
+            seen > 0,
+            "{scene}: no probe after set 20 beside a resting neighbour"
+        );
+        assert!(
+            worst <= 0.1,
+            "{scene}: a neighbour moved {worst:.3} EV with a probe"
+        );
+    }
+}

@@ -75,8 +75,9 @@ struct InFlight {
     /// Whether the camera reacts to no frame until this command shows (a
     /// probe, the return from one, a PID step).
     must_show: bool,
-    /// Whether it is a probe's darker exposure.
-    probe: bool,
+    /// When it is a probe: its home, the exposure the camera probed from
+    /// and rests at unless the probe measures better.
+    home: Option<f64>,
 }
 
 /// The newest of `in_flight` that a frame taken at exposure `e` shows: the
@@ -149,12 +150,14 @@ pub struct CameraController {
     frames: u64,
     /// Whether the next command must show before the camera reacts again.
     must_show: bool,
-    /// Whether the next command is a probe.
-    probe_next: bool,
+    /// Whether the next command is a probe: its home when it is.
+    probe_next: Option<f64>,
     /// Whether the latest frame was taken at a probe's exposure (from the
     /// frame that shows a probe until the next command shows, or the probe
     /// is taken).
     probe_frame: bool,
+    /// The home of the probe the latest frame shows.
+    probe_home: Option<f64>,
     last_frame: Option<u64>,
     manual: Option<f64>,
     damping: balance::Damping,
@@ -269,8 +272,9 @@ impl CameraController {
             in_flight: VecDeque::new(),
             frames: 0,
             must_show: false,
-            probe_next: false,
+            probe_next: None,
             probe_frame: false,
+            probe_home: None,
             last_frame: None,
             manual: None,
             damping: balance::Damping::default(),
@@ -386,8 +390,9 @@ impl CameraController {
         self.pid.reset();
         self.in_flight.clear();
         self.must_show = false;
-        self.probe_next = false;
+        self.probe_next = None;
         self.probe_frame = false;
+        self.probe_home = None;
         self.prober.reset();
         self.reacquiring = false;
         self.probe_alone = false;
@@ -407,6 +412,22 @@ impl CameraController {
     /// shown: the newest command's, or `taken` when none is in flight.
     pub fn base(&self, taken: ExposureSetting) -> ExposureSetting {
         self.in_flight.back().map_or(taken, |c| c.setting)
+    }
+
+    /// Where the camera rests, its probes left out: the exposure of
+    /// [`Self::base`], or the probe's home while the newest command in
+    /// flight is a probe (a ladder's rung too), or while the latest frame
+    /// shows one and nothing is in flight. A probe is a glance the camera
+    /// returns from (or goes on from, when its prober takes it), not where
+    /// its neighbours should balance to.
+    pub fn rest_exposure(&self, taken: ExposureSetting) -> f64 {
+        match self.in_flight.back() {
+            Some(c) => c.home.unwrap_or_else(|| c.setting.exposure()),
+            None => self
+                .probe_home
+                .filter(|_| self.probe_frame)
+                .unwrap_or_else(|| taken.exposure()),
+        }
     }
 
     /// Whether balancing leaves this frame's command as the camera's own:
@@ -433,7 +454,8 @@ impl CameraController {
         self.frames += 1;
         // A probe's exposure lasts until the next command shows.
         if let Some(k) = shown(&self.in_flight, taken.exposure()) {
-            self.probe_frame = self.in_flight[k].probe;
+            self.probe_frame = self.in_flight[k].home.is_some();
+            self.probe_home = self.in_flight[k].home;
             self.in_flight.drain(..=k);
         }
         if self
@@ -808,7 +830,10 @@ impl CameraController {
                 probe,
                 Some(ProbeEvent::Sent { .. } | ProbeEvent::Rejected { .. } | ProbeEvent::Abandoned)
             );
-        self.probe_next = matches!(probe, Some(ProbeEvent::Sent { .. }));
+        self.probe_next = match probe {
+            Some(ProbeEvent::Sent { from, .. }) => Some(from),
+            _ => None,
+        };
         let probe_frame = self.probe_frame;
         if matches!(probe, Some(ProbeEvent::Taken { .. })) {
             // The law goes on from the probe's exposure: it is the
@@ -945,7 +970,7 @@ impl CameraController {
             setting = self.splitter.split(level).0;
         }
         let must_show = std::mem::take(&mut self.must_show);
-        let probe = std::mem::take(&mut self.probe_next);
+        let home = self.probe_next.take();
         let same = (setting.shutter_us / base.shutter_us - 1.0).abs() <= SETTLED_TOLERANCE / 4.0
             && (setting.gain_db - base.gain_db).abs() <= 0.01;
         if same {
@@ -959,7 +984,7 @@ impl CameraController {
             setting,
             sent: self.frames,
             must_show,
-            probe,
+            home,
         });
         (Some(setting), clamped)
     }

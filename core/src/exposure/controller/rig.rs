@@ -256,6 +256,17 @@ impl RigController {
             .zip(inputs)
             .map(|(c, input)| c.base(input.info.taken).exposure())
             .collect();
+        // Where each camera rests, for its neighbours: a probe (a ladder's
+        // rung too), in flight or shown, counts at its home, the exposure
+        // the camera returns to. Balanced to the probe in flight, the car
+        // park's front and back cameras stepped 0.16 and 0.18 EV down with
+        // the left camera's probe and climbed back over four sets.
+        let rests: Vec<f64> = self
+            .cameras
+            .iter()
+            .zip(inputs)
+            .map(|(c, input)| c.rest_exposure(input.info.taken))
+            .collect();
         // What balancing acts on: the measured ratios, or a pair's held
         // scene ratio while its patches are unusable. A probe frame's
         // patches are clipped less than the frames at rest, so its ratio
@@ -291,11 +302,11 @@ impl RigController {
                     .graph
                     .neighbours(i)
                     .filter_map(|j| {
-                        // r_ij as the two cameras will see the overlap at
-                        // their bases (a linear sensor's brightness follows
-                        // its exposure).
+                        // r_ij as the two cameras will see the overlap,
+                        // camera i at its base and j where it rests (a
+                        // linear sensor's brightness follows its exposure).
                         let moved =
-                            (bases[j] / inputs[j].info.taken.exposure()) / (bases[i] / u.taken);
+                            (rests[j] / inputs[j].info.taken.exposure()) / (bases[i] / u.taken);
                         acted
                             .iter()
                             .find(|r| r.i == i && r.j == j)
